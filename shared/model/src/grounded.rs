@@ -1,0 +1,191 @@
+//! A scenario grounded on the track: which map fragment, each agent's route and start/goal anchors,
+//! the conflict zone(s), the target PET τ and the style. Produced by `cloud/ground`, consumed by the
+//! diffusion model, the regulator and the simulated proving ground.
+
+use serde::{Deserialize, Serialize};
+
+use crate::Style;
+use crate::geometry::Point2;
+use crate::metrics::{ConflictKind, OccupancyInterval};
+use crate::semantics::InteractionType;
+use crate::validate::{Validate, ValidationError, finite, in_range, non_negative};
+
+/// The vehicle under test or a background vehicle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AgentRole {
+    /// The vehicle under test (the ADS, the game's follower).
+    Vut,
+    /// A background vehicle (the game's leader).
+    Bv,
+}
+
+/// An anchor with the state a vehicle should have there.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AnchorState {
+    /// Id of the anchor in the topology library.
+    pub anchor_id: String,
+    /// Position in the track frame.
+    pub position: Point2,
+    /// Heading, rad.
+    pub heading_rad: f64,
+    /// Speed, m/s.
+    pub speed_mps: f64,
+    /// Time at which the vehicle should be there, s from scenario start, when it matters.
+    pub time_s: Option<f64>,
+}
+
+impl Validate for AnchorState {
+    fn validate(&self) -> Result<(), ValidationError> {
+        if self.anchor_id.trim().is_empty() {
+            return Err(ValidationError::new("anchor_id", "must not be empty"));
+        }
+        finite("position.x", self.position.x)?;
+        finite("position.y", self.position.y)?;
+        finite("heading_rad", self.heading_rad)?;
+        in_range("speed_mps", self.speed_mps, 0.0, 70.0)?;
+        if let Some(t) = self.time_s {
+            non_negative("time_s", t)?;
+        }
+        Ok(())
+    }
+}
+
+/// One agent of a grounded scenario.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GroundedAgent {
+    /// Unique id (`vut`, `bv1`, `bv2`).
+    pub id: String,
+    /// VUT or BV.
+    pub role: AgentRole,
+    /// Route centreline in the track frame, in driving order.
+    pub route: Vec<Point2>,
+    /// Start anchor and state.
+    pub start: AnchorState,
+    /// Goal anchor and state.
+    pub goal: AnchorState,
+}
+
+/// The conflict between one BV and the VUT.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GroundedConflict {
+    /// The BV in this conflict.
+    pub bv_id: String,
+    /// Crossing or merge.
+    pub kind: ConflictKind,
+    /// Conflict anchor id in the topology library.
+    pub anchor_id: String,
+    /// Representative point of the zone.
+    pub point: Point2,
+    /// Occupancy interval along the VUT's route.
+    pub vut_interval: OccupancyInterval,
+    /// Occupancy interval along the BV's route.
+    pub bv_interval: OccupancyInterval,
+}
+
+/// A scenario grounded on a map fragment.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GroundedScenario {
+    /// Topology fragment the scenario was placed on.
+    pub fragment_id: String,
+    /// Interaction type from the semantics.
+    pub interaction_type: InteractionType,
+    /// The VUT and 1–2 BVs.
+    pub agents: Vec<GroundedAgent>,
+    /// One conflict per BV.
+    pub conflicts: Vec<GroundedConflict>,
+    /// Target PET τ, s.
+    pub tau_s: f64,
+    /// Who passes first.
+    pub style: Style,
+}
+
+impl GroundedScenario {
+    /// The VUT.
+    pub fn vut(&self) -> Option<&GroundedAgent> {
+        self.agents.iter().find(|a| a.role == AgentRole::Vut)
+    }
+
+    /// The BVs, in order.
+    pub fn bvs(&self) -> impl Iterator<Item = &GroundedAgent> {
+        self.agents.iter().filter(|a| a.role == AgentRole::Bv)
+    }
+}
+
+fn check_interval(field: &str, i: &OccupancyInterval) -> Result<(), ValidationError> {
+    finite(&format!("{field}.enter_s_m"), i.enter_s_m)?;
+    finite(&format!("{field}.exit_s_m"), i.exit_s_m)?;
+    if i.exit_s_m > i.enter_s_m {
+        Ok(())
+    } else {
+        Err(ValidationError::new(field, format!("exit {} must be beyond entry {}", i.exit_s_m, i.enter_s_m)))
+    }
+}
+
+impl Validate for GroundedAgent {
+    fn validate(&self) -> Result<(), ValidationError> {
+        if self.id.trim().is_empty() {
+            return Err(ValidationError::new("id", "must not be empty"));
+        }
+        if self.route.len() < 2 {
+            return Err(ValidationError::new("route", format!("needs at least 2 points, got {}", self.route.len())));
+        }
+        if let Some(i) = self.route.iter().position(|p| !p.is_finite()) {
+            return Err(ValidationError::new(format!("route[{i}]"), "must be finite"));
+        }
+        self.start.validate().map_err(|e| e.within("start"))?;
+        self.goal.validate().map_err(|e| e.within("goal"))
+    }
+}
+
+impl Validate for GroundedConflict {
+    fn validate(&self) -> Result<(), ValidationError> {
+        finite("point.x", self.point.x)?;
+        finite("point.y", self.point.y)?;
+        check_interval("vut_interval", &self.vut_interval)?;
+        check_interval("bv_interval", &self.bv_interval)
+    }
+}
+
+impl Validate for GroundedScenario {
+    fn validate(&self) -> Result<(), ValidationError> {
+        if self.fragment_id.trim().is_empty() {
+            return Err(ValidationError::new("fragment_id", "must not be empty"));
+        }
+        self.agents.validate().map_err(|e| e.within("agents"))?;
+        let vuts = self.agents.iter().filter(|a| a.role == AgentRole::Vut).count();
+        if vuts != 1 {
+            return Err(ValidationError::new("agents", format!("needs exactly one VUT, got {vuts}")));
+        }
+        let bvs = self.bvs().count();
+        if !(1..=2).contains(&bvs) {
+            return Err(ValidationError::new("agents", format!("needs 1 or 2 BVs, got {bvs}")));
+        }
+        for (i, a) in self.agents.iter().enumerate() {
+            if self.agents.iter().skip(i + 1).any(|b| b.id == a.id) {
+                return Err(ValidationError::new(format!("agents[{i}].id"), format!("`{}` is used twice", a.id)));
+            }
+        }
+        self.conflicts.validate().map_err(|e| e.within("conflicts"))?;
+        for (i, c) in self.conflicts.iter().enumerate() {
+            if !self.bvs().any(|b| b.id == c.bv_id) {
+                return Err(ValidationError::new(
+                    format!("conflicts[{i}].bv_id"),
+                    format!("`{}` is not a BV of this scenario", c.bv_id),
+                ));
+            }
+        }
+        if self.conflicts.is_empty() {
+            return Err(ValidationError::new("conflicts", "needs at least one conflict"));
+        }
+        if self.tau_s > 0.0 && self.tau_s <= 30.0 {
+            Ok(())
+        } else {
+            Err(ValidationError::new("tau_s", format!("must lie in (0, 30] s, got {}", self.tau_s)))
+        }
+    }
+}

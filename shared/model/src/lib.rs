@@ -1,0 +1,50 @@
+//! # v2t-model
+//!
+//! The domain of Video2Track, as types and pure math with no IO and no clock:
+//!
+//! - [`semantics`]: what the vision-language model must extract from a video (paper eq. 2), with its
+//!   JSON Schema;
+//! - [`grounded`] and [`prior`]: a scenario grounded on the track map, and the trajectory priors the
+//!   diffusion model produces for it;
+//! - [`kinematics`]: the discrete vehicle model, its rollout and the rollout's adjoint;
+//! - [`path`]: arc-length parameterised reference paths with a robust Frenet projection;
+//! - [`metrics`]: conflict zones, post-encroachment time (PET), time to collision, distances;
+//! - [`vehicle`]: vehicle geometry and limits;
+//! - [`validate`]: range checks that name the field at fault.
+//!
+//! ```
+//! use v2t_model::path::{PathBuilder, ReferencePath};
+//! let path: ReferencePath = PathBuilder::new(0.0, 0.0, 0.0).line(50.0).arc(20.0, 1.5708).build(0.5).unwrap();
+//! let q = path.to_cartesian(30.0, 1.0);
+//! let f = path.project(q).unwrap();
+//! assert!((f.s_m - 30.0).abs() < 1e-6 && (f.l_m - 1.0).abs() < 1e-6);
+//! ```
+
+pub mod geometry;
+pub mod grounded;
+pub mod kinematics;
+pub mod metrics;
+pub mod path;
+pub mod prior;
+pub mod semantics;
+pub mod validate;
+pub mod vehicle;
+
+/// Who passes the conflict zone first: the BV (`rush`) or the VUT (`yield`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Style {
+    /// The BV passes the conflict zone first.
+    Rush,
+    /// The VUT passes the conflict zone first.
+    Yield,
+}
+
+impl std::fmt::Display for Style {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Rush => "rush",
+            Self::Yield => "yield",
+        })
+    }
+}

@@ -1,0 +1,295 @@
+//! Conflict zones: where the swept corridors of two paths intersect.
+
+use serde::{Deserialize, Serialize};
+
+use super::Dimensions;
+use crate::geometry::{Point2, clip_convex, signed_area};
+use crate::path::ReferencePath;
+
+/// Crossing (the paths cross and part again) or merge (one path joins the other's lane).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ConflictKind {
+    /// The corridors cross and separate again (left turn, crossing traffic).
+    Crossing,
+    /// Path `b` joins path `a` and they share the lane afterwards (cut-in, on-ramp merge). The zone
+    /// ends where `b`'s centreline has joined `a`'s.
+    Merge,
+}
+
+/// The reference-point arc lengths along one vehicle's own path during which its footprint is in
+/// the zone: `[enter_s_m, exit_s_m]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct OccupancyInterval {
+    /// The vehicle enters the zone when its reference point reaches this arc length, m.
+    pub enter_s_m: f64,
+    /// It has left the zone when its reference point passes this arc length, m.
+    pub exit_s_m: f64,
+}
+
+impl OccupancyInterval {
+    /// Whether a vehicle at arc length `s_m` is in the zone.
+    pub fn contains(&self, s_m: f64) -> bool {
+        s_m >= self.enter_s_m && s_m <= self.exit_s_m
+    }
+}
+
+/// One conflict zone between path `a` and path `b`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ConflictZone {
+    /// Crossing or merge.
+    pub kind: ConflictKind,
+    /// Occupancy interval of the vehicle on path `a`.
+    pub a: OccupancyInterval,
+    /// Occupancy interval of the vehicle on path `b`.
+    pub b: OccupancyInterval,
+    /// A representative point of the zone (centroid of the shared area).
+    pub anchor: Point2,
+}
+
+/// Tuning of [`conflict_zones`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ConflictOptions {
+    /// `b` has joined `a` once its centreline is this close to `a`'s, m.
+    pub merge_tolerance_m: f64,
+    /// … and stays that close for at least this long, m (otherwise it only crossed).
+    pub merge_shared_length_m: f64,
+}
+
+impl Default for ConflictOptions {
+    fn default() -> Self {
+        Self { merge_tolerance_m: 0.25, merge_shared_length_m: 8.0 }
+    }
+}
+
+/// A piece of shared area: the clipped polygon and the segment of `b` it came from.
+struct Piece {
+    b_segment: usize,
+    polygon: Vec<Point2>,
+}
+
+/// Corridor quadrilateral of `path` between arc lengths `s0 < s1` with half-width `hw`.
+fn corridor_quad(path: &ReferencePath, s0: f64, s1: f64, hw: f64) -> [Point2; 4] {
+    [path.to_cartesian(s0, -hw), path.to_cartesian(s1, -hw), path.to_cartesian(s1, hw), path.to_cartesian(s0, hw)]
+}
+
+fn bounding_box(poly: &[Point2]) -> (Point2, Point2) {
+    poly.iter().fold(
+        (Point2::new(f64::INFINITY, f64::INFINITY), Point2::new(f64::NEG_INFINITY, f64::NEG_INFINITY)),
+        |(lo, hi), p| (Point2::new(lo.x.min(p.x), lo.y.min(p.y)), Point2::new(hi.x.max(p.x), hi.y.max(p.y))),
+    )
+}
+
+/// Vertex arc lengths of a path.
+fn vertex_s(path: &ReferencePath) -> Vec<f64> {
+    let mut s = Vec::with_capacity(path.points().len());
+    let mut acc = 0.0;
+    let mut prev: Option<Point2> = None;
+    for p in path.points() {
+        if let Some(q) = prev {
+            acc += q.dist(*p);
+        }
+        s.push(acc);
+        prev = Some(*p);
+    }
+    s
+}
+
+/// Shared area between `a`'s corridor and `b`'s corridor restricted to `b`'s arc lengths in
+/// `[0, b_end_s]`, as polygon pieces tagged with `b`'s segment.
+fn shared_pieces(
+    a: &ReferencePath,
+    a_hw: f64,
+    b: &ReferencePath,
+    b_hw: f64,
+    b_segments: std::ops::Range<usize>,
+    b_end_s: f64,
+) -> Vec<Piece> {
+    let sa = vertex_s(a);
+    let sb = vertex_s(b);
+    let a_quads: Vec<([Point2; 4], (Point2, Point2))> = sa
+        .windows(2)
+        .filter_map(|w| match w {
+            [s0, s1] => {
+                let q = corridor_quad(a, *s0, *s1, a_hw);
+                Some((q, bounding_box(&q)))
+            }
+            _ => None,
+        })
+        .collect();
+    let mut pieces = Vec::new();
+    for j in b_segments {
+        let (Some(&s0), Some(&s1)) = (sb.get(j), sb.get(j + 1)) else { continue };
+        if s0 >= b_end_s {
+            break;
+        }
+        let qb = corridor_quad(b, s0, s1.min(b_end_s), b_hw);
+        let (blo, bhi) = bounding_box(&qb);
+        for (qa, (alo, ahi)) in &a_quads {
+            if alo.x > bhi.x || blo.x > ahi.x || alo.y > bhi.y || blo.y > ahi.y {
+                continue;
+            }
+            let poly = clip_convex(qa, &qb);
+            if poly.len() >= 3 && signed_area(&poly).abs() > 1e-9 {
+                pieces.push(Piece { b_segment: j, polygon: poly });
+            }
+        }
+    }
+    pieces
+}
+
+/// Groups pieces into runs of consecutive `b` segments (one run per separate shared area).
+fn components(pieces: Vec<Piece>) -> Vec<Vec<Piece>> {
+    let mut out: Vec<Vec<Piece>> = Vec::new();
+    for p in pieces {
+        match out.last_mut() {
+            Some(run) if run.last().is_some_and(|q| p.b_segment <= q.b_segment + 1) => run.push(p),
+            _ => out.push(vec![p]),
+        }
+    }
+    out
+}
+
+/// Where `b`'s centreline joins `a`'s for good within `[s_from, s_to]`, if it does.
+fn merge_point(a: &ReferencePath, b: &ReferencePath, s_from: f64, s_to: f64, opt: &ConflictOptions) -> Option<f64> {
+    let step = 0.05;
+    let joined = |s: f64| a.project(b.point_at(s)).is_some_and(|f| f.l_m.abs() <= opt.merge_tolerance_m);
+    let n = ((s_to - s_from) / step).ceil().max(0.0) as usize;
+    let s_join = (0..=n).map(|k| s_from + step * k as f64).find(|s| joined(*s))?;
+    // It must stay joined over the shared length (or to the end of b).
+    let end = (s_join + opt.merge_shared_length_m).min(b.length());
+    let m = ((end - s_join) / 0.5).ceil().max(1.0) as usize;
+    (0..=m).all(|k| joined(s_join + (end - s_join) * k as f64 / m as f64)).then_some(s_join)
+}
+
+/// Extent of the pieces along a path: `(min s, max s)` of their vertices.
+fn extent(path: &ReferencePath, pieces: &[Piece]) -> Option<(f64, f64)> {
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    for p in pieces.iter().flat_map(|p| p.polygon.iter()) {
+        let f = path.project(*p)?;
+        lo = lo.min(f.s_m);
+        hi = hi.max(f.s_m);
+    }
+    (lo <= hi).then_some((lo, hi))
+}
+
+/// All conflict zones between a vehicle of size `a_dims` on path `a` and one of size `b_dims` on
+/// path `b`, in order along `b`.
+///
+/// The shared area is the intersection of the two corridors (each path swept by its vehicle's
+/// width); a vehicle occupies it while its footprint overlaps it, i.e. while its reference point is
+/// within half its length of the area's extent along its path. A shared area after which `b`
+/// stays on `a`'s centreline is a [`ConflictKind::Merge`] and is cut where `b` has joined.
+pub fn conflict_zones(
+    a: &ReferencePath,
+    a_dims: Dimensions,
+    b: &ReferencePath,
+    b_dims: Dimensions,
+    options: &ConflictOptions,
+) -> Vec<ConflictZone> {
+    let (a_hw, b_hw) = (0.5 * a_dims.width_m, 0.5 * b_dims.width_m);
+    let n_b = b.points().len().saturating_sub(1);
+    let sb = vertex_s(b);
+    let all = shared_pieces(a, a_hw, b, b_hw, 0..n_b, f64::INFINITY);
+    let mut zones = Vec::new();
+    for run in components(all) {
+        let (Some(first), Some(last)) = (run.first(), run.last()) else { continue };
+        let s_from = sb.get(first.b_segment).copied().unwrap_or(0.0);
+        let s_to = sb.get(last.b_segment + 1).copied().unwrap_or_else(|| b.length());
+        let (kind, pieces) = match merge_point(a, b, s_from, s_to, options) {
+            Some(s_join) if s_join > s_from => {
+                let cut = shared_pieces(a, a_hw, b, b_hw, first.b_segment..last.b_segment + 1, s_join);
+                (ConflictKind::Merge, cut)
+            }
+            _ => (ConflictKind::Crossing, run),
+        };
+        let (Some((a_lo, a_hi)), Some((b_lo, b_hi))) = (extent(a, &pieces), extent(b, &pieces)) else {
+            continue;
+        };
+        let n_vertices = pieces.iter().map(|p| p.polygon.len()).sum::<usize>().max(1);
+        let sum = pieces.iter().flat_map(|p| p.polygon.iter()).fold(Point2::default(), |acc, p| acc.add(*p));
+        zones.push(ConflictZone {
+            kind,
+            a: OccupancyInterval { enter_s_m: a_lo - 0.5 * a_dims.length_m, exit_s_m: a_hi + 0.5 * a_dims.length_m },
+            b: OccupancyInterval { enter_s_m: b_lo - 0.5 * b_dims.length_m, exit_s_m: b_hi + 0.5 * b_dims.length_m },
+            anchor: sum.scale(1.0 / n_vertices as f64),
+        });
+    }
+    zones
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::path::PathBuilder;
+    use std::f64::consts::FRAC_PI_2;
+
+    const CAR: Dimensions = Dimensions { length_m: 4.5, width_m: 1.8 };
+
+    #[test]
+    fn right_angle_crossing_gives_the_exact_square() {
+        // a runs east along y = 0, b runs north along x = 50; they cross at (50, 0).
+        let a = PathBuilder::new(0.0, 0.0, 0.0).line(100.0).build(1.0).unwrap();
+        let b = PathBuilder::new(50.0, -40.0, FRAC_PI_2).line(80.0).build(1.0).unwrap();
+        let zones = conflict_zones(&a, CAR, &b, CAR, &ConflictOptions::default());
+        assert_eq!(zones.len(), 1);
+        let z = zones[0];
+        assert_eq!(z.kind, ConflictKind::Crossing);
+        let (hw, hl) = (0.9, 2.25);
+        assert!((z.a.enter_s_m - (50.0 - hw - hl)).abs() < 1e-9, "{z:?}");
+        assert!((z.a.exit_s_m - (50.0 + hw + hl)).abs() < 1e-9);
+        assert!((z.b.enter_s_m - (40.0 - hw - hl)).abs() < 1e-9);
+        assert!((z.b.exit_s_m - (40.0 + hw + hl)).abs() < 1e-9);
+        assert!(z.anchor.dist(Point2::new(50.0, 0.0)) < 1e-9);
+    }
+
+    #[test]
+    fn parallel_lanes_do_not_conflict() {
+        let a = PathBuilder::new(0.0, 0.0, 0.0).line(100.0).build(1.0).unwrap();
+        let b = PathBuilder::new(0.0, 3.5, 0.0).line(100.0).build(1.0).unwrap();
+        assert!(conflict_zones(&a, CAR, &b, CAR, &ConflictOptions::default()).is_empty());
+    }
+
+    #[test]
+    fn cut_in_is_a_merge_that_ends_where_b_has_joined() {
+        let a = PathBuilder::new(0.0, 0.0, 0.0).line(200.0).build(0.5).unwrap();
+        // b starts one lane to the left, changes lane between x = 50 and x = 80, then follows a.
+        let b = PathBuilder::new(0.0, 3.5, 0.0).line(50.0).lane_change(30.0, -3.5).line(90.0).build(0.25).unwrap();
+        let zones = conflict_zones(&a, CAR, &b, CAR, &ConflictOptions::default());
+        assert_eq!(zones.len(), 1, "{zones:?}");
+        let z = zones[0];
+        assert_eq!(z.kind, ConflictKind::Merge);
+        // b's corridor edge (y = 3.5 - 0.9 offset) touches a's corridor (y <= 0.9) once the centre
+        // line is below y = 1.8, and b has joined when its centreline is within 0.25 m of y = 0.
+        let shape = |xi: f64| xi * xi * xi * (10.0 - 15.0 * xi + 6.0 * xi * xi);
+        let x_at = |y: f64| {
+            let (mut lo, mut hi) = (0.0, 1.0);
+            for _ in 0..60 {
+                let mid = 0.5 * (lo + hi);
+                if 3.5 - 3.5 * shape(mid) > y { lo = mid } else { hi = mid }
+            }
+            50.0 + 30.0 * lo
+        };
+        let (x_touch, x_join) = (x_at(1.8), x_at(0.25));
+        // The corridor of b is offset along its normal, so the touch point moves by less than a
+        // sampling step; accept 0.3 m.
+        assert!((z.a.enter_s_m - (x_touch - 2.25)).abs() < 0.3, "{} vs {}", z.a.enter_s_m, x_touch - 2.25);
+        assert!((z.a.exit_s_m - (x_join + 2.25)).abs() < 0.3, "{} vs {}", z.a.exit_s_m, x_join + 2.25);
+        assert!(z.b.exit_s_m > z.b.enter_s_m);
+    }
+
+    #[test]
+    fn left_turn_across_oncoming_lane_is_one_crossing() {
+        // VUT goes straight north on x = 1.75; the oncoming BV comes south on x = -1.75 and turns
+        // left (east) with a 12 m radius.
+        let a = PathBuilder::new(1.75, -60.0, FRAC_PI_2).line(120.0).build(0.5).unwrap();
+        let b =
+            PathBuilder::new(-1.75, 60.0, -FRAC_PI_2).line(50.0).arc(12.0, FRAC_PI_2).line(40.0).build(0.25).unwrap();
+        let zones = conflict_zones(&a, CAR, &b, CAR, &ConflictOptions::default());
+        assert_eq!(zones.len(), 1, "{zones:?}");
+        assert_eq!(zones[0].kind, ConflictKind::Crossing);
+        let z = zones[0];
+        assert!(z.a.exit_s_m - z.a.enter_s_m > CAR.length_m + CAR.width_m - 1e-6);
+    }
+}

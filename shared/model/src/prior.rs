@@ -1,0 +1,145 @@
+//! Trajectory priors: the reference trajectories the diffusion model generates for every agent, on
+//! one fixed time grid, which the cloud uploads to the BVs.
+
+use serde::{Deserialize, Serialize};
+
+use crate::Style;
+use crate::grounded::{AgentRole, GroundedConflict};
+use crate::kinematics::{Control, State, step};
+use crate::validate::{Validate, ValidationError, in_range};
+
+/// One agent's reference: `states[k]` at `t = k·dt`, `controls[k]` applied over `[k·dt, (k+1)·dt)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AgentTrajectory {
+    /// Agent id, as in the grounded scenario.
+    pub id: String,
+    /// VUT or BV.
+    pub role: AgentRole,
+    /// States `[px, py, θ, v]`, one more than controls.
+    pub states: Vec<State>,
+    /// Controls `[a, ω]`.
+    pub controls: Vec<Control>,
+}
+
+/// The priors for one scenario.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrajectoryPrior {
+    /// Grounded fragment id.
+    pub fragment_id: String,
+    /// Time step of every trajectory, s.
+    pub dt_s: f64,
+    /// One trajectory per agent.
+    pub agents: Vec<AgentTrajectory>,
+    /// Conflicts between each BV and the VUT.
+    pub conflicts: Vec<GroundedConflict>,
+    /// Target PET τ, s.
+    pub tau_s: f64,
+    /// Who passes first.
+    pub style: Style,
+}
+
+impl TrajectoryPrior {
+    /// Duration covered, s.
+    pub fn duration_s(&self) -> f64 {
+        self.agents.iter().map(|a| a.controls.len()).max().unwrap_or(0) as f64 * self.dt_s
+    }
+}
+
+impl AgentTrajectory {
+    /// Largest distance between the stored states and the rollout of the stored controls from the
+    /// first state: how far the pair is from being dynamically consistent, m.
+    pub fn rollout_gap_m(&self, dt_s: f64) -> f64 {
+        let mut x = self.states.first().copied().unwrap_or_default();
+        let mut worst: f64 = 0.0;
+        for (u, s) in self.controls.iter().zip(self.states.iter().skip(1)) {
+            x = step(x, *u, dt_s);
+            worst = worst.max(x.position().dist(s.position()));
+        }
+        worst
+    }
+}
+
+impl Validate for AgentTrajectory {
+    fn validate(&self) -> Result<(), ValidationError> {
+        if self.id.trim().is_empty() {
+            return Err(ValidationError::new("id", "must not be empty"));
+        }
+        if self.controls.is_empty() || self.states.len() != self.controls.len() + 1 {
+            return Err(ValidationError::new(
+                "states",
+                format!(
+                    "need controls ≥ 1 and states = controls + 1, got {} states and {} controls",
+                    self.states.len(),
+                    self.controls.len()
+                ),
+            ));
+        }
+        if let Some(i) = self.states.iter().position(|s| !s.is_finite()) {
+            return Err(ValidationError::new(format!("states[{i}]"), "must be finite"));
+        }
+        if let Some(i) = self.controls.iter().position(|u| !u.is_finite()) {
+            return Err(ValidationError::new(format!("controls[{i}]"), "must be finite"));
+        }
+        Ok(())
+    }
+}
+
+impl Validate for TrajectoryPrior {
+    fn validate(&self) -> Result<(), ValidationError> {
+        in_range("dt_s", self.dt_s, 0.001, 1.0)?;
+        if self.agents.is_empty() {
+            return Err(ValidationError::new("agents", "needs at least one trajectory"));
+        }
+        self.agents.validate().map_err(|e| e.within("agents"))?;
+        let n = self.agents.first().map(|a| a.controls.len()).unwrap_or(0);
+        if let Some(i) = self.agents.iter().position(|a| a.controls.len() != n) {
+            return Err(ValidationError::new(format!("agents[{i}].controls"), "every agent must share one time grid"));
+        }
+        self.conflicts.validate().map_err(|e| e.within("conflicts"))?;
+        in_range("tau_s", self.tau_s, 1e-3, 30.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kinematics::rollout;
+
+    fn prior() -> TrajectoryPrior {
+        let controls = vec![Control { accel_mps2: 0.5, yaw_rate_radps: 0.05 }; 40];
+        let states = rollout(State { px: 0.0, py: 0.0, theta_rad: 0.0, speed_mps: 8.0 }, &controls, 0.1);
+        TrajectoryPrior {
+            fragment_id: "x1".into(),
+            dt_s: 0.1,
+            agents: vec![AgentTrajectory { id: "bv1".into(), role: AgentRole::Bv, states, controls }],
+            conflicts: vec![],
+            tau_s: 2.0,
+            style: Style::Rush,
+        }
+    }
+
+    #[test]
+    fn a_rolled_out_prior_is_valid_and_consistent() {
+        let p = prior();
+        p.validate().unwrap();
+        assert!(p.agents[0].rollout_gap_m(p.dt_s) < 1e-12);
+        assert!((p.duration_s() - 4.0).abs() < 1e-12);
+        let back: TrajectoryPrior = serde_json::from_str(&serde_json::to_string(&p).unwrap()).unwrap();
+        assert_eq!(back, p);
+    }
+
+    #[test]
+    fn bad_priors_name_the_field() {
+        let mut p = prior();
+        p.agents[0].states[3].speed_mps = f64::NAN;
+        assert_eq!(p.validate().unwrap_err().field, "agents[0].states[3]");
+        let mut q = prior();
+        q.agents[0].states.pop();
+        assert_eq!(q.validate().unwrap_err().field, "agents[0].states");
+        let mut r = prior();
+        r.dt_s = -0.1;
+        assert_eq!(r.validate().unwrap_err().field, "dt_s");
+    }
+}
