@@ -13,7 +13,7 @@ pub enum ConflictKind {
     /// The corridors cross and separate again (left turn, crossing traffic).
     Crossing,
     /// Path `b` joins path `a` and they share the lane afterwards (cut-in, on-ramp merge). The zone
-    /// ends where `b`'s centreline has joined `a`'s.
+    /// is the encroachment point where `b`'s corridor first enters `a`'s.
     Merge,
 }
 
@@ -174,13 +174,43 @@ fn extent(path: &ReferencePath, pieces: &[Piece]) -> Option<(f64, f64)> {
     (lo <= hi).then_some((lo, hi))
 }
 
+/// The encroachment point of a merge: the first point (along `b`) where `b`'s corridor enters
+/// `a`'s. Each vehicle occupies it while its reference point is within half its length of the
+/// point's arc length on its own path, so PET is the time from the rear of the first vehicle
+/// passing the point to the front of the second reaching it (the usual cut-in PET).
+fn merge_zone(
+    a: &ReferencePath,
+    a_dims: Dimensions,
+    b: &ReferencePath,
+    b_dims: Dimensions,
+    run: &[Piece],
+) -> Option<ConflictZone> {
+    let mut best: Option<(f64, Point2)> = None;
+    for p in run.iter().flat_map(|p| p.polygon.iter()) {
+        let s_b = b.project(*p)?.s_m;
+        if best.is_none_or(|(s, _)| s_b < s) {
+            best = Some((s_b, *p));
+        }
+    }
+    let (s_b, point) = best?;
+    let s_a = a.project(point)?.s_m;
+    Some(ConflictZone {
+        kind: ConflictKind::Merge,
+        a: OccupancyInterval { enter_s_m: s_a - 0.5 * a_dims.length_m, exit_s_m: s_a + 0.5 * a_dims.length_m },
+        b: OccupancyInterval { enter_s_m: s_b - 0.5 * b_dims.length_m, exit_s_m: s_b + 0.5 * b_dims.length_m },
+        anchor: point,
+    })
+}
+
 /// All conflict zones between a vehicle of size `a_dims` on path `a` and one of size `b_dims` on
 /// path `b`, in order along `b`.
 ///
-/// The shared area is the intersection of the two corridors (each path swept by its vehicle's
-/// width); a vehicle occupies it while its footprint overlaps it, i.e. while its reference point is
-/// within half its length of the area's extent along its path. A shared area after which `b`
-/// stays on `a`'s centreline is a [`ConflictKind::Merge`] and is cut where `b` has joined.
+/// For a crossing, the zone is the intersection of the two corridors (each path swept by its
+/// vehicle's width); a vehicle occupies it while its footprint overlaps it, i.e. while its
+/// reference point is within half its length of the area's extent along its path. A shared area
+/// after which `b` stays on `a`'s centreline is a [`ConflictKind::Merge`]; its zone is the
+/// encroachment point where `b`'s corridor first enters `a`'s (a cut-in's PET is measured there:
+/// following in one lane afterwards is not a conflict).
 pub fn conflict_zones(
     a: &ReferencePath,
     a_dims: Dimensions,
@@ -197,20 +227,19 @@ pub fn conflict_zones(
         let (Some(first), Some(last)) = (run.first(), run.last()) else { continue };
         let s_from = sb.get(first.b_segment).copied().unwrap_or(0.0);
         let s_to = sb.get(last.b_segment + 1).copied().unwrap_or_else(|| b.length());
-        let (kind, pieces) = match merge_point(a, b, s_from, s_to, options) {
-            Some(s_join) if s_join > s_from => {
-                let cut = shared_pieces(a, a_hw, b, b_hw, first.b_segment..last.b_segment + 1, s_join);
-                (ConflictKind::Merge, cut)
+        if merge_point(a, b, s_from, s_to, options).is_some() {
+            if let Some(zone) = merge_zone(a, a_dims, b, b_dims, &run) {
+                zones.push(zone);
             }
-            _ => (ConflictKind::Crossing, run),
-        };
-        let (Some((a_lo, a_hi)), Some((b_lo, b_hi))) = (extent(a, &pieces), extent(b, &pieces)) else {
+            continue;
+        }
+        let (Some((a_lo, a_hi)), Some((b_lo, b_hi))) = (extent(a, &run), extent(b, &run)) else {
             continue;
         };
-        let n_vertices = pieces.iter().map(|p| p.polygon.len()).sum::<usize>().max(1);
-        let sum = pieces.iter().flat_map(|p| p.polygon.iter()).fold(Point2::default(), |acc, p| acc.add(*p));
+        let n_vertices = run.iter().map(|p| p.polygon.len()).sum::<usize>().max(1);
+        let sum = run.iter().flat_map(|p| p.polygon.iter()).fold(Point2::default(), |acc, p| acc.add(*p));
         zones.push(ConflictZone {
-            kind,
+            kind: ConflictKind::Crossing,
             a: OccupancyInterval { enter_s_m: a_lo - 0.5 * a_dims.length_m, exit_s_m: a_hi + 0.5 * a_dims.length_m },
             b: OccupancyInterval { enter_s_m: b_lo - 0.5 * b_dims.length_m, exit_s_m: b_hi + 0.5 * b_dims.length_m },
             anchor: sum.scale(1.0 / n_vertices as f64),
@@ -252,7 +281,7 @@ mod tests {
     }
 
     #[test]
-    fn cut_in_is_a_merge_that_ends_where_b_has_joined() {
+    fn cut_in_is_a_merge_measured_at_the_encroachment_point() {
         let a = PathBuilder::new(0.0, 0.0, 0.0).line(200.0).build(0.5).unwrap();
         // b starts one lane to the left, changes lane between x = 50 and x = 80, then follows a.
         let b = PathBuilder::new(0.0, 3.5, 0.0).line(50.0).lane_change(30.0, -3.5).line(90.0).build(0.25).unwrap();
@@ -260,23 +289,25 @@ mod tests {
         assert_eq!(zones.len(), 1, "{zones:?}");
         let z = zones[0];
         assert_eq!(z.kind, ConflictKind::Merge);
-        // b's corridor edge (y = 3.5 - 0.9 offset) touches a's corridor (y <= 0.9) once the centre
-        // line is below y = 1.8, and b has joined when its centreline is within 0.25 m of y = 0.
+        // b's corridor (half-width 0.9 along its normal) first reaches a's (|y| <= 0.9) near where
+        // b's centreline is at y = 1.8; the slope there is small, so its x is close to that point's.
         let shape = |xi: f64| xi * xi * xi * (10.0 - 15.0 * xi + 6.0 * xi * xi);
-        let x_at = |y: f64| {
-            let (mut lo, mut hi) = (0.0, 1.0);
-            for _ in 0..60 {
-                let mid = 0.5 * (lo + hi);
-                if 3.5 - 3.5 * shape(mid) > y { lo = mid } else { hi = mid }
-            }
-            50.0 + 30.0 * lo
-        };
-        let (x_touch, x_join) = (x_at(1.8), x_at(0.25));
-        // The corridor of b is offset along its normal, so the touch point moves by less than a
-        // sampling step; accept 0.3 m.
-        assert!((z.a.enter_s_m - (x_touch - 2.25)).abs() < 0.3, "{} vs {}", z.a.enter_s_m, x_touch - 2.25);
-        assert!((z.a.exit_s_m - (x_join + 2.25)).abs() < 0.3, "{} vs {}", z.a.exit_s_m, x_join + 2.25);
-        assert!(z.b.exit_s_m > z.b.enter_s_m);
+        let (mut lo, mut hi) = (0.0, 1.0);
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if 3.5 - 3.5 * shape(mid) > 1.8 { lo = mid } else { hi = mid }
+        }
+        let x_touch = 50.0 + 30.0 * lo;
+        assert!((z.anchor.y - 0.9).abs() < 1e-6, "{z:?}");
+        assert!((z.anchor.x - x_touch).abs() < 1.0, "{} vs {x_touch}", z.anchor.x);
+        assert!(
+            (z.a.enter_s_m - (z.anchor.x - 2.25)).abs() < 1e-6 && (z.a.exit_s_m - (z.anchor.x + 2.25)).abs() < 1e-6
+        );
+        assert!((z.b.exit_s_m - z.b.enter_s_m - CAR.length_m).abs() < 1e-9);
+        // The point lies on b's corridor edge, 0.9 m along b's tilted normal: its arc length on b
+        // is ahead of its x by at most 0.9·sin(max slope) plus the extra length of the curve.
+        let s_b = z.b.enter_s_m + 2.25;
+        assert!(s_b > z.anchor.x && s_b - z.anchor.x < 0.5, "{s_b} vs {}", z.anchor.x);
     }
 
     #[test]

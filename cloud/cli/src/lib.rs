@@ -1,0 +1,8 @@
+//! # video2track — the operator's command line
+//!
+//! The library half holds what the commands do, so that workspace tests and later commands (the
+//! demo, the experiments) reuse it: [`files`] loads configuration files with errors that name the
+//! file, and [`sim`] runs and reports a scenario in the simulated proving ground.
+
+pub mod files;
+pub mod sim;

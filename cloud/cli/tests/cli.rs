@@ -1,0 +1,139 @@
+//! The `video2track` binary end to end: real runs on the bundled cards, and bad input that must
+//! give a message naming the file, the field and the problem, exit code 2 and no panic.
+
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn video2track(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_video2track")).args(args).current_dir(repo()).output().unwrap()
+}
+
+fn text(o: &Output) -> (String, String) {
+    (String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned())
+}
+
+#[test]
+fn sim_runs_both_cards_with_every_vut_model_and_writes_json() {
+    let dir = tempdir("sim");
+    for card in ["left_turn_basic", "cut_in_basic"] {
+        for vut in ["idm-cautious", "idm-normal", "idm-aggressive", "reactive", "sampling"] {
+            let json = dir.join(format!("{card}-{vut}.json"));
+            let o = video2track(&[
+                "sim",
+                &format!("config/scenarios/{card}.toml"),
+                "--vut",
+                vut,
+                "--seed",
+                "3",
+                "--json",
+                json.to_str().unwrap(),
+            ]);
+            let (out, err) = text(&o);
+            assert!(o.status.success(), "{card}/{vut}: {err}");
+            assert!(out.contains("first through") && out.contains("PET") && out.contains("min distance"), "{out}");
+            let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+            assert_eq!(v["result"]["vut_model"], vut);
+            assert_eq!(v["result"]["seed"], 3);
+            assert!(v["result"]["min_distance_m"].as_f64().unwrap() > 0.0);
+            assert!(v["trace"].as_array().unwrap().len() > 10);
+        }
+    }
+}
+
+fn tempdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("v2t-cli-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Writes a copy of the left-turn card with `edit` applied to its text, next to copies of the
+/// files it names, and returns its path.
+fn broken_card(name: &str, edit: impl Fn(&str) -> String, vehicle_edit: impl Fn(&str) -> String) -> PathBuf {
+    let dir = tempdir(name);
+    std::fs::create_dir_all(dir.join("scenarios")).unwrap();
+    std::fs::create_dir_all(dir.join("vehicles")).unwrap();
+    std::fs::create_dir_all(dir.join("sim")).unwrap();
+    let card = std::fs::read_to_string(repo().join("config/scenarios/left_turn_basic.toml")).unwrap();
+    std::fs::write(dir.join("scenarios/card.toml"), edit(&card)).unwrap();
+    for v in ["bv_sedan", "vut_sedan"] {
+        let t = std::fs::read_to_string(repo().join(format!("config/vehicles/{v}.toml"))).unwrap();
+        std::fs::write(dir.join(format!("vehicles/{v}.toml")), vehicle_edit(&t)).unwrap();
+    }
+    std::fs::copy(repo().join("config/sim/default.toml"), dir.join("sim/default.toml")).unwrap();
+    dir.join("scenarios/card.toml")
+}
+
+fn expect_input_error(card: &Path, needles: &[&str]) {
+    let o = video2track(&["sim", card.to_str().unwrap()]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "stderr: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    for n in needles {
+        assert!(err.contains(n), "`{n}` missing from: {err}");
+    }
+}
+
+#[test]
+fn malformed_toml_names_the_file_and_line() {
+    let card = broken_card("malformed", |t| t.replace("tau_s = 2.0", "tau_s = = 2.0"), str::to_owned);
+    expect_input_error(&card, &["card.toml", "line"]);
+}
+
+#[test]
+fn unknown_field_is_named() {
+    let card = broken_card("unknown", |t| t.replace("tau_s = 2.0", "tau_s = 2.0\ncolour = \"red\""), str::to_owned);
+    expect_input_error(&card, &["card.toml", "colour"]);
+}
+
+#[test]
+fn nan_is_rejected_with_the_field() {
+    let card = broken_card("nan", |t| t.replace("initial_speed_mps = 10.0", "initial_speed_mps = nan"), str::to_owned);
+    expect_input_error(&card, &["card.toml", "bvs[0].initial_speed_mps", "NaN"]);
+}
+
+#[test]
+fn negative_vehicle_dimension_names_the_vehicle_file() {
+    let card = broken_card("negative", str::to_owned, |t| t.replace("width_m = 1.85", "width_m = -1.85"));
+    expect_input_error(&card, &["sedan.toml", "geometry.width_m", "-1.85"]);
+}
+
+#[test]
+fn missing_file_and_unknown_model_are_input_errors() {
+    let o = video2track(&["sim", "config/scenarios/no_such_card.toml"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o).1.contains("no_such_card.toml"));
+    let card = broken_card("model", |t| t.replace("idm-normal", "idm-reckless"), str::to_owned);
+    expect_input_error(&card, &["vut.model", "idm-reckless", "idm-normal"]);
+    let o = video2track(&["sim", "config/scenarios/left_turn_basic.toml", "--vut", "nobody"]);
+    assert_eq!(o.status.code(), Some(2), "clap rejects unknown values with its usage exit code");
+}
+
+#[test]
+fn paths_that_never_meet_are_refused() {
+    let card = broken_card(
+        "apart",
+        |t| t.replace("start_x_m = -1.75, start_y_m = 39.36", "start_x_m = -300.0, start_y_m = 39.36"),
+        str::to_owned,
+    );
+    expect_input_error(&card, &["never comes into conflict"]);
+}
+
+#[test]
+fn help_lists_only_real_commands() {
+    let o = video2track(&["--help"]);
+    let (out, _) = text(&o);
+    let commands: Vec<&str> = out
+        .lines()
+        .skip_while(|l| !l.starts_with("Commands:"))
+        .skip(1)
+        .take_while(|l| !l.trim().is_empty())
+        .filter_map(|l| l.split_whitespace().next())
+        .collect();
+    assert_eq!(commands, ["sim", "help"], "{out}");
+}

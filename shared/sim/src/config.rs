@@ -1,0 +1,249 @@
+//! Simulation settings and scenario cards, as written in TOML under `config/sim/` and
+//! `config/scenarios/`. Parsing is pure (`&str` in, typed and validated value out); reading the
+//! files is the caller's job, which passes the file name along so that every error names it.
+
+use serde::de::DeserializeOwned;
+use serde::{Deserialize, Serialize};
+use v2t_model::Style;
+use v2t_model::path::PathSpec;
+use v2t_model::validate::{Validate, ValidationError, in_range, non_negative, positive};
+
+/// A configuration file that did not parse or did not validate.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ConfigError {
+    /// TOML syntax, a missing or unknown field, a wrong type.
+    #[error("{origin}: {message}")]
+    Parse {
+        /// The file (or other origin) of the text.
+        origin: String,
+        /// The parser's message (names the line, column and key).
+        message: String,
+    },
+    /// Parsed, but a value is out of range.
+    #[error("{origin}: {source}")]
+    Invalid {
+        /// The file (or other origin) of the text.
+        origin: String,
+        /// The field and the problem.
+        source: ValidationError,
+    },
+}
+
+/// Parses TOML text into `T` and validates it. `origin` (usually the file path) prefixes every error.
+pub fn parse_toml<T: DeserializeOwned + Validate>(text: &str, origin: &str) -> Result<T, ConfigError> {
+    let value: T = toml::from_str(text)
+        .map_err(|e| ConfigError::Parse { origin: origin.to_owned(), message: e.to_string().trim_end().to_owned() })?;
+    value.validate().map_err(|source| ConfigError::Invalid { origin: origin.to_owned(), source })?;
+    Ok(value)
+}
+
+/// Global settings of the simulated proving ground.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimSettings {
+    /// Integration step of the vehicle plants, s.
+    pub plant_dt_s: f64,
+    /// Period at which controllers (BV and VUT) run, s; a multiple of `plant_dt_s`.
+    pub control_period_s: f64,
+    /// Period of the recorded trace, s; a multiple of `plant_dt_s`.
+    pub record_period_s: f64,
+    /// Whether localization noise is applied.
+    pub noise_enabled: bool,
+    /// Extra age of the VUT state when it reaches a BV (V2X or cloud relay), s.
+    pub v2x_delay_s: f64,
+    /// Extra age of BV states when the VUT perceives them (sensing pipeline), s.
+    pub perception_delay_s: f64,
+}
+
+impl SimSettings {
+    /// Plant steps per control period.
+    pub fn control_every(&self) -> usize {
+        ((self.control_period_s / self.plant_dt_s).round() as usize).max(1)
+    }
+
+    /// Plant steps per recorded sample.
+    pub fn record_every(&self) -> usize {
+        ((self.record_period_s / self.plant_dt_s).round() as usize).max(1)
+    }
+}
+
+fn multiple_of(field: &str, value: f64, base: f64) -> Result<(), ValidationError> {
+    let k = (value / base).round();
+    if k >= 1.0 && (value - k * base).abs() < 1e-9 {
+        Ok(())
+    } else {
+        Err(ValidationError::new(field, format!("must be a whole multiple of plant_dt_s = {base}, got {value}")))
+    }
+}
+
+impl Validate for SimSettings {
+    fn validate(&self) -> Result<(), ValidationError> {
+        in_range("plant_dt_s", self.plant_dt_s, 1e-4, 0.1)?;
+        in_range("control_period_s", self.control_period_s, 1e-3, 1.0)?;
+        multiple_of("control_period_s", self.control_period_s, self.plant_dt_s)?;
+        in_range("record_period_s", self.record_period_s, 1e-3, 1.0)?;
+        multiple_of("record_period_s", self.record_period_s, self.plant_dt_s)?;
+        in_range("v2x_delay_s", self.v2x_delay_s, 0.0, 2.0)?;
+        in_range("perception_delay_s", self.perception_delay_s, 0.0, 2.0)
+    }
+}
+
+/// A scenario card: the geometry, vehicles and references of one test scenario.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioCard {
+    /// Short name.
+    pub name: String,
+    /// What the scenario is, for the report.
+    pub description: String,
+    /// Settings file, relative to the card.
+    pub sim: String,
+    /// Simulated duration, s.
+    pub duration_s: f64,
+    /// Target PET τ, s (for the regulator and for reporting).
+    pub tau_s: f64,
+    /// Intended passing order.
+    pub style: Style,
+    /// The vehicle under test.
+    pub vut: VutCard,
+    /// One or two background vehicles.
+    pub bvs: Vec<BvCard>,
+}
+
+/// The VUT of a card.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VutCard {
+    /// Vehicle file, relative to the card.
+    pub vehicle: String,
+    /// Driver model used unless the command line says otherwise (see [`crate::vut::VutModel`]).
+    pub model: String,
+    /// Route.
+    pub path: PathSpec,
+    /// Speed at the start, m/s.
+    pub initial_speed_mps: f64,
+    /// Speed the driver wants to keep, m/s.
+    pub desired_speed_mps: f64,
+}
+
+/// A BV of a card.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BvCard {
+    /// Unique id (`bv1`, `bv2`).
+    pub id: String,
+    /// Vehicle file, relative to the card.
+    pub vehicle: String,
+    /// Reference path.
+    pub path: PathSpec,
+    /// Speed at the start, m/s.
+    pub initial_speed_mps: f64,
+    /// Reference speed over time: `[t_s, speed_mps]` points, linear in between, held after the last.
+    pub speed_profile: Vec<[f64; 2]>,
+}
+
+impl Validate for VutCard {
+    fn validate(&self) -> Result<(), ValidationError> {
+        if self.vehicle.trim().is_empty() {
+            return Err(ValidationError::new("vehicle", "must name a vehicle file"));
+        }
+        if self.model.parse::<crate::vut::VutModel>().is_err() {
+            return Err(ValidationError::new(
+                "model",
+                format!("unknown VUT model `{}`; one of: {}", self.model, crate::vut::VutModel::names().join(", ")),
+            ));
+        }
+        self.path.validate().map_err(|e| e.within("path"))?;
+        in_range("initial_speed_mps", self.initial_speed_mps, 0.0, 70.0)?;
+        in_range("desired_speed_mps", self.desired_speed_mps, 0.5, 70.0)
+    }
+}
+
+impl Validate for BvCard {
+    fn validate(&self) -> Result<(), ValidationError> {
+        if self.id.trim().is_empty() {
+            return Err(ValidationError::new("id", "must not be empty"));
+        }
+        if self.vehicle.trim().is_empty() {
+            return Err(ValidationError::new("vehicle", "must name a vehicle file"));
+        }
+        self.path.validate().map_err(|e| e.within("path"))?;
+        in_range("initial_speed_mps", self.initial_speed_mps, 0.0, 70.0)?;
+        if self.speed_profile.is_empty() {
+            return Err(ValidationError::new("speed_profile", "needs at least one [t_s, speed_mps] point"));
+        }
+        let mut last_t = f64::NEG_INFINITY;
+        for (i, [t, v]) in self.speed_profile.iter().enumerate() {
+            non_negative(&format!("speed_profile[{i}][0]"), *t)?;
+            in_range(&format!("speed_profile[{i}][1]"), *v, 0.0, 70.0)?;
+            if *t <= last_t {
+                return Err(ValidationError::new(format!("speed_profile[{i}][0]"), "times must increase"));
+            }
+            last_t = *t;
+        }
+        Ok(())
+    }
+}
+
+impl Validate for ScenarioCard {
+    fn validate(&self) -> Result<(), ValidationError> {
+        if self.name.trim().is_empty() {
+            return Err(ValidationError::new("name", "must not be empty"));
+        }
+        positive("duration_s", self.duration_s)?;
+        in_range("duration_s", self.duration_s, 0.1, 600.0)?;
+        in_range("tau_s", self.tau_s, 0.1, 30.0)?;
+        self.vut.validate().map_err(|e| e.within("vut"))?;
+        if !(1..=2).contains(&self.bvs.len()) {
+            return Err(ValidationError::new("bvs", format!("needs 1 or 2 BVs, got {}", self.bvs.len())));
+        }
+        self.bvs.validate().map_err(|e| e.within("bvs"))?;
+        for (i, b) in self.bvs.iter().enumerate() {
+            if b.id == "vut" || self.bvs.iter().skip(i + 1).any(|o| o.id == b.id) {
+                return Err(ValidationError::new(format!("bvs[{i}].id"), format!("`{}` is not unique", b.id)));
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SETTINGS: &str = r#"
+plant_dt_s = 0.01
+control_period_s = 0.1
+record_period_s = 0.1
+noise_enabled = true
+v2x_delay_s = 0.1
+perception_delay_s = 0.1
+"#;
+
+    #[test]
+    fn settings_parse_and_derive_their_step_counts() {
+        let s: SimSettings = parse_toml(SETTINGS, "default.toml").unwrap();
+        assert_eq!(s.control_every(), 10);
+        assert_eq!(s.record_every(), 10);
+    }
+
+    #[test]
+    fn errors_name_the_file_the_field_and_the_problem() {
+        let unknown = parse_toml::<SimSettings>(&format!("{SETTINGS}\ncolour = 3\n"), "a.toml").unwrap_err();
+        let text = unknown.to_string();
+        assert!(text.starts_with("a.toml: ") && text.contains("colour"), "{text}");
+
+        let nan = parse_toml::<SimSettings>(&SETTINGS.replace("plant_dt_s = 0.01", "plant_dt_s = nan"), "b.toml");
+        let err = nan.unwrap_err();
+        assert!(matches!(&err, ConfigError::Invalid { source, .. } if source.field == "plant_dt_s"), "{err}");
+
+        let odd = parse_toml::<SimSettings>(
+            &SETTINGS.replace("control_period_s = 0.1", "control_period_s = 0.015"),
+            "c.toml",
+        );
+        assert!(odd.unwrap_err().to_string().contains("control_period_s"));
+
+        let broken = parse_toml::<SimSettings>("plant_dt_s = [", "d.toml").unwrap_err();
+        assert!(matches!(broken, ConfigError::Parse { .. }));
+    }
+}

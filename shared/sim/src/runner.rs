@@ -1,0 +1,396 @@
+//! The scenario runner: fixed-step closed loop of plants, localization, BV controllers and the VUT
+//! driver; records the trace and measures the interaction.
+//!
+//! Agent 0 is the VUT, agents `1..` are the BVs in scenario order. Plants integrate at
+//! `settings.plant_dt_s`; controllers run every `settings.control_period_s` on what their
+//! localization and links deliver; PET and passages are measured on the true states at the plant
+//! rate.
+
+use serde::Serialize;
+use v2t_model::Style;
+use v2t_model::geometry::OrientedBox;
+use v2t_model::kinematics::State;
+use v2t_model::metrics::{
+    ConflictKind, Motion, MotionSnapshot, Passage, PetOutcome, Side, passage, pet, predicted_pet_series, ttc_2d,
+};
+use v2t_model::path::ReferencePath;
+
+use crate::bv::BvController;
+use crate::observation::{BvObservation, Perceived, VutObservation};
+use crate::plant::{ActuationRequest, Plant};
+use crate::scenario::{Agent, Scenario};
+use crate::sensing::Localization;
+use crate::vut::VutDriver;
+
+/// Who went through a conflict zone first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FirstThrough {
+    /// The background vehicle.
+    Bv,
+    /// The vehicle under test.
+    Vut,
+}
+
+/// The outcome at one BV's conflict zone.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ConflictResult {
+    /// The BV.
+    pub bv_id: String,
+    /// Crossing or merge.
+    pub kind: ConflictKind,
+    /// PET at the zone.
+    pub pet: PetOutcome,
+    /// Who went through first, if anyone did.
+    pub first: Option<FirstThrough>,
+    /// Whether the order is the one the style asks for (rush: BV first; yield: VUT first).
+    pub order_matches_style: Option<bool>,
+    /// When the VUT was in the zone.
+    pub vut_passage: Option<Passage>,
+    /// When the BV was in the zone.
+    pub bv_passage: Option<Passage>,
+}
+
+/// The first footprint overlap of a run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CollisionEvent {
+    /// Time, s.
+    pub t_s: f64,
+    /// The two vehicles.
+    pub agents: [String; 2],
+}
+
+/// What a run measured.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunResult {
+    /// Scenario name.
+    pub scenario: String,
+    /// VUT driver model.
+    pub vut_model: String,
+    /// BV controller.
+    pub bv_controller: String,
+    /// Random seed.
+    pub seed: u64,
+    /// Intended order.
+    pub style: Style,
+    /// Target PET τ, s.
+    pub tau_s: f64,
+    /// Simulated time, s.
+    pub duration_s: f64,
+    /// Whether every vehicle reached the end of its route.
+    pub completed: bool,
+    /// One entry per conflict.
+    pub conflicts: Vec<ConflictResult>,
+    /// Smallest measured PET over the conflicts, s.
+    pub pet_min_s: Option<f64>,
+    /// Smallest footprint distance between any two vehicles, m.
+    pub min_distance_m: f64,
+    /// When it occurred, s.
+    pub min_distance_t_s: f64,
+    /// Smallest constant-velocity TTC between the VUT and a BV over the recorded samples, s.
+    pub min_ttc_s: Option<f64>,
+    /// First collision, if any.
+    pub collision: Option<CollisionEvent>,
+    /// Whether two vehicles were ever in one conflict zone at the same time.
+    pub zone_overlap: bool,
+}
+
+/// One vehicle at one recorded instant.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AgentSample {
+    /// True state.
+    pub state: State,
+    /// Arc length along its route, m.
+    pub s_m: f64,
+    /// Lateral offset from its route, m.
+    pub l_m: f64,
+    /// Acceleration delivered, m/s².
+    pub accel_mps2: f64,
+    /// Road-wheel angle, rad.
+    pub steer_rad: f64,
+    /// Last request of its controller.
+    pub request: ActuationRequest,
+}
+
+/// One recorded instant.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TraceSample {
+    /// Time, s.
+    pub t_s: f64,
+    /// VUT first, then the BVs.
+    pub agents: Vec<AgentSample>,
+    /// Predicted PET per conflict from the true states at this instant (constant velocity), s.
+    pub predicted_pet_s: Vec<Option<f64>>,
+}
+
+/// A finished run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunOutcome {
+    /// The measurements.
+    pub result: RunResult,
+    /// Agent ids in trace order.
+    pub agent_ids: Vec<String>,
+    /// The recorded trace.
+    pub trace: Vec<TraceSample>,
+}
+
+/// Why a run could not start.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum RunError {
+    /// One controller per BV is needed.
+    #[error("{bvs} BVs in the scenario but {controllers} BV controllers given")]
+    ControllerCount {
+        /// BVs in the scenario.
+        bvs: usize,
+        /// Controllers given.
+        controllers: usize,
+    },
+}
+
+/// Tracks a vehicle's arc length along its route between steps.
+fn track(route: &ReferencePath, p: v2t_model::geometry::Point2, s_hint: f64, speed: f64, dt: f64) -> (f64, f64) {
+    let window = 5.0 + 2.0 * speed * dt;
+    route.project_near(p, s_hint, window).map_or((s_hint, 0.0), |f| (f.s_m, f.l_m))
+}
+
+fn start_state(agent: &Agent) -> State {
+    let p = agent.route.point_at(0.0);
+    State { px: p.x, py: p.y, theta_rad: agent.route.heading_at(0.0), speed_mps: agent.initial_speed_mps }
+}
+
+/// Runs `scenario` with one controller per BV and the VUT `driver`, deterministic for a `seed`.
+pub fn run(
+    scenario: &Scenario,
+    bv_controllers: &mut [Box<dyn BvController>],
+    driver: &mut dyn VutDriver,
+    seed: u64,
+) -> Result<RunOutcome, RunError> {
+    if bv_controllers.len() != scenario.bvs.len() {
+        return Err(RunError::ControllerCount { bvs: scenario.bvs.len(), controllers: bv_controllers.len() });
+    }
+    let settings = &scenario.settings;
+    let dt = settings.plant_dt_s;
+    let agents: Vec<&Agent> =
+        std::iter::once(&scenario.vut.agent).chain(scenario.bvs.iter().map(|b| &b.agent)).collect();
+    let max_extra = settings.v2x_delay_s.max(settings.perception_delay_s);
+    let mut plants: Vec<Plant> = agents.iter().map(|a| Plant::new(a.vehicle.clone(), start_state(a))).collect();
+    let mut locs: Vec<Localization> = agents
+        .iter()
+        .enumerate()
+        .map(|(i, a)| Localization::new(a.vehicle.localization, settings.noise_enabled, seed, i as u64, max_extra))
+        .collect();
+    let n = agents.len();
+    let mut s_true = vec![0.0; n];
+    let mut l_true = vec![0.0; n];
+    let mut s_perceived = vec![0.0; n];
+    let mut requests = vec![ActuationRequest::default(); n];
+    let mut times: Vec<f64> = Vec::new();
+    let mut s_series: Vec<Vec<f64>> = vec![Vec::new(); n];
+    let mut trace: Vec<TraceSample> = Vec::new();
+    let mut min_distance = (f64::INFINITY, 0.0);
+    let mut collision: Option<CollisionEvent> = None;
+    let mut min_ttc: Option<f64> = None;
+    let n_steps = (scenario.duration_s / dt).ceil() as usize;
+    let (control_every, record_every) = (settings.control_every(), settings.record_every());
+    let mut completed = false;
+    let mut perceived_bvs =
+        vec![Perceived { state: State::default(), s_m: 0.0, l_m: 0.0, age_s: 0.0 }; scenario.bvs.len()];
+    // Until every BV has been perceived once, the VUT driver is not asked (its actuators hold).
+    let mut bv_seen = vec![false; scenario.bvs.len()];
+
+    for k in 0..=n_steps {
+        let t = k as f64 * dt;
+        // Truth: Frenet tracking, localization history, distances.
+        let mut boxes: Vec<OrientedBox> = Vec::with_capacity(n);
+        for i in 0..n {
+            let (Some(plant), Some(agent), Some(loc)) = (plants.get(i), agents.get(i), locs.get_mut(i)) else {
+                continue;
+            };
+            let st = plant.state();
+            let (s, l) = track(&agent.route, st.position(), s_true.get(i).copied().unwrap_or(0.0), st.speed_mps, dt);
+            if let (Some(sv), Some(lv), Some(series)) = (s_true.get_mut(i), l_true.get_mut(i), s_series.get_mut(i)) {
+                *sv = s;
+                *lv = l;
+                series.push(s);
+            }
+            loc.record_truth(t, st);
+            boxes.push(agent.vehicle.footprint(&st));
+        }
+        times.push(t);
+        for i in 0..n {
+            for j in i + 1..n {
+                let (Some(a), Some(b)) = (boxes.get(i), boxes.get(j)) else { continue };
+                let d = a.distance(b);
+                if d < min_distance.0 {
+                    min_distance = (d, t);
+                }
+                if d <= 0.0 && collision.is_none() {
+                    let id = |x: usize| agents.get(x).map(|a| a.id.clone()).unwrap_or_default();
+                    collision = Some(CollisionEvent { t_s: t, agents: [id(i), id(j)] });
+                }
+            }
+        }
+
+        if k % control_every == 0 {
+            for loc in &mut locs {
+                let _ = loc.publish(t);
+            }
+            let perceive = |i: usize, extra: f64, hint: f64| -> Option<Perceived> {
+                let (state, age_s) = locs.get(i)?.seen_at(t, extra)?;
+                let route = &agents.get(i)?.route;
+                let (s_m, l_m) =
+                    track(route, state.position(), hint, state.speed_mps, age_s + control_every as f64 * dt);
+                Some(Perceived { state, s_m, l_m, age_s })
+            };
+            let hints = s_perceived.clone();
+            let hint = |i: usize| hints.get(i).copied().unwrap_or(0.0);
+            let own: Vec<Option<Perceived>> = (0..n).map(|i| perceive(i, 0.0, hint(i))).collect();
+            for (i, p) in own.iter().enumerate() {
+                if let (Some(p), Some(sp)) = (p, s_perceived.get_mut(i)) {
+                    *sp = p.s_m;
+                }
+            }
+            let vut_at_bv = perceive(0, settings.v2x_delay_s, hint(0));
+            for (b, (slot, seen)) in perceived_bvs.iter_mut().zip(bv_seen.iter_mut()).enumerate() {
+                if let Some(p) = perceive(b + 1, settings.perception_delay_s, hint(b + 1)) {
+                    *slot = p;
+                    *seen = true;
+                }
+            }
+            let control_dt = control_every as f64 * dt;
+            if let (Some(Some(vut_own)), true) = (own.first(), bv_seen.iter().all(|s| *s)) {
+                let obs = VutObservation { t_s: t, dt_s: control_dt, own: *vut_own, bvs: &perceived_bvs, scenario };
+                if let Some(r) = requests.first_mut() {
+                    *r = driver.control(&obs);
+                }
+            }
+            for (b, ctrl) in bv_controllers.iter_mut().enumerate() {
+                let (Some(Some(bv_own)), Some(vut)) = (own.get(b + 1), vut_at_bv) else { continue };
+                let obs = BvObservation { t_s: t, dt_s: control_dt, bv_index: b, own: *bv_own, vut, scenario };
+                if let Some(r) = requests.get_mut(b + 1) {
+                    *r = ctrl.control(&obs);
+                }
+            }
+            for (plant, req) in plants.iter_mut().zip(&requests) {
+                plant.request(t, *req);
+            }
+        }
+
+        if k % record_every == 0 {
+            let samples: Vec<AgentSample> = (0..n)
+                .filter_map(|i| {
+                    let p = plants.get(i)?;
+                    Some(AgentSample {
+                        state: p.state(),
+                        s_m: *s_true.get(i)?,
+                        l_m: *l_true.get(i)?,
+                        accel_mps2: p.accel_mps2(),
+                        steer_rad: p.steer_rad(),
+                        request: *requests.get(i)?,
+                    })
+                })
+                .collect();
+            let snapshot = |i: usize| -> Option<MotionSnapshot> {
+                let p = plants.get(i)?;
+                let st = p.state();
+                Some(MotionSnapshot {
+                    position: st.position(),
+                    heading_rad: st.theta_rad,
+                    speed_mps: st.speed_mps,
+                    accel_mps2: p.accel_mps2(),
+                    dims: agents.get(i)?.dims(),
+                })
+            };
+            for b in 1..n {
+                if let (Some(v), Some(x)) = (snapshot(0), snapshot(b))
+                    && let Some(ttc) = ttc_2d(&v, &x, Motion::ConstantVelocity, 10.0)
+                {
+                    min_ttc = Some(min_ttc.map_or(ttc, |m: f64| m.min(ttc)));
+                }
+            }
+            trace.push(TraceSample { t_s: t, agents: samples, predicted_pet_s: Vec::new() });
+        }
+
+        completed = agents.iter().zip(&s_true).all(|(a, s)| *s >= a.route.length() - 0.5);
+        if collision.is_some() || completed || k == n_steps {
+            break;
+        }
+        for plant in &mut plants {
+            plant.step(t, dt);
+        }
+    }
+
+    let t_end = times.last().copied().unwrap_or(0.0);
+    let mut conflicts = Vec::with_capacity(scenario.conflicts.len());
+    for c in &scenario.conflicts {
+        let (Some(vut_s), Some(bv_s), Some(bv)) =
+            (s_series.first(), s_series.get(c.bv_index + 1), scenario.bvs.get(c.bv_index))
+        else {
+            continue;
+        };
+        let vut_passage = passage(&times, vut_s, &c.zone.a);
+        let bv_passage = passage(&times, bv_s, &c.zone.b);
+        let outcome = pet(vut_passage, bv_passage, t_end);
+        let first = outcome.first().map(|s| match s {
+            Side::A => FirstThrough::Vut,
+            Side::B => FirstThrough::Bv,
+        });
+        let wanted = match scenario.style {
+            Style::Rush => FirstThrough::Bv,
+            Style::Yield => FirstThrough::Vut,
+        };
+        conflicts.push(ConflictResult {
+            bv_id: bv.agent.id.clone(),
+            kind: c.zone.kind,
+            pet: outcome,
+            first,
+            order_matches_style: first.map(|f| f == wanted),
+            vut_passage,
+            bv_passage,
+        });
+    }
+    fill_predicted_pet(scenario, &mut trace);
+    let pet_min_s = conflicts.iter().filter_map(|c| c.pet.pet_s()).reduce(f64::min);
+    let zone_overlap = conflicts.iter().any(|c| matches!(c.pet, PetOutcome::Measured { overlap: true, .. }));
+    let result = RunResult {
+        scenario: scenario.name.clone(),
+        vut_model: driver.name().to_owned(),
+        bv_controller: bv_controllers.iter().map(|c| c.name()).collect::<Vec<_>>().join("+"),
+        seed,
+        style: scenario.style,
+        tau_s: scenario.tau_s,
+        duration_s: t_end,
+        completed,
+        conflicts,
+        pet_min_s,
+        min_distance_m: min_distance.0,
+        min_distance_t_s: min_distance.1,
+        min_ttc_s: min_ttc,
+        collision,
+        zone_overlap,
+    };
+    Ok(RunOutcome { result, agent_ids: agents.iter().map(|a| a.id.clone()).collect(), trace })
+}
+
+/// Adds the constant-velocity predicted PET of every conflict to every trace sample.
+fn fill_predicted_pet(scenario: &Scenario, trace: &mut [TraceSample]) {
+    let times: Vec<f64> = trace.iter().map(|s| s.t_s).collect();
+    let series = |i: usize| -> (Vec<f64>, Vec<f64>) {
+        trace.iter().map(|s| s.agents.get(i).map_or((0.0, 0.0), |a| (a.s_m, a.state.speed_mps))).unzip()
+    };
+    let (vut_s, vut_v) = series(0);
+    let per_conflict: Vec<Vec<Option<f64>>> = scenario
+        .conflicts
+        .iter()
+        .map(|c| {
+            let (bv_s, bv_v) = series(c.bv_index + 1);
+            predicted_pet_series(&times, (&vut_s, &vut_v), &c.zone.a, (&bv_s, &bv_v), &c.zone.b)
+                .into_iter()
+                .map(|p| p.map(|(_, pet)| pet))
+                .collect()
+        })
+        .collect();
+    for (k, sample) in trace.iter_mut().enumerate() {
+        sample.predicted_pet_s = per_conflict.iter().map(|c| c.get(k).copied().flatten()).collect();
+    }
+}

@@ -1,0 +1,255 @@
+//! A scenario ready to run: routes built, vehicles resolved, conflict zones computed.
+
+use v2t_model::Style;
+use v2t_model::metrics::{ConflictOptions, ConflictZone, Dimensions, conflict_zones};
+use v2t_model::path::{PathError, ReferencePath};
+use v2t_model::vehicle::VehicleConfig;
+
+use crate::config::{ScenarioCard, SimSettings};
+use crate::vut::VutModel;
+
+/// Spacing at which card paths are sampled, m.
+const PATH_SAMPLING_M: f64 = 0.5;
+
+/// A card that cannot be turned into a runnable scenario.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ScenarioError {
+    /// A path could not be built.
+    #[error("{field}: {source}")]
+    Path {
+        /// Which path (`vut.path`, `bvs[0].path`).
+        field: String,
+        /// What went wrong.
+        source: PathError,
+    },
+    /// A BV's path never meets the VUT's: there is no interaction to test.
+    #[error("bvs[{index}].path: the BV `{id}` never comes into conflict with the VUT's path")]
+    NoConflict {
+        /// Index of the BV.
+        index: usize,
+        /// Its id.
+        id: String,
+    },
+    /// The card names a VUT model that does not exist.
+    #[error("vut.model: {0}")]
+    UnknownModel(String),
+    /// The number of vehicle configurations does not match the card.
+    #[error("{expected} BV vehicle configurations expected, {got} given")]
+    VehicleCount {
+        /// BVs in the card.
+        expected: usize,
+        /// Configurations given.
+        got: usize,
+    },
+}
+
+/// A vehicle with its route.
+#[derive(Debug, Clone)]
+pub struct Agent {
+    /// Unique id (`vut`, `bv1`, …).
+    pub id: String,
+    /// Vehicle description.
+    pub vehicle: VehicleConfig,
+    /// Route (VUT) or reference path (BV); the vehicle starts at its beginning.
+    pub route: ReferencePath,
+    /// Speed at the start, m/s.
+    pub initial_speed_mps: f64,
+}
+
+impl Agent {
+    /// Footprint size.
+    pub fn dims(&self) -> Dimensions {
+        Dimensions { length_m: self.vehicle.geometry.length_m, width_m: self.vehicle.geometry.width_m }
+    }
+}
+
+/// Piecewise-linear speed over time, held constant after the last point.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpeedProfile {
+    points: Vec<[f64; 2]>,
+}
+
+impl SpeedProfile {
+    /// From `[t_s, speed_mps]` points with increasing times (validated by the card).
+    pub fn new(points: Vec<[f64; 2]>) -> Self {
+        Self { points }
+    }
+
+    /// Reference speed at `t_s`, m/s.
+    pub fn speed_at(&self, t_s: f64) -> f64 {
+        let k = self.points.partition_point(|[t, _]| *t <= t_s);
+        match (k.checked_sub(1).and_then(|i| self.points.get(i)), self.points.get(k)) {
+            (Some([t0, v0]), Some([t1, v1])) => v0 + (v1 - v0) * (t_s - t0) / (t1 - t0),
+            (Some([_, v]), None) | (None, Some([_, v])) => *v,
+            (None, None) => 0.0,
+        }
+    }
+
+    /// Reference acceleration at `t_s` (slope of the current piece), m/s².
+    pub fn accel_at(&self, t_s: f64) -> f64 {
+        let k = self.points.partition_point(|[t, _]| *t <= t_s);
+        match (k.checked_sub(1).and_then(|i| self.points.get(i)), self.points.get(k)) {
+            (Some([t0, v0]), Some([t1, v1])) => (v1 - v0) / (t1 - t0),
+            _ => 0.0,
+        }
+    }
+
+    /// Distance covered from `t = 0` to `t_s` at the reference speed, m (exact for the piecewise-linear profile).
+    pub fn distance_at(&self, t_s: f64) -> f64 {
+        let mut dist = 0.0;
+        let mut t_prev = 0.0;
+        let mut v_prev = self.speed_at(0.0);
+        for [t, v] in self.points.iter().copied().filter(|[t, _]| *t > 0.0) {
+            if t >= t_s {
+                break;
+            }
+            dist += 0.5 * (v_prev + v) * (t - t_prev);
+            t_prev = t;
+            v_prev = v;
+        }
+        dist + 0.5 * (v_prev + self.speed_at(t_s)) * (t_s - t_prev).max(0.0)
+    }
+}
+
+/// A BV and the reference it is meant to follow.
+#[derive(Debug, Clone)]
+pub struct BvSetup {
+    /// The vehicle and its reference path.
+    pub agent: Agent,
+    /// Reference speed over time.
+    pub reference: SpeedProfile,
+}
+
+/// The VUT and its driver's wishes.
+#[derive(Debug, Clone)]
+pub struct VutSetup {
+    /// The vehicle and its route.
+    pub agent: Agent,
+    /// Speed the driver wants to keep, m/s.
+    pub desired_speed_mps: f64,
+    /// Driver model the card asks for.
+    pub default_model: VutModel,
+}
+
+/// The conflict between one BV and the VUT: zone side `a` is the VUT's route, side `b` the BV's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Conflict {
+    /// Index of the BV in [`Scenario::bvs`].
+    pub bv_index: usize,
+    /// The zone.
+    pub zone: ConflictZone,
+}
+
+/// A runnable scenario.
+#[derive(Debug, Clone)]
+pub struct Scenario {
+    /// Name from the card.
+    pub name: String,
+    /// Description from the card.
+    pub description: String,
+    /// Target PET τ, s.
+    pub tau_s: f64,
+    /// Intended passing order.
+    pub style: Style,
+    /// Simulated duration, s.
+    pub duration_s: f64,
+    /// Simulation settings.
+    pub settings: SimSettings,
+    /// The vehicle under test.
+    pub vut: VutSetup,
+    /// The background vehicles.
+    pub bvs: Vec<BvSetup>,
+    /// The first conflict of every BV with the VUT, in BV order.
+    pub conflicts: Vec<Conflict>,
+}
+
+impl Scenario {
+    /// Builds the scenario of a validated card, with the vehicles its files name already loaded
+    /// (`bv_vehicles` in the card's BV order).
+    pub fn from_card(
+        card: &ScenarioCard,
+        settings: SimSettings,
+        vut_vehicle: VehicleConfig,
+        bv_vehicles: Vec<VehicleConfig>,
+    ) -> Result<Self, ScenarioError> {
+        if bv_vehicles.len() != card.bvs.len() {
+            return Err(ScenarioError::VehicleCount { expected: card.bvs.len(), got: bv_vehicles.len() });
+        }
+        let build = |spec: &v2t_model::path::PathSpec, field: String| {
+            spec.builder().build(PATH_SAMPLING_M).map_err(|source| ScenarioError::Path { field, source })
+        };
+        let vut = VutSetup {
+            agent: Agent {
+                id: "vut".into(),
+                vehicle: vut_vehicle,
+                route: build(&card.vut.path, "vut.path".into())?,
+                initial_speed_mps: card.vut.initial_speed_mps,
+            },
+            desired_speed_mps: card.vut.desired_speed_mps,
+            default_model: card.vut.model.parse().map_err(ScenarioError::UnknownModel)?,
+        };
+        let mut bvs = Vec::with_capacity(card.bvs.len());
+        for (i, (bv, vehicle)) in card.bvs.iter().zip(bv_vehicles).enumerate() {
+            bvs.push(BvSetup {
+                agent: Agent {
+                    id: bv.id.clone(),
+                    vehicle,
+                    route: build(&bv.path, format!("bvs[{i}].path"))?,
+                    initial_speed_mps: bv.initial_speed_mps,
+                },
+                reference: SpeedProfile::new(bv.speed_profile.clone()),
+            });
+        }
+        let mut conflicts = Vec::with_capacity(bvs.len());
+        for (bv_index, bv) in bvs.iter().enumerate() {
+            let zones = conflict_zones(
+                &vut.agent.route,
+                vut.agent.dims(),
+                &bv.agent.route,
+                bv.agent.dims(),
+                &ConflictOptions::default(),
+            );
+            let zone = zones
+                .into_iter()
+                .next()
+                .ok_or_else(|| ScenarioError::NoConflict { index: bv_index, id: bv.agent.id.clone() })?;
+            conflicts.push(Conflict { bv_index, zone });
+        }
+        Ok(Self {
+            name: card.name.clone(),
+            description: card.description.clone(),
+            tau_s: card.tau_s,
+            style: card.style,
+            duration_s: card.duration_s,
+            settings,
+            vut,
+            bvs,
+            conflicts,
+        })
+    }
+
+    /// The conflict of BV `bv_index`.
+    pub fn conflict_of(&self, bv_index: usize) -> Option<&Conflict> {
+        self.conflicts.iter().find(|c| c.bv_index == bv_index)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn speed_profile_interpolates_and_integrates() {
+        let p = SpeedProfile::new(vec![[0.0, 10.0], [2.0, 6.0], [4.0, 6.0]]);
+        assert_eq!(p.speed_at(1.0), 8.0);
+        assert_eq!(p.speed_at(10.0), 6.0);
+        assert_eq!(p.accel_at(1.0), -2.0);
+        assert_eq!(p.accel_at(5.0), 0.0);
+        // 0–2 s: mean 8 m/s → 16 m; 2–5 s: 6 m/s → 18 m.
+        assert!((p.distance_at(5.0) - 34.0).abs() < 1e-12);
+        assert!((p.distance_at(1.0) - 9.0).abs() < 1e-12);
+        let late = SpeedProfile::new(vec![[1.0, 5.0]]);
+        assert_eq!(late.speed_at(0.0), 5.0);
+        assert!((late.distance_at(2.0) - 10.0).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,39 @@
+//! Every file under `config/` parses and validates with the type its folder says it holds. A file
+//! in a folder this test does not know fails the test, so new configuration cannot slip in unchecked.
+
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
+
+use v2t_model::semantics::{parse_semantics_json, scenario_semantics_schema};
+use v2t_model::vehicle::VehicleConfig;
+use v2t_sim::config::SimSettings;
+use v2t_tests::{files_under, repo_root};
+use video2track::files::{load_scenario, load_toml};
+
+#[test]
+fn every_configuration_file_loads_and_validates() {
+    let config = repo_root().join("config");
+    let files = files_under(&config);
+    assert!(files.len() >= 6, "expected the bundled configuration, found {files:?}");
+    let mut checked = 0;
+    for path in &files {
+        let rel = path.strip_prefix(&config).unwrap().to_string_lossy().replace('\\', "/");
+        let folder = rel.split('/').next().unwrap_or_default();
+        match folder {
+            "vehicles" => drop(load_toml::<VehicleConfig>(path).unwrap_or_else(|e| panic!("{e}"))),
+            "sim" => drop(load_toml::<SimSettings>(path).unwrap_or_else(|e| panic!("{e}"))),
+            "scenarios" => drop(load_scenario(path).unwrap_or_else(|e| panic!("{e}"))),
+            "examples" if rel.contains("semantics_") => {
+                let text = std::fs::read_to_string(path).unwrap();
+                parse_semantics_json(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            }
+            "schema" => {
+                let text = std::fs::read_to_string(path).unwrap();
+                let committed: serde_json::Value = serde_json::from_str(&text).unwrap();
+                assert_eq!(committed, scenario_semantics_schema(), "{rel} drifted from the types");
+            }
+            _ => panic!("config/{rel}: no validator knows this file; add one to tests/config_files.rs"),
+        }
+        checked += 1;
+    }
+    assert_eq!(checked, files.len());
+}
