@@ -6,6 +6,29 @@
 //! [`bv::BvController`] slot for the BV's onboard stack, and a fixed-step [`runner`] that records
 //! the full trace and measures PET per conflict, who passed first, distances and collisions.
 //! Deterministic given a seed.
+//!
+//! ```
+//! use v2t_model::vehicle::VehicleConfig;
+//! use v2t_sim::bv::{BvController, ReferenceFollower};
+//! use v2t_sim::config::{parse_toml, ScenarioCard, SimSettings};
+//! use v2t_sim::runner::run;
+//! use v2t_sim::scenario::Scenario;
+//! use v2t_sim::vut::VutModel;
+//!
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let card: ScenarioCard = parse_toml(include_str!("../../../config/scenarios/left_turn_basic.toml"), "card")?;
+//! let settings: SimSettings = parse_toml(include_str!("../../../config/sim/default.toml"), "sim")?;
+//! let vut: VehicleConfig = parse_toml(include_str!("../../../config/vehicles/vut_sedan.toml"), "vut")?;
+//! let bv: VehicleConfig = parse_toml(include_str!("../../../config/vehicles/bv_sedan.toml"), "bv")?;
+//! let scenario = Scenario::from_card(&card, settings, vut, vec![bv])?;
+//!
+//! let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(ReferenceFollower::default())];
+//! let outcome = run(&scenario, &mut bvs, VutModel::IdmNormal.driver().as_mut(), 1)?;
+//! assert!(outcome.result.collision.is_none());
+//! println!("PET_min = {:?} s", outcome.result.pet_min_s);
+//! # Ok(())
+//! # }
+//! ```
 
 pub mod bv;
 pub mod config;

@@ -394,3 +394,71 @@ fn fill_predicted_pet(scenario: &Scenario, trace: &mut [TraceSample]) {
         sample.predicted_pet_s = per_conflict.iter().map(|c| c.get(k).copied().flatten()).collect();
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bv::ReferenceFollower;
+    use crate::vut::common::fixtures::{VUT_SPEED, crossing};
+    use crate::vut::common::steering;
+
+    /// A VUT that holds its speed whatever happens (the analytic reference case).
+    struct Blind;
+
+    impl VutDriver for Blind {
+        fn name(&self) -> &str {
+            "blind"
+        }
+        fn control(&mut self, obs: &VutObservation<'_>) -> ActuationRequest {
+            ActuationRequest { accel_mps2: 0.0, steer_rad: steering(obs) }
+        }
+    }
+
+    #[test]
+    fn measured_pet_of_a_constant_speed_crossing_is_the_analytic_one() {
+        let bv_speed = 6.0;
+        let mut scenario = crossing(bv_speed);
+        scenario.settings.noise_enabled = false;
+        let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(ReferenceFollower::default())];
+        let out = run(&scenario, &mut bvs, &mut Blind, 1).unwrap();
+        let r = &out.result;
+        // VUT +x from (0, 0) at 10 m/s, BV +y from (50, -40) at 6 m/s, both 4.6 × 1.85 m.
+        let (half_len, half_width) = (2.3, 0.925);
+        let vut_enter = (50.0 - half_width - half_len) / VUT_SPEED;
+        let vut_exit = (50.0 + half_width + half_len) / VUT_SPEED;
+        let bv_enter = (40.0 - half_width - half_len) / bv_speed;
+        let bv_exit = (40.0 + half_width + half_len) / bv_speed;
+        let (expected_first, expected_pet) =
+            if vut_enter <= bv_enter { (FirstThrough::Vut, bv_enter - vut_exit) } else { (FirstThrough::Bv, vut_enter - bv_exit) };
+        let c = &r.conflicts[0];
+        assert_eq!(c.first, Some(expected_first));
+        let pet_s = c.pet.pet_s().unwrap();
+        assert!((pet_s - expected_pet).abs() < 1e-3, "PET {pet_s} vs analytic {expected_pet}");
+        assert!(pet_s > 0.5, "the case is built with a clear gap: {pet_s}");
+        assert_eq!(r.pet_min_s, Some(pet_s));
+        assert!(r.collision.is_none() && !r.zone_overlap);
+    }
+
+    #[test]
+    fn a_collision_is_detected_and_ends_the_run() {
+        // The BV (8 m/s, 40 m to go) and the VUT (10 m/s, 50 m to go) reach the crossing together.
+        let mut scenario = crossing(8.0);
+        scenario.settings.noise_enabled = false;
+        let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(ReferenceFollower::default())];
+        let out = run(&scenario, &mut bvs, &mut Blind, 1).unwrap();
+        let r = &out.result;
+        let collision = r.collision.as_ref().expect("both arrive at 5 s: they must collide");
+        assert_eq!(collision.agents, ["vut".to_owned(), "bv1".to_owned()]);
+        assert!((collision.t_s - 4.7).abs() < 0.3, "{collision:?}");
+        assert_eq!(r.min_distance_m, 0.0);
+        assert!(r.duration_s < scenario.duration_s);
+        assert!(!r.completed);
+    }
+
+    #[test]
+    fn the_controller_count_must_match_the_bvs() {
+        let scenario = crossing(8.0);
+        let err = run(&scenario, &mut [], &mut Blind, 1).unwrap_err();
+        assert_eq!(err, RunError::ControllerCount { bvs: 1, controllers: 0 });
+    }
+}

@@ -10,7 +10,7 @@
 //!
 //! All follow their route laterally with pure pursuit.
 
-mod common;
+pub(crate) mod common;
 pub mod idm;
 pub mod reactive;
 pub mod sampling;
