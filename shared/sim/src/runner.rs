@@ -399,20 +399,7 @@ fn fill_predicted_pet(scenario: &Scenario, trace: &mut [TraceSample]) {
 mod tests {
     use super::*;
     use crate::bv::ReferenceFollower;
-    use crate::vut::common::fixtures::{VUT_SPEED, crossing};
-    use crate::vut::common::steering;
-
-    /// A VUT that holds its speed whatever happens (the analytic reference case).
-    struct Blind;
-
-    impl VutDriver for Blind {
-        fn name(&self) -> &str {
-            "blind"
-        }
-        fn control(&mut self, obs: &VutObservation<'_>) -> ActuationRequest {
-            ActuationRequest { accel_mps2: 0.0, steer_rad: steering(obs) }
-        }
-    }
+    use crate::vut::common::fixtures::{Blind, VUT_SPEED, crossing};
 
     #[test]
     fn measured_pet_of_a_constant_speed_crossing_is_the_analytic_one() {
@@ -428,8 +415,11 @@ mod tests {
         let vut_exit = (50.0 + half_width + half_len) / VUT_SPEED;
         let bv_enter = (40.0 - half_width - half_len) / bv_speed;
         let bv_exit = (40.0 + half_width + half_len) / bv_speed;
-        let (expected_first, expected_pet) =
-            if vut_enter <= bv_enter { (FirstThrough::Vut, bv_enter - vut_exit) } else { (FirstThrough::Bv, vut_enter - bv_exit) };
+        let (expected_first, expected_pet) = if vut_enter <= bv_enter {
+            (FirstThrough::Vut, bv_enter - vut_exit)
+        } else {
+            (FirstThrough::Bv, vut_enter - bv_exit)
+        };
         let c = &r.conflicts[0];
         assert_eq!(c.first, Some(expected_first));
         let pet_s = c.pet.pet_s().unwrap();

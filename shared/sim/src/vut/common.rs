@@ -242,4 +242,16 @@ pub(crate) mod fixtures {
         let r = driver.control(&observe(&sc, f64::NAN, vut_at(0.0, VUT_SPEED), &bv));
         assert!(r.is_finite() && r.accel_mps2 == -FALLBACK_DECEL_MPS2);
     }
+
+    /// A VUT that holds its speed whatever happens and only steers along its route.
+    pub(crate) struct Blind;
+
+    impl VutDriver for Blind {
+        fn name(&self) -> &str {
+            "blind"
+        }
+        fn control(&mut self, obs: &VutObservation<'_>) -> ActuationRequest {
+            ActuationRequest { accel_mps2: 0.0, steer_rad: steering(obs) }
+        }
+    }
 }

@@ -322,7 +322,6 @@ mod tests {
     use super::*;
     use crate::scenario::Scenario;
     use crate::vut::common::fixtures::*;
-    use crate::vut::common::steering;
 
     fn accel(driver: &mut IdmDriver, sc: &Scenario, own: Perceived, bvs: &[Perceived]) -> f64 {
         let r = driver.control(&observe(sc, 0.0, own, bvs));
@@ -423,15 +422,6 @@ mod tests {
     #[test]
     fn closed_loop_crossing_has_no_collision() {
         // Sanity: a VUT that ignores the BV collides.
-        struct Blind;
-        impl VutDriver for Blind {
-            fn name(&self) -> &str {
-                "blind"
-            }
-            fn control(&mut self, obs: &VutObservation<'_>) -> ActuationRequest {
-                ActuationRequest { accel_mps2: 0.0, steer_rad: steering(obs) }
-            }
-        }
         assert!(closed_loop_crossing(&mut Blind).collision.is_some());
         for params in [IdmParams::cautious(), IdmParams::normal(), IdmParams::aggressive()] {
             let r = closed_loop_crossing(&mut IdmDriver::new(params));
