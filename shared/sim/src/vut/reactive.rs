@@ -6,7 +6,7 @@
 //! together with its own current state. So it reacts late, and then sharply:
 //!
 //! - **Cruise**: P control toward the desired speed capped by the curvature ahead.
-//! - **Conflict zones**: constant-velocity entry and exit times of both vehicles give a predicted
+//! - **Crossing zones**: constant-velocity entry and exit times of both vehicles give a predicted
 //!   PET. Below `pet_threshold_s`, with the BV arriving first or within `simultaneous_window_s` of
 //!   the VUT, the driver yields: it aims to reach its stop point before the zone no earlier than the
 //!   BV's predicted exit plus `yield_margin_s` (speed target = distance / time, capped by a braking
@@ -21,7 +21,7 @@
 
 use std::collections::VecDeque;
 
-use v2t_model::metrics::{ConflictZone, ttc_1d};
+use v2t_model::metrics::{ConflictKind, ConflictZone, ttc_1d};
 
 use super::VutDriver;
 use super::common::{STOP_MARGIN_M, STOPPED_MPS, fallback, finish, inputs_finite, lead_vehicle, speed_cap};
@@ -186,6 +186,12 @@ impl VutDriver for ReactiveDriver {
         let cruise = speed_cap(obs, STOP_PROFILE_DECEL_MPS2);
         let mut accel = brake_limit(p.cruise_gain * (cruise - v));
         for (c, yielding) in obs.scenario.conflicts.iter().zip(self.yielding.iter_mut()) {
+            // At a merge the BV ends up in the VUT's lane: the lead-vehicle rule below handles it;
+            // yielding to it at the merge point as if it crossed would stall the VUT behind a BV
+            // that is waiting for it.
+            if c.zone.kind != ConflictKind::Crossing {
+                continue;
+            }
             let Some(bv) = bvs.get(c.bv_index) else { continue };
             if let Some(target) = yield_target(&p, &c.zone, bv, &obs.own, yielding) {
                 accel = accel.min(brake_limit(p.brake_gain * (target - v)));
