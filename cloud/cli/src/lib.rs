@@ -4,5 +4,6 @@
 //! demo, the experiments) reuse it: [`files`] loads configuration files with errors that name the
 //! file, and [`sim`] runs and reports a scenario in the simulated proving ground.
 
+pub mod experiment;
 pub mod files;
 pub mod sim;

@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use anyhow::Context as _;
 use clap::{Parser, Subcommand};
 use v2t_sim::vut::VutModel;
+use video2track::experiment;
 use video2track::files::{InputError, load_scenario};
 use video2track::sim::{report, run_reference};
 
@@ -33,6 +34,33 @@ enum Command {
         #[arg(long)]
         json: Option<PathBuf>,
     },
+    /// Reproduce a research question of the paper in the simulated proving ground.
+    Experiment {
+        /// Which experiment.
+        #[arg(value_enum)]
+        which: Experiment,
+        /// Write the per-case results as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Seeded noisy runs per case.
+        #[arg(long, default_value_t = 20)]
+        repeats: usize,
+        /// Scenario cards (default: the bundled left turn and cut-in).
+        #[arg(long = "card")]
+        cards: Vec<PathBuf>,
+        /// Only these VUT models (default: all).
+        #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(VutModel::names()))]
+        vut: Vec<String>,
+        /// Only these targets τ, s (default: 1.5 2 3 4 5).
+        #[arg(long)]
+        tau: Vec<f64>,
+    },
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum Experiment {
+    /// RQ3: does the achieved PET land on the target τ, in both styles, against every VUT model?
+    Steerability,
 }
 
 fn main() -> ExitCode {
@@ -55,6 +83,31 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             print!("{}", report(&outcome));
             if let Some(path) = json {
                 let text = serde_json::to_string_pretty(&outcome).context("serializing the run")?;
+                std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
+                println!("wrote {}", path.display());
+            }
+            Ok(())
+        }
+        Command::Experiment { which: Experiment::Steerability, json, repeats, cards, vut, tau } => {
+            let cards = if cards.is_empty() {
+                vec![
+                    PathBuf::from("config/scenarios/left_turn_basic.toml"),
+                    PathBuf::from("config/scenarios/cut_in_basic.toml"),
+                ]
+            } else {
+                cards
+            };
+            let scenarios = cards.iter().map(|c| load_scenario(c)).collect::<Result<Vec<_>, _>>()?;
+            let models: Vec<VutModel> = if vut.is_empty() {
+                VutModel::ALL.to_vec()
+            } else {
+                vut.iter().map(|v| v.parse::<VutModel>()).collect::<Result<_, _>>().map_err(anyhow::Error::msg)?
+            };
+            let taus = if tau.is_empty() { experiment::STEER_TAUS_S.to_vec() } else { tau };
+            let report = experiment::steerability(&scenarios, &taus, &models, repeats);
+            print!("{}", experiment::steer_markdown(&report));
+            if let Some(path) = json {
+                let text = serde_json::to_string_pretty(&report).context("serializing the report")?;
                 std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
                 println!("wrote {}", path.display());
             }

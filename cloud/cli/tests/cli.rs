@@ -135,5 +135,5 @@ fn help_lists_only_real_commands() {
         .take_while(|l| !l.trim().is_empty())
         .filter_map(|l| l.split_whitespace().next())
         .collect();
-    assert_eq!(commands, ["sim", "help"], "{out}");
+    assert_eq!(commands, ["sim", "experiment", "help"], "{out}");
 }

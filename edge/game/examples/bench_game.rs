@@ -1,0 +1,156 @@
+//! Decision latency and allocations of the regulator over closed-loop-like decision sequences.
+//!
+//! `cargo run --release -p v2t-game --example bench_game -- [--json FILE]`
+//!
+//! For N = 30 and N = 50 it replays a left-turn approach in both styles (the BV and the VUT
+//! advancing along their paths at the speeds the decisions imply, with the VUT at constant speed),
+//! plus 10,000 decisions on randomized states, on one thread. It reports p50 / p99 / max latency in
+//! µs, heap allocations per decision after warm-up (all of them come from inside Clarabel: the
+//! regulator's own code allocates nothing per cycle), status counts and any non-finite output.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
+
+use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams};
+use v2t_model::Style;
+use v2t_model::metrics::OccupancyInterval;
+
+struct Counting;
+static ALLOCS: AtomicU64 = AtomicU64::new(0);
+
+// SAFETY: forwards every call to the system allocator unchanged and only counts.
+#[allow(unsafe_code)]
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        ALLOCS.fetch_add(1, Ordering::Relaxed);
+        // SAFETY: same contract as the caller's.
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        // SAFETY: same contract as the caller's.
+        unsafe { System.dealloc(p, l) }
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+        ALLOCS.fetch_add(1, Ordering::Relaxed);
+        // SAFETY: same contract as the caller's.
+        unsafe { System.realloc(p, l, n) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+/// A tiny deterministic generator (SplitMix64) for the randomized states.
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        (z ^ (z >> 31)) as f64 / u64::MAX as f64
+    }
+    fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.next()
+    }
+}
+
+fn base(style: Style, tau: f64) -> RegulatorInput {
+    RegulatorInput {
+        t_s: 0.0,
+        bv: PathState { s_m: 0.0, v_mps: 10.0, age_s: 0.05 },
+        vut: PathState { s_m: 0.0, v_mps: 8.0, age_s: 0.15 },
+        bv_accel_mps2: 0.0,
+        zone_bv: OccupancyInterval { enter_s_m: 33.5, exit_s_m: 45.3 },
+        zone_vut: OccupancyInterval { enter_s_m: 74.6, exit_s_m: 86.4 },
+        tau_s: tau,
+        style,
+        reference_speed_mps: 10.0,
+        reference_key_time_s: None,
+    }
+}
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    let i = ((sorted.len() as f64 - 1.0) * p).round() as usize;
+    sorted.get(i).copied().unwrap_or(f64::NAN)
+}
+
+fn main() {
+    let json_path = std::env::args().skip_while(|a| a != "--json").nth(1);
+    let mut report = Vec::new();
+    for horizon in [30usize, 50] {
+        let params = RegulatorParams { horizon, ..RegulatorParams::default() };
+        let Ok(mut reg) = Regulator::new(params) else {
+            eprintln!("cannot build the regulator");
+            std::process::exit(1);
+        };
+        let mut lat_us = Vec::new();
+        let mut statuses: BTreeMap<String, u64> = BTreeMap::new();
+        let (mut allocs, mut counted, mut non_finite) = (0u64, 0u64, 0u64);
+        let mut decide = |reg: &mut Regulator, inp: &RegulatorInput, warm: bool| {
+            let a0 = ALLOCS.load(Ordering::Relaxed);
+            let t0 = Instant::now();
+            let d = reg.decide(inp);
+            let dt = t0.elapsed().as_secs_f64() * 1e6;
+            let a1 = ALLOCS.load(Ordering::Relaxed);
+            if warm {
+                lat_us.push(dt);
+                allocs += a1 - a0;
+                counted += 1;
+                *statuses.entry(format!("{:?}", d.status)).or_default() += 1;
+                if !d.accel_mps2.is_finite() {
+                    non_finite += 1;
+                }
+            }
+            d
+        };
+        // Closed-loop-like approaches.
+        for style in [Style::Rush, Style::Yield] {
+            for tau in [1.5, 2.0, 3.0, 4.0, 5.0] {
+                reg.reset();
+                let mut inp = base(style, tau);
+                for k in 0..200 {
+                    let d = decide(&mut reg, &inp, k >= 5);
+                    inp.t_s += 0.1;
+                    let v = (inp.bv.v_mps + d.accel_mps2 * 0.1).max(0.0);
+                    inp.bv.s_m += 0.5 * (inp.bv.v_mps + v) * 0.1;
+                    inp.bv.v_mps = v;
+                    inp.bv_accel_mps2 = d.accel_mps2;
+                    inp.vut.s_m += inp.vut.v_mps * 0.1;
+                }
+            }
+        }
+        // Randomized states.
+        let mut rng = Rng(horizon as u64);
+        for _ in 0..10_000 {
+            let mut inp = base(if rng.next() < 0.5 { Style::Rush } else { Style::Yield }, rng.range(0.5, 6.0));
+            inp.t_s = rng.range(0.0, 30.0);
+            inp.bv = PathState { s_m: rng.range(-20.0, 80.0), v_mps: rng.range(0.0, 20.0), age_s: rng.range(0.0, 0.6) };
+            inp.vut =
+                PathState { s_m: rng.range(-40.0, 120.0), v_mps: rng.range(0.0, 20.0), age_s: rng.range(0.0, 0.6) };
+            inp.bv_accel_mps2 = rng.range(-6.0, 3.0);
+            reg.reset();
+            decide(&mut reg, &inp, true);
+        }
+        lat_us.sort_by(f64::total_cmp);
+        let line = format!(
+            "{{\"horizon\": {horizon}, \"decisions\": {counted}, \"p50_us\": {:.1}, \"p99_us\": {:.1}, \"max_us\": {:.1}, \"allocs_per_decision\": {:.2}, \"non_finite\": {non_finite}, \"statuses\": {{{}}}}}",
+            percentile(&lat_us, 0.5),
+            percentile(&lat_us, 0.99),
+            lat_us.last().copied().unwrap_or(f64::NAN),
+            allocs as f64 / counted.max(1) as f64,
+            statuses.iter().map(|(k, v)| format!("\"{k}\": {v}")).collect::<Vec<_>>().join(", ")
+        );
+        println!("{line}");
+        report.push(line);
+    }
+    if let Some(path) = json_path {
+        let text = format!("[\n  {}\n]\n", report.join(",\n  "));
+        if let Err(e) = std::fs::write(&path, text) {
+            eprintln!("writing {path}: {e}");
+            std::process::exit(1);
+        }
+    }
+}

@@ -1,0 +1,521 @@
+//! The leader: the BV's regulator.
+//!
+//! **Method.** Each cycle, from the measured states, the regulator solves a Stackelberg problem
+//! whose leader decision is reduced to one number, the time `T` at which the BV reaches its key
+//! point on its path — the zone exit when it rushes (it must be out before the VUT comes), the
+//! zone entry when it yields (it goes in after the VUT has left):
+//!
+//! 1. **Follower best response.** The VUT is modelled as a QP-MPC (see [`crate::qp`]) that tracks
+//!    its current speed with an effort penalty, speed ≥ 0 and its limits, and keeps the zone order
+//!    the style fixes with one linear inequality at the BV's planned key time (slack reported).
+//!    From its plan come the VUT's entry time (rush) or exit time (yield) `t_V`.
+//! 2. **Leader choice.** PET is `t_V − T` (rush) or `T − t_V` (yield); the adversarial term
+//!    `w_adv (PET − τ)²` plus the realism term `w_real (T − T_ref)²` (the time the reference would
+//!    reach the key point) is minimised in closed form, `T* = (w_adv (t_V ∓ τ) + w_real T_ref) /
+//!    (w_adv + w_real)`. The follower is re-solved with `T*` (a fixed-point step: its response only
+//!    moves when its order constraint becomes active).
+//! 3. **Leader plan.** A QP-MPC for the BV with the event `s_BV(T*) = key station` (an equality,
+//!    slack-penalized: when it cannot be met the plan comes as close as the limits allow and the
+//!    status says `Degraded`), tracking the reference speed, within the BV's limits.
+//! 4. **Safety.** The follower is solved once more against the BV's *planned* key time plus a
+//!    margin. If even the VUT's best response cannot keep the order (its slack is positive), the BV
+//!    gives way: it plans to stay behind the zone entry until the VUT is predicted to have left
+//!    (`SafetyYield`).
+//!
+//! **Why it holds in closed loop.** The key time is a commitment in absolute time, recomputed from
+//! measured states every cycle; the event may lie beyond the horizon (the QP extrapolates at the
+//! terminal speed), so the plan never pushes its waiting past the horizon, and the target tracks the
+//! VUT's actual progress (feedback on the predicted PET). When the VUT has already left the zone in
+//! yield, the observed exit time is used instead of a prediction.
+//!
+//! Every outcome is a [`RegulatorStatus`] with a defined plan; the acceleration returned is always
+//! finite and within the BV's limits.
+
+use v2t_model::Style;
+use v2t_model::metrics::OccupancyInterval;
+use v2t_model::validate::{Validate, ValidationError, in_range, positive};
+
+use crate::qp::{EventKind, LongitudinalQp, QpError, QpInput, QpShape, QpStatus};
+
+/// Longitudinal limits of one vehicle.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Limits {
+    /// Top speed, m/s.
+    pub max_speed_mps: f64,
+    /// Largest acceleration, m/s².
+    pub max_accel_mps2: f64,
+    /// Largest deceleration (positive), m/s².
+    pub max_decel_mps2: f64,
+}
+
+/// Regulator settings.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RegulatorParams {
+    /// MPC steps (30 or 50 are typical).
+    pub horizon: usize,
+    /// MPC step, s.
+    pub dt_s: f64,
+    /// Weight of the adversarial term `(PET − τ)²`.
+    pub w_adv: f64,
+    /// Weight of the realism term `(T − T_ref)²` on the key time.
+    pub w_real: f64,
+    /// The BV never plans to share the zone with the VUT closer than this, s.
+    pub safety_margin_s: f64,
+    /// Inputs older than this are stale, s.
+    pub max_input_age_s: f64,
+    /// Comfortable deceleration of the fallback profile, m/s².
+    pub fallback_decel_mps2: f64,
+    /// BV limits.
+    pub bv: Limits,
+    /// Assumed VUT limits (for its best response).
+    pub vut: Limits,
+}
+
+impl Default for RegulatorParams {
+    fn default() -> Self {
+        Self {
+            horizon: 50,
+            dt_s: 0.1,
+            w_adv: 1.0,
+            w_real: 0.0,
+            safety_margin_s: 0.5,
+            max_input_age_s: 0.5,
+            fallback_decel_mps2: 2.0,
+            bv: Limits { max_speed_mps: 20.0, max_accel_mps2: 3.0, max_decel_mps2: 6.0 },
+            vut: Limits { max_speed_mps: 25.0, max_accel_mps2: 3.0, max_decel_mps2: 6.0 },
+        }
+    }
+}
+
+impl Validate for Limits {
+    fn validate(&self) -> Result<(), ValidationError> {
+        in_range("max_speed_mps", self.max_speed_mps, 0.1, 70.0)?;
+        in_range("max_accel_mps2", self.max_accel_mps2, 0.1, 10.0)?;
+        in_range("max_decel_mps2", self.max_decel_mps2, 0.1, 12.0)
+    }
+}
+
+impl Validate for RegulatorParams {
+    fn validate(&self) -> Result<(), ValidationError> {
+        if !(5..=200).contains(&self.horizon) {
+            return Err(ValidationError::new("horizon", format!("must lie in [5, 200], got {}", self.horizon)));
+        }
+        in_range("dt_s", self.dt_s, 0.01, 0.5)?;
+        positive("w_adv", self.w_adv)?;
+        in_range("w_real", self.w_real, 0.0, 1e6)?;
+        in_range("safety_margin_s", self.safety_margin_s, 0.0, 5.0)?;
+        positive("max_input_age_s", self.max_input_age_s)?;
+        positive("fallback_decel_mps2", self.fallback_decel_mps2)?;
+        self.bv.validate().map_err(|e| e.within("bv"))?;
+        self.vut.validate().map_err(|e| e.within("vut"))
+    }
+}
+
+/// One vehicle along its own path.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PathState {
+    /// Arc length, m.
+    pub s_m: f64,
+    /// Speed, m/s.
+    pub v_mps: f64,
+    /// Age of the measurement, s.
+    pub age_s: f64,
+}
+
+/// Everything the regulator needs for one decision.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RegulatorInput {
+    /// Time now, s (any fixed origin; used to remember the VUT's observed exit).
+    pub t_s: f64,
+    /// The BV along its reference path.
+    pub bv: PathState,
+    /// The VUT along its route.
+    pub vut: PathState,
+    /// Acceleration the BV applied last, m/s².
+    pub bv_accel_mps2: f64,
+    /// Zone occupancy along the BV's path.
+    pub zone_bv: OccupancyInterval,
+    /// Zone occupancy along the VUT's route.
+    pub zone_vut: OccupancyInterval,
+    /// Target PET τ, s.
+    pub tau_s: f64,
+    /// Who passes first.
+    pub style: Style,
+    /// The BV's reference speed now, m/s.
+    pub reference_speed_mps: f64,
+    /// When the BV's reference reaches its key point, s from now (`None`: no realism pull).
+    pub reference_key_time_s: Option<f64>,
+}
+
+/// What the regulator decided, and why.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RegulatorStatus {
+    /// The plan meets the target key time.
+    Regulating,
+    /// The target key time cannot be met within the limits; the plan comes as close as it can.
+    Degraded,
+    /// The VUT could not keep the order against the plan: the BV gives way and stays out of the zone.
+    SafetyYield,
+    /// Yield, and the VUT has not been predicted to leave the zone: the BV waits before it.
+    Waiting,
+    /// The BV has passed its key point (or the VUT has left in rush): it just follows its reference.
+    Passed,
+    /// Inputs are stale: minimal-risk deceleration.
+    Stale,
+    /// Inputs are not finite or a solver failed: minimal-risk deceleration.
+    Fallback,
+}
+
+/// One decision.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Decision {
+    /// What happened.
+    pub status: RegulatorStatus,
+    /// Acceleration to apply now, m/s² (finite, within the BV's limits).
+    pub accel_mps2: f64,
+    /// Speed the plan expects one step from now, m/s.
+    pub next_speed_mps: f64,
+    /// Planned key time, s from now.
+    pub key_time_s: Option<f64>,
+    /// Predicted PET if the plan is executed and the VUT responds as modelled, s.
+    pub predicted_pet_s: Option<f64>,
+    /// Slack of the leader's event, m.
+    pub leader_slack_m: f64,
+    /// Slack of the follower's order constraint in the safety check, m.
+    pub follower_slack_m: f64,
+}
+
+/// The regulator of one BV: four QPs built once (follower with an upper or lower order
+/// constraint, leader with an exact key time or a hold-back constraint).
+#[derive(Debug)]
+pub struct Regulator {
+    params: RegulatorParams,
+    follower_upper: LongitudinalQp,
+    follower_lower: LongitudinalQp,
+    leader_equal: LongitudinalQp,
+    leader_upper: LongitudinalQp,
+    /// Absolute time at which the VUT was seen leaving the zone.
+    vut_exit_t_s: Option<f64>,
+    /// Key time of the previous decision, absolute.
+    last_key_t_s: Option<f64>,
+}
+
+const SLACK_TOL_M: f64 = 0.05;
+/// How far behind the zone entry the BV holds when it gives way, m.
+const HOLD_BACK_M: f64 = 0.5;
+
+impl Regulator {
+    /// Builds the solvers.
+    pub fn new(params: RegulatorParams) -> Result<Self, QpError> {
+        params.validate().map_err(|e| QpError::Shape(e.to_string()))?;
+        let base = QpShape {
+            horizon: params.horizon,
+            dt_s: params.dt_s,
+            w_speed: 1.0,
+            w_station: 0.0,
+            w_accel: 1.0,
+            w_jerk: 2.0,
+            w_slack: 1e4,
+            event: EventKind::Upper,
+        };
+        let leader = QpShape { w_speed: 0.2, w_accel: 1.0, w_jerk: 3.0, ..base };
+        Ok(Self {
+            params,
+            follower_upper: LongitudinalQp::new(base)?,
+            follower_lower: LongitudinalQp::new(QpShape { event: EventKind::Lower, ..base })?,
+            leader_equal: LongitudinalQp::new(QpShape { event: EventKind::Equal, ..leader })?,
+            leader_upper: LongitudinalQp::new(QpShape { event: EventKind::Upper, ..leader })?,
+            vut_exit_t_s: None,
+            last_key_t_s: None,
+        })
+    }
+
+    /// The settings.
+    pub fn params(&self) -> &RegulatorParams {
+        &self.params
+    }
+
+    /// Forgets what it remembered of the current interaction (call between runs).
+    pub fn reset(&mut self) {
+        self.vut_exit_t_s = None;
+        self.last_key_t_s = None;
+    }
+
+    fn fallback(&self, status: RegulatorStatus, v: f64) -> Decision {
+        let v = if v.is_finite() { v.max(0.0) } else { 0.0 };
+        let decel = self.params.fallback_decel_mps2.min(v / self.params.dt_s);
+        Decision {
+            status,
+            accel_mps2: -decel,
+            next_speed_mps: (v - decel * self.params.dt_s).max(0.0),
+            key_time_s: None,
+            predicted_pet_s: None,
+            leader_slack_m: 0.0,
+            follower_slack_m: 0.0,
+        }
+    }
+
+    fn qp_input(&self, s: f64, v: f64, a_prev: f64, lim: &Limits, event: Option<(f64, f64)>) -> QpInput {
+        QpInput {
+            s0_m: s,
+            v0_mps: v.clamp(0.0, lim.max_speed_mps),
+            a_prev_mps2: a_prev.clamp(-lim.max_decel_mps2, lim.max_accel_mps2),
+            v_max_mps: lim.max_speed_mps,
+            a_max_mps2: lim.max_accel_mps2,
+            d_max_mps2: lim.max_decel_mps2,
+            event_t_s: event.map(|e| e.0),
+            event_station_m: event.map_or(0.0, |e| e.1),
+        }
+    }
+
+    /// Solves the follower against the BV key time `key_t` (relative; `None`: unconstrained) and
+    /// returns its own key time and the slack of its order constraint.
+    fn follower(&mut self, inp: &RegulatorInput, key_t: Option<f64>) -> Option<(Option<f64>, f64)> {
+        let vut = inp.vut;
+        let lim = self.params.vut;
+        let (qp, station, probe) = match inp.style {
+            // Not in the zone before the BV is out: s_V(T) ≤ entry.
+            Style::Rush => (&mut self.follower_upper, inp.zone_vut.enter_s_m, inp.zone_vut.enter_s_m),
+            // Out of the zone before the BV comes: s_V(T) ≥ exit.
+            Style::Yield => (&mut self.follower_lower, inp.zone_vut.exit_s_m, inp.zone_vut.exit_s_m),
+        };
+        let v_track = vut.v_mps.clamp(0.0, lim.max_speed_mps);
+        qp.v_ref_mut().iter_mut().for_each(|v| *v = v_track);
+        let input = QpInput {
+            s0_m: vut.s_m,
+            v0_mps: v_track,
+            a_prev_mps2: 0.0,
+            v_max_mps: lim.max_speed_mps,
+            a_max_mps2: lim.max_accel_mps2,
+            d_max_mps2: lim.max_decel_mps2,
+            event_t_s: key_t.map(|t| t.max(0.0)),
+            event_station_m: station,
+        };
+        if qp.solve(&input) == QpStatus::Failed {
+            return None;
+        }
+        Some((qp.time_at_station(probe), qp.slack_m()))
+    }
+
+    /// Plans the BV to be at `station` exactly at `key_t` (relative); returns the status of the solve.
+    ///
+    /// With a key time the speed reference is the average speed that gets there on time: tracking
+    /// the prior's speed instead would make the plan hurry to the station within the horizon and
+    /// stop there, pushing the waiting past the horizon (the time inconsistency of the literal
+    /// formulation). Without one it is the prior's reference speed.
+    fn lead(&mut self, inp: &RegulatorInput, key_t: Option<f64>, station: f64) -> QpStatus {
+        let qin =
+            self.qp_input(inp.bv.s_m, inp.bv.v_mps, inp.bv_accel_mps2, &self.params.bv, key_t.map(|t| (t, station)));
+        let v_ref = match key_t {
+            Some(t) if t > self.params.dt_s => (station - inp.bv.s_m) / t,
+            _ => inp.reference_speed_mps,
+        }
+        .clamp(0.0, self.params.bv.max_speed_mps);
+        self.leader_equal.v_ref_mut().iter_mut().for_each(|v| *v = v_ref);
+        self.leader_equal.solve(&qin)
+    }
+
+    /// Plans the BV to stay behind the zone entry until `until_t` (relative).
+    fn hold_back(&mut self, inp: &RegulatorInput, until_t: f64) -> QpStatus {
+        let station = inp.zone_bv.enter_s_m - HOLD_BACK_M;
+        let qin = self.qp_input(inp.bv.s_m, inp.bv.v_mps, inp.bv_accel_mps2, &self.params.bv, Some((until_t, station)));
+        let v_ref = inp.reference_speed_mps.clamp(0.0, self.params.bv.max_speed_mps);
+        self.leader_upper.v_ref_mut().iter_mut().for_each(|v| *v = v_ref);
+        self.leader_upper.solve(&qin)
+    }
+
+    fn decision_from(
+        &self,
+        qp: &LongitudinalQp,
+        status: RegulatorStatus,
+        key: Option<f64>,
+        pet: Option<f64>,
+        fslack: f64,
+    ) -> Decision {
+        let lim = &self.params.bv;
+        let a = qp.accel().first().copied().unwrap_or(0.0);
+        let v1 = qp.speed().get(1).copied().unwrap_or(0.0);
+        Decision {
+            status,
+            accel_mps2: if a.is_finite() {
+                a.clamp(-lim.max_decel_mps2, lim.max_accel_mps2)
+            } else {
+                -self.params.fallback_decel_mps2
+            },
+            next_speed_mps: if v1.is_finite() { v1.max(0.0) } else { 0.0 },
+            key_time_s: key,
+            predicted_pet_s: pet,
+            leader_slack_m: qp.slack_m(),
+            follower_slack_m: fslack,
+        }
+    }
+
+    /// One decision.
+    pub fn decide(&mut self, inp: &RegulatorInput) -> Decision {
+        let finite = [
+            inp.t_s,
+            inp.bv.s_m,
+            inp.bv.v_mps,
+            inp.bv.age_s,
+            inp.vut.s_m,
+            inp.vut.v_mps,
+            inp.vut.age_s,
+            inp.bv_accel_mps2,
+            inp.zone_bv.enter_s_m,
+            inp.zone_bv.exit_s_m,
+            inp.zone_vut.enter_s_m,
+            inp.zone_vut.exit_s_m,
+            inp.tau_s,
+            inp.reference_speed_mps,
+        ];
+        if finite.iter().any(|x| !x.is_finite())
+            || inp.reference_key_time_s.is_some_and(|t| !t.is_finite())
+            || inp.tau_s <= 0.0
+        {
+            return self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps);
+        }
+        if inp.bv.age_s > self.params.max_input_age_s || inp.vut.age_s > self.params.max_input_age_s {
+            return self.fallback(RegulatorStatus::Stale, inp.bv.v_mps);
+        }
+        if inp.vut.s_m >= inp.zone_vut.exit_s_m && self.vut_exit_t_s.is_none() {
+            self.vut_exit_t_s = Some(inp.t_s);
+        }
+        let bv_key = match inp.style {
+            Style::Rush => inp.zone_bv.exit_s_m,
+            Style::Yield => inp.zone_bv.enter_s_m,
+        };
+        // Past the interaction: follow the reference.
+        let vut_gone = inp.vut.s_m >= inp.zone_vut.exit_s_m;
+        if inp.bv.s_m >= bv_key
+            || (inp.style == Style::Rush && vut_gone)
+            || (inp.style == Style::Yield && inp.bv.s_m >= inp.zone_bv.enter_s_m)
+        {
+            return match self.lead(inp, None, 0.0) {
+                QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
+                _ => self.decision_from(&self.leader_equal, RegulatorStatus::Passed, None, None, 0.0),
+            };
+        }
+        // Rush, but the VUT is already in the zone: give way until it has left.
+        if inp.style == Style::Rush && inp.vut.s_m >= inp.zone_vut.enter_s_m {
+            return self.give_way(inp);
+        }
+
+        // 1–2: follower response and the leader's key time (fixed-point step).
+        let tau = inp.tau_s;
+        let pull = |t_adv: f64, w_adv: f64, w_real: f64| match inp.reference_key_time_s {
+            Some(t_ref) if w_real > 0.0 => (w_adv * t_adv + w_real * t_ref) / (w_adv + w_real),
+            _ => t_adv,
+        };
+        let mut key_t = self.last_key_t_s.map_or(inp.reference_key_time_s.unwrap_or(5.0), |t| t - inp.t_s).max(0.0);
+        let mut t_vut: Option<f64> = None;
+        if inp.style == Style::Yield
+            && let Some(t_exit) = self.vut_exit_t_s
+        {
+            t_vut = Some(t_exit - inp.t_s);
+        } else {
+            // Rush: the VUT's best response to the BV's key time (it may have to wait for the BV).
+            // Yield: the BV is the one that gives way, so the VUT is predicted unconstrained.
+            for _ in 0..2 {
+                let order = (inp.style == Style::Rush).then_some(key_t);
+                let Some((t_v, _)) = self.follower(inp, order) else {
+                    return self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps);
+                };
+                t_vut = t_v;
+                let Some(tv) = t_v else { break };
+                if inp.style == Style::Yield {
+                    break;
+                }
+                let next = pull(tv - tau, self.params.w_adv, self.params.w_real).max(0.0);
+                // The response only moves when the order constraint binds; if the VUT's entry is
+                // after the new key time too, the fixed point is reached.
+                let settled = tv >= next.max(key_t);
+                key_t = next;
+                if settled {
+                    break;
+                }
+            }
+        }
+        let Some(t_v) = t_vut else {
+            // The VUT is predicted never to reach (rush) or leave (yield) the zone.
+            return match inp.style {
+                // Rush with a VUT that stays away: nothing to regulate against; go at the reference.
+                Style::Rush => match self.lead(inp, None, 0.0) {
+                    QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
+                    _ => self.decision_from(&self.leader_equal, RegulatorStatus::Regulating, None, None, 0.0),
+                },
+                Style::Yield => self.wait(inp),
+            };
+        };
+        if inp.style == Style::Yield {
+            key_t =
+                pull(t_v + tau, self.params.w_adv, self.params.w_real).max(t_v + self.params.safety_margin_s).max(0.0);
+        }
+
+        // 3: the leader's plan.
+        if self.lead(inp, Some(key_t), bv_key) == QpStatus::Failed {
+            return self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps);
+        }
+        let lslack = self.leader_equal.slack_m();
+        // Met exactly: the key time is the event's (the plan may stand at the station just before
+        // it); missed: when the plan actually gets there.
+        let planned_key = if lslack <= SLACK_TOL_M { Some(key_t) } else { self.leader_equal.time_at_station(bv_key) };
+
+        // 4: safety against the follower's best response to the planned key time.
+        let margin = self.params.safety_margin_s;
+        let probe_t = match (inp.style, planned_key) {
+            (Style::Rush, Some(tb)) => tb + margin,
+            (Style::Yield, Some(tb)) => (tb - margin).max(0.0),
+            (_, None) => key_t,
+        };
+        let Some((t_v_check, fslack)) = self.follower(inp, Some(probe_t)) else {
+            return self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps);
+        };
+        let pet = match (inp.style, planned_key, t_v_check.or(Some(t_v))) {
+            (Style::Rush, Some(tb), Some(tv)) => Some(tv - tb),
+            (Style::Yield, Some(tb), _) => Some(tb - t_v),
+            _ => None,
+        };
+        let unsafe_order = fslack > SLACK_TOL_M || planned_key.is_none() || pet.is_some_and(|p| p < margin);
+        if unsafe_order {
+            return self.give_way(inp);
+        }
+        self.last_key_t_s = planned_key.map(|t| t + inp.t_s);
+        let status = if lslack > SLACK_TOL_M { RegulatorStatus::Degraded } else { RegulatorStatus::Regulating };
+        self.decision_from(&self.leader_equal, status, planned_key, pet, fslack)
+    }
+
+    /// The BV stays behind its zone entry until the VUT is predicted out of the zone plus the margin.
+    fn give_way(&mut self, inp: &RegulatorInput) -> Decision {
+        let until = self
+            .predicted_vut_exit(inp)
+            .map_or(self.params.horizon as f64 * self.params.dt_s * 2.0, |t| t + self.params.safety_margin_s);
+        match self.hold_back(inp, until) {
+            QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
+            _ => self.decision_from(&self.leader_upper, RegulatorStatus::SafetyYield, None, None, 0.0),
+        }
+    }
+
+    /// Yield with a VUT that does not come through: hold before the zone.
+    fn wait(&mut self, inp: &RegulatorInput) -> Decision {
+        let until = self.params.horizon as f64 * self.params.dt_s * 2.0;
+        match self.hold_back(inp, until) {
+            QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
+            _ => self.decision_from(&self.leader_upper, RegulatorStatus::Waiting, None, None, 0.0),
+        }
+    }
+
+    /// When the VUT will have left the zone, s from now, by constant speed (no BV influence).
+    fn predicted_vut_exit(&self, inp: &RegulatorInput) -> Option<f64> {
+        let d = inp.zone_vut.exit_s_m - inp.vut.s_m;
+        if d <= 0.0 {
+            return Some(0.0);
+        }
+        (inp.vut.v_mps > 0.5).then(|| d / inp.vut.v_mps)
+    }
+}
+
+#[cfg(test)]
+mod tests;

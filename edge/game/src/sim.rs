@@ -1,0 +1,82 @@
+//! The regulator as a BV controller of the simulated proving ground: the regulator decides the
+//! longitudinal motion every control period, pure pursuit keeps the BV on its path.
+
+use v2t_model::Style;
+use v2t_sim::bv::BvController;
+use v2t_sim::control::pure_pursuit;
+use v2t_sim::observation::BvObservation;
+use v2t_sim::plant::ActuationRequest;
+
+use crate::qp::QpError;
+use crate::regulator::{Decision, Limits, PathState, Regulator, RegulatorInput, RegulatorParams};
+
+/// A regulated BV.
+#[derive(Debug)]
+pub struct RegulatedBv {
+    regulator: Regulator,
+    tau_s: f64,
+    style: Style,
+    last_accel: f64,
+    last: Option<Decision>,
+    /// Every decision's status, for reports.
+    pub statuses: Vec<crate::regulator::RegulatorStatus>,
+}
+
+impl RegulatedBv {
+    /// A regulator with `params` aiming at `tau_s` in `style`.
+    pub fn new(params: RegulatorParams, tau_s: f64, style: Style) -> Result<Self, QpError> {
+        Ok(Self { regulator: Regulator::new(params)?, tau_s, style, last_accel: 0.0, last: None, statuses: Vec::new() })
+    }
+
+    /// Regulator limits from the scenario's vehicles.
+    pub fn limits_for(scenario: &v2t_sim::scenario::Scenario, bv_index: usize) -> Option<(Limits, Limits)> {
+        let lim = |l: &v2t_model::vehicle::VehicleLimits| Limits {
+            max_speed_mps: l.max_speed_mps,
+            max_accel_mps2: l.max_accel_mps2,
+            max_decel_mps2: l.max_decel_mps2,
+        };
+        Some((lim(&scenario.bvs.get(bv_index)?.agent.vehicle.limits), lim(&scenario.vut.agent.vehicle.limits)))
+    }
+
+    /// The last decision.
+    pub fn last_decision(&self) -> Option<&Decision> {
+        self.last.as_ref()
+    }
+}
+
+impl BvController for RegulatedBv {
+    fn name(&self) -> &str {
+        "regulator"
+    }
+
+    fn control(&mut self, obs: &BvObservation<'_>) -> ActuationRequest {
+        let sc = obs.scenario;
+        let (Some(bv), Some(conflict)) = (sc.bvs.get(obs.bv_index), sc.conflict_of(obs.bv_index)) else {
+            return ActuationRequest { accel_mps2: -2.0, steer_rad: 0.0 };
+        };
+        let vehicle = &bv.agent.vehicle;
+        // Bring both measurements to "now" at constant speed.
+        let own_s = obs.own.s_m + obs.own.state.speed_mps * obs.own.age_s;
+        let vut_s = obs.vut.s_m + obs.vut.state.speed_mps * obs.vut.age_s;
+        let input = RegulatorInput {
+            t_s: obs.t_s,
+            bv: PathState { s_m: own_s, v_mps: obs.own.state.speed_mps, age_s: obs.own.age_s },
+            vut: PathState { s_m: vut_s, v_mps: obs.vut.state.speed_mps, age_s: obs.vut.age_s },
+            bv_accel_mps2: self.last_accel,
+            zone_bv: conflict.zone.b,
+            zone_vut: conflict.zone.a,
+            tau_s: self.tau_s,
+            style: self.style,
+            reference_speed_mps: bv.reference.speed_at(obs.t_s),
+            reference_key_time_s: None,
+        };
+        let d = self.regulator.decide(&input);
+        self.last_accel = d.accel_mps2;
+        self.statuses.push(d.status);
+        self.last = Some(d);
+        ActuationRequest {
+            accel_mps2: d.accel_mps2,
+            steer_rad: pure_pursuit(&bv.agent.route, &obs.own.state, obs.own.s_m, vehicle),
+        }
+    }
+}
