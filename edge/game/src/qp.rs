@@ -234,6 +234,10 @@ impl LongitudinalQp {
             .presolve_enable(false)
             .input_sparse_dropzeros(false)
             .equilibrate_enable(true)
+            // Centimetre-level plans need far less than Clarabel's default 1e-8 gap tolerance.
+            .tol_gap_abs(1e-6)
+            .tol_gap_rel(1e-6)
+            .tol_feas(1e-7)
             .max_iter(60)
             .build()
             .map_err(|e| QpError::Setup(e.to_string()))?;

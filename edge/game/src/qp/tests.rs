@@ -28,7 +28,7 @@ fn qp(event: EventKind, horizon: usize, v_ref: f64) -> LongitudinalQp {
 fn without_an_event_it_cruises_at_the_reference() {
     let mut q = qp(EventKind::Upper, 30, 10.0);
     assert_eq!(q.solve(&input(0.0, 10.0, None, 0.0)), QpStatus::Solved);
-    assert!(q.accel().iter().all(|a| a.abs() < 1e-5), "{:?}", q.accel());
+    assert!(q.accel().iter().all(|a| a.abs() < 1e-3), "{:?}", q.accel());
     assert!((q.station()[30] - 30.0).abs() < 1e-4);
     assert!(q.slack_m() < 1e-6);
 }

@@ -1,0 +1,111 @@
+//! Heap allocations per decision after warm-up. The regulator's own code allocates nothing per
+//! cycle; what remains comes from inside Clarabel's `solve`, which this test measures on a bare
+//! QP and then bounds the regulator by (at most four solves per decision).
+
+#![allow(unsafe_code, clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)] // test code
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use v2t_game::qp::{EventKind, LongitudinalQp, QpInput, QpShape};
+use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams};
+use v2t_model::Style;
+use v2t_model::metrics::OccupancyInterval;
+
+thread_local! {
+    static COUNT: Cell<u64> = const { Cell::new(0) };
+}
+
+struct Counting;
+
+// SAFETY: forwards every call to the system allocator unchanged; only counts, per thread.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        let _ = COUNT.try_with(|c| c.set(c.get() + 1));
+        // SAFETY: same contract as the caller's.
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        // SAFETY: same contract as the caller's.
+        unsafe { System.dealloc(p, l) }
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+        let _ = COUNT.try_with(|c| c.set(c.get() + 1));
+        // SAFETY: same contract as the caller's.
+        unsafe { System.realloc(p, l, n) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn count<R>(f: impl FnOnce() -> R) -> (R, u64) {
+    let before = COUNT.with(Cell::get);
+    let r = f();
+    (r, COUNT.with(Cell::get) - before)
+}
+
+#[test]
+fn allocations_per_decision_come_only_from_the_solver() {
+    // A bare QP solve (update + solve) after warm-up.
+    let shape = QpShape {
+        horizon: 50,
+        dt_s: 0.1,
+        w_speed: 1.0,
+        w_station: 0.0,
+        w_accel: 1.0,
+        w_jerk: 2.0,
+        w_slack: 1e4,
+        event: EventKind::Equal,
+    };
+    let mut qp = LongitudinalQp::new(shape).unwrap();
+    qp.v_ref_mut().iter_mut().for_each(|v| *v = 8.0);
+    let mut per_solve = 0;
+    for k in 0..30 {
+        let input = QpInput {
+            s0_m: k as f64,
+            v0_mps: 9.0,
+            a_prev_mps2: 0.0,
+            v_max_mps: 20.0,
+            a_max_mps2: 3.0,
+            d_max_mps2: 6.0,
+            event_t_s: Some(4.0 - 0.1 * k as f64),
+            event_station_m: 40.0,
+        };
+        let (_, n) = count(|| qp.solve(&input));
+        if k >= 5 {
+            per_solve = per_solve.max(n);
+        }
+    }
+    // The regulator over an approach, after warm-up.
+    let mut reg = Regulator::new(RegulatorParams::default()).unwrap();
+    let mut inp = RegulatorInput {
+        t_s: 0.0,
+        bv: PathState { s_m: 0.0, v_mps: 10.0, age_s: 0.05 },
+        vut: PathState { s_m: 0.0, v_mps: 8.0, age_s: 0.15 },
+        bv_accel_mps2: 0.0,
+        zone_bv: OccupancyInterval { enter_s_m: 33.5, exit_s_m: 45.3 },
+        zone_vut: OccupancyInterval { enter_s_m: 74.6, exit_s_m: 86.4 },
+        tau_s: 2.0,
+        style: Style::Rush,
+        reference_speed_mps: 10.0,
+        reference_key_time_s: None,
+    };
+    let mut worst = 0;
+    for k in 0..120 {
+        let (d, n) = count(|| reg.decide(&inp));
+        if k >= 5 {
+            worst = worst.max(n);
+        }
+        inp.t_s += 0.1;
+        inp.bv.v_mps = (inp.bv.v_mps + d.accel_mps2 * 0.1).max(0.0);
+        inp.bv.s_m += inp.bv.v_mps * 0.1;
+        inp.bv_accel_mps2 = d.accel_mps2;
+        inp.vut.s_m += inp.vut.v_mps * 0.1;
+    }
+    println!("allocations: bare solve ≤ {per_solve}, decision ≤ {worst}");
+    assert!(
+        worst <= 4 * per_solve,
+        "a decision allocated {worst} times, more than its ≤ 4 solves ({per_solve} each) explain"
+    );
+}
