@@ -170,12 +170,12 @@ pub fn steerability(scenarios: &[Scenario], taus: &[f64], models: &[VutModel], r
 /// A markdown table of the report.
 pub fn steer_markdown(r: &SteerReport) -> String {
     let mut out = String::from(
-        "| scenario | style | VUT | τ (s) | mean PET_min (s) | PET^min_track (s) | error | collisions | overlaps | order ok |\n|---|---|---|---|---|---|---|---|---|---|\n",
+        "| scenario | style | VUT | τ (s) | mean PET_min (s) | PET^min_track (s) | error | collisions | overlaps | order ok | no PET |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let f = |x: Option<f64>| x.map_or_else(|| "—".to_owned(), |v| format!("{v:.2}"));
     for c in &r.cases {
         out.push_str(&format!(
-            "| {} | {} | {} | {:.1} | {} | {} | {} | {} | {} | {:.2} |\n",
+            "| {} | {} | {} | {:.1} | {} | {} | {} | {} | {} | {:.2} | {} |\n",
             c.scenario,
             c.style,
             c.vut,
@@ -185,13 +185,20 @@ pub fn steer_markdown(r: &SteerReport) -> String {
             c.error_rel.map_or_else(|| "—".to_owned(), |e| format!("{:.1} %", 100.0 * e)),
             c.collisions,
             c.zone_overlaps,
-            c.order_ok_frac
+            c.order_ok_frac,
+            c.unmeasured
         ));
     }
+    let runs: usize = r.cases.iter().map(|c| c.repeats).sum();
+    let total = |f: fn(&SteerCase) -> usize| r.cases.iter().map(f).sum::<usize>();
     out.push_str(&format!(
-        "\nmean error {:.1} %, max error {:.1} %\n",
+        "\nmean error {:.1} %, max error {:.1} %; {} runs: {} collisions, {} zone overlaps, {} without a measured PET\n",
         100.0 * r.mean_error_rel,
-        100.0 * r.max_error_rel
+        100.0 * r.max_error_rel,
+        runs,
+        total(|c| c.collisions),
+        total(|c| c.zone_overlaps),
+        total(|c| c.unmeasured)
     ));
     out
 }

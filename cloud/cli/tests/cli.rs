@@ -137,3 +137,44 @@ fn help_lists_only_real_commands() {
         .collect();
     assert_eq!(commands, ["sim", "experiment", "help"], "{out}");
 }
+
+#[test]
+fn steerability_writes_the_documented_json() {
+    let json = tempdir("steer").join("steer.json");
+    let o = video2track(&[
+        "experiment",
+        "steerability",
+        "--repeats",
+        "1",
+        "--tau",
+        "3",
+        "--vut",
+        "sampling",
+        "--card",
+        "config/scenarios/left_turn_basic.toml",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(out.contains("| left_turn_basic | rush | sampling | 3.0 |"), "{out}");
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let cases = v["cases"].as_array().unwrap();
+    assert_eq!(cases.len(), 2, "rush and yield");
+    for key in [
+        "scenario",
+        "style",
+        "vut",
+        "tau_s",
+        "repeats",
+        "mean_pet_min_s",
+        "pet_min_track_s",
+        "error_rel",
+        "collisions",
+        "zone_overlaps",
+        "order_ok_frac",
+    ] {
+        assert!(cases[0].get(key).is_some(), "missing {key}");
+    }
+    assert!(v["mean_error_rel"].is_number() && v["max_error_rel"].is_number());
+}
