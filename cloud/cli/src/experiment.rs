@@ -71,13 +71,17 @@ pub fn steer_case(scenario: &Scenario, style: Style, tau_s: f64, model: VutModel
     let mut pets = Vec::new();
     let (mut collisions, mut overlaps, mut order_ok, mut unmeasured) = (0, 0, 0, 0);
     for seed in 1..=repeats as u64 {
-        let mut bvs: Vec<Box<dyn BvController>> = Vec::new();
-        for _ in &scenario.bvs {
-            match RegulatedBv::new(params_for(scenario), tau_s, style) {
-                Ok(r) => bvs.push(Box::new(r)),
-                Err(_) => return empty_case(scenario, style, tau_s, model, repeats),
-            }
-        }
+        // Parameters come from validated vehicle files, so building cannot fail; if it did, the
+        // run would count as one without a measured PET.
+        let Ok(mut bvs) = scenario
+            .bvs
+            .iter()
+            .map(|_| RegulatedBv::new(params_for(scenario), tau_s, style).map(|r| Box::new(r) as Box<dyn BvController>))
+            .collect::<Result<Vec<_>, _>>()
+        else {
+            unmeasured += 1;
+            continue;
+        };
         let mut driver = model.driver();
         let mut sc = scenario.clone();
         sc.style = style;
@@ -106,23 +110,6 @@ pub fn steer_case(scenario: &Scenario, style: Style, tau_s: f64, model: VutModel
         zone_overlaps: overlaps,
         order_ok_frac: if repeats == 0 { 0.0 } else { order_ok as f64 / repeats as f64 },
         unmeasured,
-    }
-}
-
-fn empty_case(scenario: &Scenario, style: Style, tau_s: f64, model: VutModel, repeats: usize) -> SteerCase {
-    SteerCase {
-        scenario: scenario.name.clone(),
-        style,
-        vut: model.to_string(),
-        tau_s,
-        repeats,
-        mean_pet_min_s: None,
-        pet_min_track_s: None,
-        error_rel: None,
-        collisions: 0,
-        zone_overlaps: 0,
-        order_ok_frac: 0.0,
-        unmeasured: repeats,
     }
 }
 
