@@ -57,9 +57,10 @@ pub struct SteerReport {
     pub max_error_rel: f64,
 }
 
-fn params_for(scenario: &Scenario) -> RegulatorParams {
+/// Regulator settings for BV `bv_index` of `scenario`, with that BV's and the VUT's limits.
+fn params_for(scenario: &Scenario, bv_index: usize) -> RegulatorParams {
     let mut p = RegulatorParams::default();
-    if let Some((bv, vut)) = RegulatedBv::limits_for(scenario, 0) {
+    if let Some((bv, vut)) = RegulatedBv::limits_for(scenario, bv_index) {
         p.bv = bv;
         p.vut = vut;
     }
@@ -76,7 +77,10 @@ pub fn steer_case(scenario: &Scenario, style: Style, tau_s: f64, model: VutModel
         let Ok(mut bvs) = scenario
             .bvs
             .iter()
-            .map(|_| RegulatedBv::new(params_for(scenario), tau_s, style).map(|r| Box::new(r) as Box<dyn BvController>))
+            .enumerate()
+            .map(|(i, _)| {
+                RegulatedBv::new(params_for(scenario, i), tau_s, style).map(|r| Box::new(r) as Box<dyn BvController>)
+            })
             .collect::<Result<Vec<_>, _>>()
         else {
             unmeasured += 1;
