@@ -68,3 +68,35 @@ fn vut_models_behave_differently() {
         }
     }
 }
+
+#[test]
+fn two_bvs_each_get_their_own_conflict_and_regulator() {
+    use v2t_model::path::{PathSpec, SegmentSpec};
+    use v2t_model::vehicle::VehicleConfig;
+    use v2t_sim::config::{BvCard, ScenarioCard, SimSettings, parse_toml};
+    use video2track::files::load_toml;
+
+    let root = v2t_tests::repo_root().join("config");
+    let card_path = root.join("scenarios/left_turn_basic.toml");
+    let mut card: ScenarioCard = parse_toml(&std::fs::read_to_string(&card_path).unwrap(), "card").unwrap();
+    // A second BV crosses from the west, 45 m further up the VUT's road.
+    let mut second: BvCard = card.bvs[0].clone();
+    second.id = "bv2".into();
+    second.path = PathSpec {
+        start_x_m: -60.0,
+        start_y_m: 45.0,
+        start_heading_deg: 0.0,
+        segments: vec![SegmentSpec::Line { length_m: 140.0 }],
+    };
+    card.bvs.push(second);
+    let settings: SimSettings = load_toml(&root.join("sim/default.toml")).unwrap();
+    let vut: VehicleConfig = load_toml(&root.join("vehicles/vut_sedan.toml")).unwrap();
+    let bv: VehicleConfig = load_toml(&root.join("vehicles/bv_sedan.toml")).unwrap();
+    let scenario = Scenario::from_card(&card, settings, vut, vec![bv.clone(), bv]).unwrap();
+    assert_eq!(scenario.conflicts.len(), 2);
+    assert_ne!(scenario.conflicts[0].zone.a, scenario.conflicts[1].zone.a);
+
+    let c = video2track::experiment::steer_case(&scenario, v2t_model::Style::Yield, 2.0, VutModel::IdmNormal, 1);
+    assert_eq!((c.collisions, c.zone_overlaps, c.unmeasured), (0, 0, 0), "{c:?}");
+    assert_eq!(c.order_ok_frac, 1.0, "both BVs let the VUT through first: {c:?}");
+}
