@@ -87,16 +87,18 @@ fn main() {
             std::process::exit(1);
         };
         let mut lat_us = Vec::new();
+        let mut approach_us: Vec<f64> = Vec::new();
         let mut statuses: BTreeMap<String, u64> = BTreeMap::new();
         let (mut allocs, mut counted, mut non_finite) = (0u64, 0u64, 0u64);
-        let mut decide = |reg: &mut Regulator, inp: &RegulatorInput, warm: bool| {
+        let mut random_us: Vec<f64> = Vec::new();
+        let mut decide = |reg: &mut Regulator, inp: &RegulatorInput, warm: bool, sink: &mut Vec<f64>| {
             let a0 = ALLOCS.load(Ordering::Relaxed);
             let t0 = Instant::now();
             let d = reg.decide(inp);
             let dt = t0.elapsed().as_secs_f64() * 1e6;
             let a1 = ALLOCS.load(Ordering::Relaxed);
             if warm {
-                lat_us.push(dt);
+                sink.push(dt);
                 allocs += a1 - a0;
                 counted += 1;
                 *statuses.entry(format!("{:?}", d.status)).or_default() += 1;
@@ -112,7 +114,7 @@ fn main() {
                 reg.reset();
                 let mut inp = base(style, tau);
                 for k in 0..200 {
-                    let d = decide(&mut reg, &inp, k >= 5);
+                    let d = decide(&mut reg, &inp, k >= 5, &mut approach_us);
                     inp.t_s += 0.1;
                     let v = (inp.bv.v_mps + d.accel_mps2 * 0.1).max(0.0);
                     inp.bv.s_m += 0.5 * (inp.bv.v_mps + v) * 0.1;
@@ -132,11 +134,16 @@ fn main() {
                 PathState { s_m: rng.range(-40.0, 120.0), v_mps: rng.range(0.0, 20.0), age_s: rng.range(0.0, 0.6) };
             inp.bv_accel_mps2 = rng.range(-6.0, 3.0);
             reg.reset();
-            decide(&mut reg, &inp, true);
+            decide(&mut reg, &inp, true, &mut random_us);
         }
+        lat_us.extend_from_slice(&approach_us);
+        lat_us.extend_from_slice(&random_us);
         lat_us.sort_by(f64::total_cmp);
+        approach_us.sort_by(f64::total_cmp);
         let line = format!(
-            "{{\"horizon\": {horizon}, \"decisions\": {counted}, \"p50_us\": {:.1}, \"p99_us\": {:.1}, \"max_us\": {:.1}, \"allocs_per_decision\": {:.2}, \"non_finite\": {non_finite}, \"statuses\": {{{}}}}}",
+            "{{\"horizon\": {horizon}, \"decisions\": {counted}, \"approach_p50_us\": {:.1}, \"approach_p99_us\": {:.1}, \"p50_us\": {:.1}, \"p99_us\": {:.1}, \"max_us\": {:.1}, \"allocs_per_decision\": {:.2}, \"non_finite\": {non_finite}, \"statuses\": {{{}}}}}",
+            percentile(&approach_us, 0.5),
+            percentile(&approach_us, 0.99),
             percentile(&lat_us, 0.5),
             percentile(&lat_us, 0.99),
             lat_us.last().copied().unwrap_or(f64::NAN),

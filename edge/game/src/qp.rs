@@ -239,6 +239,7 @@ impl LongitudinalQp {
             .tol_gap_rel(1e-6)
             .tol_feas(1e-7)
             .max_iter(60)
+            .iterative_refinement_enable(false)
             .build()
             .map_err(|e| QpError::Setup(e.to_string()))?;
         let solver = DefaultSolver::new(&p_mat, &q, &a_mat, &b, &cones, settings)

@@ -204,6 +204,8 @@ pub struct Regulator {
 }
 
 const SLACK_TOL_M: f64 = 0.05;
+/// A follower key time this far from its constraint's time means the constraint did not bind, s.
+const BINDING_TOL_S: f64 = 0.05;
 /// How far behind the zone entry the BV holds when it gives way, m.
 const HOLD_BACK_M: f64 = 0.5;
 
@@ -411,10 +413,14 @@ impl Regulator {
         };
         let mut key_t = self.last_key_t_s.map_or(inp.reference_key_time_s.unwrap_or(5.0), |t| t - inp.t_s).max(0.0);
         let mut t_vut: Option<f64> = None;
+        // Whether `t_vut` came from a follower solve whose order constraint did not bind (then the
+        // safety check need not solve again when its constraint cannot bind either).
+        let mut free_response = false;
         if inp.style == Style::Yield
             && let Some(t_exit) = self.vut_exit_t_s
         {
             t_vut = Some(t_exit - inp.t_s);
+            free_response = true;
         } else {
             // Rush: the VUT's best response to the BV's key time (it may have to wait for the BV).
             // Yield: the BV is the one that gives way, so the VUT is predicted unconstrained.
@@ -426,8 +432,10 @@ impl Regulator {
                 t_vut = t_v;
                 let Some(tv) = t_v else { break };
                 if inp.style == Style::Yield {
+                    free_response = true;
                     break;
                 }
+                free_response = tv > key_t + BINDING_TOL_S;
                 let next = pull(tv - tau, self.params.w_adv, self.params.w_real).max(0.0);
                 // The response only moves when the order constraint binds; if the VUT's entry is
                 // after the new key time too, the fixed point is reached.
@@ -470,8 +478,18 @@ impl Regulator {
             (Style::Yield, Some(tb)) => (tb - margin).max(0.0),
             (_, None) => key_t,
         };
-        let Some((t_v_check, fslack)) = self.follower(inp, Some(probe_t)) else {
-            return self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps);
+        let cannot_bind = free_response
+            && match inp.style {
+                Style::Rush => t_v > probe_t + BINDING_TOL_S,
+                Style::Yield => t_v < probe_t - BINDING_TOL_S,
+            };
+        let (t_v_check, fslack) = if cannot_bind {
+            (Some(t_v), 0.0)
+        } else {
+            let Some(check) = self.follower(inp, Some(probe_t)) else {
+                return self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps);
+            };
+            check
         };
         let pet = match (inp.style, planned_key, t_v_check.or(Some(t_v))) {
             (Style::Rush, Some(tb), Some(tv)) => Some(tv - tb),
