@@ -96,7 +96,9 @@ fn two_bvs_each_get_their_own_conflict_and_regulator() {
     assert_eq!(scenario.conflicts.len(), 2);
     assert_ne!(scenario.conflicts[0].zone.a, scenario.conflicts[1].zone.a);
 
-    let c = video2track::experiment::steer_case(&scenario, v2t_model::Style::Yield, 2.0, VutModel::IdmNormal, 1);
+    let settings: v2t_game::regulator::RegulatorParams = load_toml(&root.join("regulator/default.toml")).unwrap();
+    let c =
+        video2track::experiment::steer_case(&settings, &scenario, v2t_model::Style::Yield, 2.0, VutModel::IdmNormal, 1);
     assert_eq!((c.collisions, c.zone_overlaps, c.unmeasured), (0, 0, 0), "{c:?}");
     assert_eq!(c.order_ok_frac, 1.0, "both BVs let the VUT through first: {c:?}");
 }

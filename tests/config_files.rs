@@ -3,6 +3,7 @@
 
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
 
+use v2t_game::regulator::RegulatorParams;
 use v2t_model::semantics::{parse_semantics_json, scenario_semantics_schema};
 use v2t_model::vehicle::VehicleConfig;
 use v2t_sim::config::SimSettings;
@@ -21,6 +22,7 @@ fn every_configuration_file_loads_and_validates() {
         match folder {
             "vehicles" => drop(load_toml::<VehicleConfig>(path).unwrap_or_else(|e| panic!("{e}"))),
             "sim" => drop(load_toml::<SimSettings>(path).unwrap_or_else(|e| panic!("{e}"))),
+            "regulator" => drop(load_toml::<RegulatorParams>(path).unwrap_or_else(|e| panic!("{e}"))),
             "scenarios" => drop(load_scenario(path).unwrap_or_else(|e| panic!("{e}"))),
             "examples" if rel.contains("semantics_") => {
                 let text = std::fs::read_to_string(path).unwrap();

@@ -5,16 +5,18 @@
 
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
 
+use v2t_game::regulator::RegulatorParams;
 use v2t_model::Style;
 use v2t_sim::vut::VutModel;
 use v2t_tests::repo_root;
 use video2track::experiment::steer_case;
-use video2track::files::load_scenario;
+use video2track::files::{load_scenario, load_toml};
 
 #[test]
 fn the_regulated_bv_lands_on_the_target_pet() {
     let left = load_scenario(&repo_root().join("config/scenarios/left_turn_basic.toml")).unwrap();
     let cut = load_scenario(&repo_root().join("config/scenarios/cut_in_basic.toml")).unwrap();
+    let settings: RegulatorParams = load_toml(&repo_root().join("config/regulator/default.toml")).unwrap();
     let cases = [
         (&left, Style::Rush, 4.0, VutModel::Sampling),
         (&left, Style::Rush, 2.0, VutModel::IdmNormal),
@@ -24,7 +26,7 @@ fn the_regulated_bv_lands_on_the_target_pet() {
         (&cut, Style::Yield, 2.0, VutModel::Sampling),
     ];
     for (scenario, style, tau, model) in cases {
-        let c = steer_case(scenario, style, tau, model, 2);
+        let c = steer_case(&settings, scenario, style, tau, model, 2);
         let tag = format!("{} {style} τ={tau} {model}", scenario.name);
         assert_eq!(c.collisions, 0, "{tag}");
         assert_eq!(c.zone_overlaps, 0, "{tag}");

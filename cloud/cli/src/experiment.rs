@@ -57,18 +57,23 @@ pub struct SteerReport {
     pub max_error_rel: f64,
 }
 
-/// Regulator settings for BV `bv_index` of `scenario`, with that BV's and the VUT's limits.
-fn params_for(scenario: &Scenario, bv_index: usize) -> RegulatorParams {
-    let mut p = RegulatorParams::default();
-    if let Some((bv, vut)) = RegulatedBv::limits_for(scenario, bv_index) {
-        p.bv = bv;
-        p.vut = vut;
+/// `settings` with BV `bv_index`'s and the VUT's limits from `scenario`.
+fn params_for(settings: &RegulatorParams, scenario: &Scenario, bv_index: usize) -> RegulatorParams {
+    match RegulatedBv::limits_for(scenario, bv_index) {
+        Some((bv, vut)) => settings.with_limits(bv, vut),
+        None => *settings,
     }
-    p
 }
 
-/// One case: `repeats` runs with seeds `1..=repeats`.
-pub fn steer_case(scenario: &Scenario, style: Style, tau_s: f64, model: VutModel, repeats: usize) -> SteerCase {
+/// One case: `repeats` runs with seeds `1..=repeats`, the regulator configured by `settings`.
+pub fn steer_case(
+    settings: &RegulatorParams,
+    scenario: &Scenario,
+    style: Style,
+    tau_s: f64,
+    model: VutModel,
+    repeats: usize,
+) -> SteerCase {
     let mut pets = Vec::new();
     let (mut collisions, mut overlaps, mut order_ok, mut unmeasured) = (0, 0, 0, 0);
     for seed in 1..=repeats as u64 {
@@ -79,7 +84,8 @@ pub fn steer_case(scenario: &Scenario, style: Style, tau_s: f64, model: VutModel
             .iter()
             .enumerate()
             .map(|(i, _)| {
-                RegulatedBv::new(params_for(scenario, i), tau_s, style).map(|r| Box::new(r) as Box<dyn BvController>)
+                RegulatedBv::new(params_for(settings, scenario, i), tau_s, style)
+                    .map(|r| Box::new(r) as Box<dyn BvController>)
             })
             .collect::<Result<Vec<_>, _>>()
         else {
@@ -117,8 +123,14 @@ pub fn steer_case(scenario: &Scenario, style: Style, tau_s: f64, model: VutModel
     }
 }
 
-/// Runs every case on two threads.
-pub fn steerability(scenarios: &[Scenario], taus: &[f64], models: &[VutModel], repeats: usize) -> SteerReport {
+/// Runs every case on the available cores.
+pub fn steerability(
+    settings: &RegulatorParams,
+    scenarios: &[Scenario],
+    taus: &[f64],
+    models: &[VutModel],
+    repeats: usize,
+) -> SteerReport {
     let mut jobs = Vec::new();
     for sc in scenarios {
         for style in [Style::Rush, Style::Yield] {
@@ -136,7 +148,9 @@ pub fn steerability(scenarios: &[Scenario], taus: &[f64], models: &[VutModel], r
             .chunks(chunk)
             .map(|part| {
                 s.spawn(move || {
-                    part.iter().map(|(sc, st, tau, m)| steer_case(sc, *st, *tau, *m, repeats)).collect::<Vec<_>>()
+                    part.iter()
+                        .map(|(sc, st, tau, m)| steer_case(settings, sc, *st, *tau, *m, repeats))
+                        .collect::<Vec<_>>()
                 })
             })
             .collect();

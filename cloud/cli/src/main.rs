@@ -5,9 +5,10 @@ use std::process::ExitCode;
 
 use anyhow::Context as _;
 use clap::{Parser, Subcommand};
+use v2t_game::regulator::RegulatorParams;
 use v2t_sim::vut::VutModel;
 use video2track::experiment;
-use video2track::files::{InputError, load_scenario};
+use video2track::files::{InputError, load_scenario, load_toml};
 use video2track::sim::{report, run_reference};
 
 /// Video2Track: real interaction videos → steerable adversarial tests on a closed track.
@@ -54,6 +55,9 @@ enum Command {
         /// Only these targets τ, s (default: 1.5 2 3 4 5).
         #[arg(long)]
         tau: Vec<f64>,
+        /// Regulator settings (TOML).
+        #[arg(long, default_value = "config/regulator/default.toml")]
+        regulator: PathBuf,
     },
 }
 
@@ -88,7 +92,8 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Command::Experiment { which: Experiment::Steerability, json, repeats, cards, vut, tau } => {
+        Command::Experiment { which: Experiment::Steerability, json, repeats, cards, vut, tau, regulator } => {
+            let settings: RegulatorParams = load_toml(&regulator)?;
             let cards = if cards.is_empty() {
                 vec![
                     PathBuf::from("config/scenarios/left_turn_basic.toml"),
@@ -104,7 +109,7 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
                 vut.iter().map(|v| v.parse::<VutModel>()).collect::<Result<_, _>>().map_err(anyhow::Error::msg)?
             };
             let taus = if tau.is_empty() { experiment::STEER_TAUS_S.to_vec() } else { tau };
-            let report = experiment::steerability(&scenarios, &taus, &models, repeats);
+            let report = experiment::steerability(&settings, &scenarios, &taus, &models, repeats);
             print!("{}", experiment::steer_markdown(&report));
             if let Some(path) = json {
                 let text = serde_json::to_string_pretty(&report).context("serializing the report")?;

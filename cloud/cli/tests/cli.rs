@@ -178,3 +178,15 @@ fn steerability_writes_the_documented_json() {
     }
     assert!(v["mean_error_rel"].is_number() && v["max_error_rel"].is_number());
 }
+
+#[test]
+fn a_bad_regulator_file_is_an_input_error() {
+    let dir = tempdir("regulator");
+    let path = dir.join("regulator.toml");
+    let original = std::fs::read_to_string(repo().join("config/regulator/default.toml")).unwrap();
+    std::fs::write(&path, original.replace("horizon = 50", "horizon = 1")).unwrap();
+    let o = video2track(&["experiment", "steerability", "--repeats", "1", "--regulator", path.to_str().unwrap()]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("regulator.toml") && err.contains("horizon"), "{err}");
+}

@@ -49,7 +49,8 @@ pub struct Limits {
     pub max_decel_mps2: f64,
 }
 
-/// Regulator settings.
+/// Regulator settings, as written in `config/regulator/*.toml`. The BV and VUT limits are not
+/// part of the file: they come from the vehicle files (see [`RegulatorParams::with_limits`]).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RegulatorParams {
@@ -67,10 +68,30 @@ pub struct RegulatorParams {
     pub max_input_age_s: f64,
     /// Comfortable deceleration of the fallback profile, m/s².
     pub fallback_decel_mps2: f64,
-    /// BV limits.
+    /// BV limits (from the BV's vehicle file).
+    #[serde(skip, default = "default_bv_limits")]
     pub bv: Limits,
-    /// Assumed VUT limits (for its best response).
+    /// Assumed VUT limits for its best response (from the VUT's vehicle file).
+    #[serde(skip, default = "default_vut_limits")]
     pub vut: Limits,
+}
+
+fn default_bv_limits() -> Limits {
+    Limits { max_speed_mps: 20.0, max_accel_mps2: 3.0, max_decel_mps2: 6.0 }
+}
+
+fn default_vut_limits() -> Limits {
+    Limits { max_speed_mps: 25.0, max_accel_mps2: 3.0, max_decel_mps2: 6.0 }
+}
+
+impl RegulatorParams {
+    /// These settings with the given vehicle limits.
+    #[must_use]
+    pub fn with_limits(mut self, bv: Limits, vut: Limits) -> Self {
+        self.bv = bv;
+        self.vut = vut;
+        self
+    }
 }
 
 impl Default for RegulatorParams {
@@ -83,8 +104,8 @@ impl Default for RegulatorParams {
             safety_margin_s: 0.5,
             max_input_age_s: 0.5,
             fallback_decel_mps2: 2.0,
-            bv: Limits { max_speed_mps: 20.0, max_accel_mps2: 3.0, max_decel_mps2: 6.0 },
-            vut: Limits { max_speed_mps: 25.0, max_accel_mps2: 3.0, max_decel_mps2: 6.0 },
+            bv: default_bv_limits(),
+            vut: default_vut_limits(),
         }
     }
 }
