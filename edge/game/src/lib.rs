@@ -2,9 +2,36 @@
 //!
 //! Runs on each BV's onboard computer, every control cycle: decides how the BV moves so that its
 //! interaction with the VUT reaches a target post-encroachment time τ in a given style (rush: BV
-//! first; yield: VUT first), staying close to its reference and within its limits.
+//! first; yield: VUT first), staying close to its reference and within its limits. The method and
+//! why it holds in closed loop are in [`regulator`]; the QP it solves in [`qp`].
 //!
-//! Pure: no IO, no clock, no allocation per cycle after construction.
+//! Pure: no IO, no clock, no allocation per cycle after construction (Clarabel's `solve` itself
+//! allocates once per call).
+//!
+//! ```
+//! use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams, RegulatorStatus};
+//! use v2t_model::Style;
+//! use v2t_model::metrics::OccupancyInterval;
+//!
+//! let mut regulator = Regulator::new(RegulatorParams::default()).unwrap();
+//! // BV 40 m and VUT 60 m before their zones, both at 10 m/s: rush with τ = 2 s.
+//! let decision = regulator.decide(&RegulatorInput {
+//!     t_s: 0.0,
+//!     bv: PathState { s_m: 0.0, v_mps: 10.0, age_s: 0.05 },
+//!     vut: PathState { s_m: 0.0, v_mps: 10.0, age_s: 0.15 },
+//!     bv_accel_mps2: 0.0,
+//!     zone_bv: OccupancyInterval { enter_s_m: 40.0, exit_s_m: 50.0 },
+//!     zone_vut: OccupancyInterval { enter_s_m: 60.0, exit_s_m: 70.0 },
+//!     tau_s: 2.0,
+//!     style: Style::Rush,
+//!     reference_speed_mps: 10.0,
+//!     reference_key_time_s: None,
+//! });
+//! assert_eq!(decision.status, RegulatorStatus::Regulating);
+//! // Out of the zone at 4 s, two seconds before the VUT comes in at 6 s.
+//! assert!((decision.key_time_s.unwrap() - 4.0).abs() < 0.05);
+//! assert!((decision.predicted_pet_s.unwrap() - 2.0).abs() < 0.05);
+//! ```
 
 pub mod qp;
 pub mod regulator;

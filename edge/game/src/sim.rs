@@ -18,13 +18,12 @@ pub struct RegulatedBv {
     style: Style,
     last_accel: f64,
     last: Option<Decision>,
-    decisions: u64,
 }
 
 impl RegulatedBv {
     /// A regulator with `params` aiming at `tau_s` in `style`.
     pub fn new(params: RegulatorParams, tau_s: f64, style: Style) -> Result<Self, QpError> {
-        Ok(Self { regulator: Regulator::new(params)?, tau_s, style, last_accel: 0.0, last: None, decisions: 0 })
+        Ok(Self { regulator: Regulator::new(params)?, tau_s, style, last_accel: 0.0, last: None })
     }
 
     /// Regulator limits from the scenario's vehicles.
@@ -40,11 +39,6 @@ impl RegulatedBv {
     /// The last decision.
     pub fn last_decision(&self) -> Option<&Decision> {
         self.last.as_ref()
-    }
-
-    /// Decisions taken so far.
-    pub fn decisions(&self) -> u64 {
-        self.decisions
     }
 }
 
@@ -76,7 +70,6 @@ impl BvController for RegulatedBv {
         };
         let d = self.regulator.decide(&input);
         self.last_accel = d.accel_mps2;
-        self.decisions += 1;
         self.last = Some(d);
         ActuationRequest {
             accel_mps2: d.accel_mps2,
