@@ -1,21 +1,37 @@
-//! Decision latency and allocations of the regulator over closed-loop-like decision sequences.
+//! Decision latency and allocations of the regulator.
 //!
-//! `cargo run --release -p v2t-game --example bench_game -- [--json FILE]`
+//! `cargo run --release -p v2t-game --features sim --example bench_game -- [--json FILE]`
 //!
-//! For N = 30 and N = 50 it replays a left-turn approach in both styles (the BV and the VUT
-//! advancing along their paths at the speeds the decisions imply, with the VUT at constant speed),
-//! plus 10,000 decisions on randomized states, on one thread. It reports p50 / p99 / max latency in
-//! µs, heap allocations per decision after warm-up (all of them come from inside Clarabel: the
-//! regulator's own code allocates nothing per cycle), status counts and any non-finite output.
+//! For N = 30 and N = 50, on one thread:
+//! - *sim*: every decision of the regulated BV in the simulated proving ground — both bundled
+//!   cards, rush and yield, τ ∈ {1.5, 3, 5} s, every VUT model, one seed each;
+//! - *approaches*: a left-turn approach in both styles replayed kinematically (the BV moving as its
+//!   decisions say, the VUT at constant speed);
+//! - *random*: 10,000 decisions on randomized states.
+//!
+//! It reports p50 / p99 / max latency in µs, heap allocations per decision after warm-up (all of
+//! them come from inside Clarabel: the regulator's own code allocates nothing per cycle), status
+//! counts and any non-finite output.
 
 use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::RefCell;
 use std::collections::BTreeMap;
+use std::rc::Rc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams};
+use v2t_game::sim::RegulatedBv;
 use v2t_model::Style;
 use v2t_model::metrics::OccupancyInterval;
+use v2t_model::vehicle::VehicleConfig;
+use v2t_sim::bv::BvController;
+use v2t_sim::config::{ScenarioCard, SimSettings, parse_toml};
+use v2t_sim::observation::BvObservation;
+use v2t_sim::plant::ActuationRequest;
+use v2t_sim::runner::run;
+use v2t_sim::scenario::Scenario;
+use v2t_sim::vut::VutModel;
 
 struct Counting;
 static ALLOCS: AtomicU64 = AtomicU64::new(0);
@@ -77,6 +93,68 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted.get(i).copied().unwrap_or(f64::NAN)
 }
 
+/// A regulated BV whose every decision is timed into a shared sink.
+struct Timed {
+    inner: RegulatedBv,
+    sink: Rc<RefCell<Vec<f64>>>,
+}
+
+impl BvController for Timed {
+    fn name(&self) -> &str {
+        "timed regulator"
+    }
+    fn control(&mut self, obs: &BvObservation<'_>) -> ActuationRequest {
+        let t0 = Instant::now();
+        let r = self.inner.control(obs);
+        self.sink.borrow_mut().push(t0.elapsed().as_secs_f64() * 1e6);
+        r
+    }
+}
+
+fn scenario(card: &str, vut: &str, bv: &str, sim: &str) -> Scenario {
+    let parse = || -> Result<Scenario, Box<dyn std::error::Error>> {
+        let card: ScenarioCard = parse_toml(card, "card")?;
+        let vut: VehicleConfig = parse_toml(vut, "vut")?;
+        let bv: VehicleConfig = parse_toml(bv, "bv")?;
+        let sim: SimSettings = parse_toml(sim, "sim")?;
+        Ok(Scenario::from_card(&card, sim, vut, vec![bv])?)
+    };
+    parse().unwrap_or_else(|e| {
+        eprintln!("bundled configuration: {e}");
+        std::process::exit(1)
+    })
+}
+
+/// Latencies of every regulator decision in closed-loop simulations, µs.
+fn sim_latencies(settings: RegulatorParams) -> Vec<f64> {
+    let vut = include_str!("../../../config/vehicles/vut_sedan.toml");
+    let bv = include_str!("../../../config/vehicles/bv_sedan.toml");
+    let sim = include_str!("../../../config/sim/default.toml");
+    let scenarios = [
+        scenario(include_str!("../../../config/scenarios/left_turn_basic.toml"), vut, bv, sim),
+        scenario(include_str!("../../../config/scenarios/cut_in_basic.toml"), vut, bv, sim),
+    ];
+    let sink = Rc::new(RefCell::new(Vec::new()));
+    for base in &scenarios {
+        for style in [Style::Rush, Style::Yield] {
+            for tau in [1.5, 3.0, 5.0] {
+                for model in VutModel::ALL {
+                    let Some((bv_lim, vut_lim)) = RegulatedBv::limits_for(base, 0) else { continue };
+                    let Ok(inner) = RegulatedBv::new(settings.with_limits(bv_lim, vut_lim), tau, style) else {
+                        continue;
+                    };
+                    let mut sc = base.clone();
+                    sc.style = style;
+                    sc.tau_s = tau;
+                    let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(Timed { inner, sink: Rc::clone(&sink) })];
+                    let _ = run(&sc, &mut bvs, model.driver().as_mut(), 1);
+                }
+            }
+        }
+    }
+    sink.take()
+}
+
 fn main() {
     let json_path = std::env::args().skip_while(|a| a != "--json").nth(1);
     let mut report = Vec::new();
@@ -136,12 +214,18 @@ fn main() {
             reg.reset();
             decide(&mut reg, &inp, true, &mut random_us);
         }
+        let mut sim_us = sim_latencies(params);
+        sim_us.sort_by(f64::total_cmp);
         lat_us.extend_from_slice(&approach_us);
         lat_us.extend_from_slice(&random_us);
         lat_us.sort_by(f64::total_cmp);
         approach_us.sort_by(f64::total_cmp);
         let line = format!(
-            "{{\"horizon\": {horizon}, \"decisions\": {counted}, \"approach_p50_us\": {:.1}, \"approach_p99_us\": {:.1}, \"p50_us\": {:.1}, \"p99_us\": {:.1}, \"max_us\": {:.1}, \"allocs_per_decision\": {:.2}, \"non_finite\": {non_finite}, \"statuses\": {{{}}}}}",
+            "{{\"horizon\": {horizon}, \"decisions\": {counted}, \"sim_decisions\": {}, \"sim_p50_us\": {:.1}, \"sim_p99_us\": {:.1}, \"sim_max_us\": {:.1}, \"approach_p50_us\": {:.1}, \"approach_p99_us\": {:.1}, \"p50_us\": {:.1}, \"p99_us\": {:.1}, \"max_us\": {:.1}, \"allocs_per_decision\": {:.2}, \"non_finite\": {non_finite}, \"statuses\": {{{}}}}}",
+            sim_us.len(),
+            percentile(&sim_us, 0.5),
+            percentile(&sim_us, 0.99),
+            sim_us.last().copied().unwrap_or(f64::NAN),
             percentile(&approach_us, 0.5),
             percentile(&approach_us, 0.99),
             percentile(&lat_us, 0.5),
