@@ -23,7 +23,7 @@ use std::time::Instant;
 use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams};
 use v2t_game::sim::RegulatedBv;
 use v2t_model::Style;
-use v2t_model::metrics::OccupancyInterval;
+use v2t_model::metrics::{ConflictKind, OccupancyInterval};
 use v2t_model::vehicle::VehicleConfig;
 use v2t_sim::bv::BvController;
 use v2t_sim::config::{ScenarioCard, SimSettings, parse_toml};
@@ -81,6 +81,7 @@ fn base(style: Style, tau: f64) -> RegulatorInput {
         bv_accel_mps2: 0.0,
         zone_bv: OccupancyInterval { enter_s_m: 33.5, exit_s_m: 45.3 },
         zone_vut: OccupancyInterval { enter_s_m: 74.6, exit_s_m: 86.4 },
+        zone_kind: ConflictKind::Crossing,
         tau_s: tau,
         style,
         reference_speed_mps: 10.0,

@@ -11,7 +11,7 @@
 //! ```
 //! use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams, RegulatorStatus};
 //! use v2t_model::Style;
-//! use v2t_model::metrics::OccupancyInterval;
+//! use v2t_model::metrics::{ConflictKind, OccupancyInterval};
 //!
 //! let mut regulator = Regulator::new(RegulatorParams::default()).unwrap();
 //! // BV 40 m and VUT 60 m before their zones, both at 10 m/s: rush with τ = 2 s.
@@ -22,6 +22,7 @@
 //!     bv_accel_mps2: 0.0,
 //!     zone_bv: OccupancyInterval { enter_s_m: 40.0, exit_s_m: 50.0 },
 //!     zone_vut: OccupancyInterval { enter_s_m: 60.0, exit_s_m: 70.0 },
+//!     zone_kind: ConflictKind::Crossing,
 //!     tau_s: 2.0,
 //!     style: Style::Rush,
 //!     reference_speed_mps: 10.0,

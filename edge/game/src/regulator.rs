@@ -32,7 +32,7 @@
 //! finite and within the BV's limits.
 
 use v2t_model::Style;
-use v2t_model::metrics::OccupancyInterval;
+use v2t_model::metrics::{ConflictKind, OccupancyInterval};
 use v2t_model::validate::{Validate, ValidationError, in_range, positive};
 
 use crate::qp::{EventKind, LongitudinalQp, QpError, QpInput, QpShape, QpStatus};
@@ -68,6 +68,8 @@ pub struct RegulatorParams {
     pub max_input_age_s: f64,
     /// Comfortable deceleration of the fallback profile, m/s².
     pub fallback_decel_mps2: f64,
+    /// Time headway the VUT is assumed to keep behind a vehicle that cuts in ahead of it, s.
+    pub vut_headway_s: f64,
     /// BV limits (from the BV's vehicle file).
     #[serde(skip, default = "default_bv_limits")]
     pub bv: Limits,
@@ -104,6 +106,7 @@ impl Default for RegulatorParams {
             safety_margin_s: 0.5,
             max_input_age_s: 0.5,
             fallback_decel_mps2: 2.0,
+            vut_headway_s: 1.5,
             bv: default_bv_limits(),
             vut: default_vut_limits(),
         }
@@ -129,6 +132,7 @@ impl Validate for RegulatorParams {
         in_range("safety_margin_s", self.safety_margin_s, 0.0, 5.0)?;
         positive("max_input_age_s", self.max_input_age_s)?;
         positive("fallback_decel_mps2", self.fallback_decel_mps2)?;
+        in_range("vut_headway_s", self.vut_headway_s, 0.0, 5.0)?;
         self.bv.validate().map_err(|e| e.within("bv"))?;
         self.vut.validate().map_err(|e| e.within("vut"))
     }
@@ -160,6 +164,8 @@ pub struct RegulatorInput {
     pub zone_bv: OccupancyInterval,
     /// Zone occupancy along the VUT's route.
     pub zone_vut: OccupancyInterval,
+    /// Crossing or merge (after a rushing merge the BV is the VUT's lead vehicle).
+    pub zone_kind: ConflictKind,
     /// Target PET τ, s.
     pub tau_s: f64,
     /// Who passes first.
@@ -332,12 +338,28 @@ impl Regulator {
     fn lead(&mut self, inp: &RegulatorInput, key_t: Option<f64>, station: f64) -> QpStatus {
         let qin =
             self.qp_input(inp.bv.s_m, inp.bv.v_mps, inp.bv_accel_mps2, &self.params.bv, key_t.map(|t| (t, station)));
-        let v_ref = match key_t {
-            Some(t) if t > self.params.dt_s => (station - inp.bv.s_m) / t,
-            _ => inp.reference_speed_mps,
+        let v_max = self.params.bv.max_speed_mps;
+        let (dt, v_ref) = (self.params.dt_s, inp.reference_speed_mps.clamp(0.0, v_max));
+        match key_t {
+            Some(t) if t > dt => {
+                let v_avg = ((station - inp.bv.s_m) / t).clamp(0.0, v_max);
+                // A rushing cut-in must arrive fast enough that the VUT, keeping its headway behind
+                // it, does not brake before reaching the encroachment point: the BV's rear must be
+                // `h · v_VUT` ahead within τ, so its speed there should reach `h · v_VUT / τ`. The
+                // reference ramps through the average so the key time stays the same.
+                let v_arrive = if inp.style == Style::Rush && inp.zone_kind == ConflictKind::Merge {
+                    (self.params.vut_headway_s * inp.vut.v_mps / inp.tau_s).clamp(v_avg, v_max)
+                } else {
+                    v_avg
+                };
+                let ramp = v_arrive - v_avg;
+                for (k, v) in self.leader_equal.v_ref_mut().iter_mut().enumerate() {
+                    let frac = ((k + 1) as f64 * dt / t).min(1.0);
+                    *v = (v_avg + ramp * (2.0 * frac - 1.0)).clamp(0.0, v_max);
+                }
+            }
+            _ => self.leader_equal.v_ref_mut().iter_mut().for_each(|v| *v = v_ref),
         }
-        .clamp(0.0, self.params.bv.max_speed_mps);
-        self.leader_equal.v_ref_mut().iter_mut().for_each(|v| *v = v_ref);
         self.leader_equal.solve(&qin)
     }
 

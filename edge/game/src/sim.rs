@@ -63,6 +63,7 @@ impl BvController for RegulatedBv {
             bv_accel_mps2: self.last_accel,
             zone_bv: conflict.zone.b,
             zone_vut: conflict.zone.a,
+            zone_kind: conflict.zone.kind,
             tau_s: self.tau_s,
             style: self.style,
             reference_speed_mps: bv.reference.speed_at(obs.t_s),

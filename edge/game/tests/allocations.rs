@@ -10,7 +10,7 @@ use std::cell::Cell;
 use v2t_game::qp::{EventKind, LongitudinalQp, QpInput, QpShape};
 use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams};
 use v2t_model::Style;
-use v2t_model::metrics::OccupancyInterval;
+use v2t_model::metrics::{ConflictKind, OccupancyInterval};
 
 thread_local! {
     static COUNT: Cell<u64> = const { Cell::new(0) };
@@ -86,6 +86,7 @@ fn allocations_per_decision_come_only_from_the_solver() {
         bv_accel_mps2: 0.0,
         zone_bv: OccupancyInterval { enter_s_m: 33.5, exit_s_m: 45.3 },
         zone_vut: OccupancyInterval { enter_s_m: 74.6, exit_s_m: 86.4 },
+        zone_kind: ConflictKind::Crossing,
         tau_s: 2.0,
         style: Style::Rush,
         reference_speed_mps: 10.0,

@@ -14,6 +14,7 @@ fn input(style: Style, tau: f64) -> RegulatorInput {
         bv_accel_mps2: 0.0,
         zone_bv: zone(40.0, 50.0),
         zone_vut: zone(60.0, 70.0),
+        zone_kind: ConflictKind::Crossing,
         tau_s: tau,
         style,
         reference_speed_mps: 10.0,
@@ -150,4 +151,29 @@ proptest! {
         prop_assert!(d.predicted_pet_s.is_none_or(|p| p.is_finite()));
         if age > 0.5 { prop_assert_eq!(d.status, RegulatorStatus::Stale); }
     }
+}
+
+#[test]
+fn a_rushing_cut_in_arrives_fast_enough_for_the_vut_headway() {
+    // Merge, rush, τ = 1.5 s, VUT at 12 m/s keeping (assumed) 2 s: the BV should pass the
+    // encroachment point at about 2 · 12 / 1.5 = 16 m/s, and still on time.
+    let params = RegulatorParams { vut_headway_s: 2.0, ..RegulatorParams::default() };
+    let mut r = Regulator::new(params).unwrap();
+    let mut inp = input(Style::Rush, 1.5);
+    inp.zone_kind = ConflictKind::Merge;
+    inp.vut = PathState { s_m: 0.0, v_mps: 12.0, age_s: 0.1 };
+    inp.zone_vut = zone(75.0, 80.0); // in at 6.25 s
+    inp.bv = PathState { s_m: 0.0, v_mps: 8.0, age_s: 0.05 };
+    let d = r.decide(&inp);
+    assert_eq!(d.status, RegulatorStatus::Regulating, "{d:?}");
+    let key = d.key_time_s.unwrap();
+    assert!((key - (75.0 / 12.0 - 1.5)).abs() < 0.05, "{key}");
+    let k = (key / 0.1).floor() as usize;
+    let v_key = r.leader_equal.speed()[k];
+    assert!(v_key >= 12.0, "arrives at {v_key} m/s (the ramp is tracked against effort penalties)");
+    // The same crossing is planned at its plain average speed (50 m in 4.75 s).
+    let mut r2 = Regulator::new(params).unwrap();
+    inp.zone_kind = ConflictKind::Crossing;
+    r2.decide(&inp);
+    assert!(r2.leader_equal.speed()[k] < v_key - 0.5, "{}", r2.leader_equal.speed()[k]);
 }
