@@ -46,8 +46,6 @@ pub struct QpShape {
     pub dt_s: f64,
     /// Weight on `(v − v_ref)²`.
     pub w_speed: f64,
-    /// Weight on `(s − s_ref)²`.
-    pub w_station: f64,
     /// Weight on `a²`.
     pub w_accel: f64,
     /// Weight on `(a_k − a_{k−1})²`.
@@ -121,7 +119,6 @@ pub struct LongitudinalQp {
     n_eq: usize,
     /// References over the horizon (filled by the caller), `k = 1..N`.
     v_ref: Vec<f64>,
-    s_ref: Vec<f64>,
     out_s: Vec<f64>,
     out_v: Vec<f64>,
     out_a: Vec<f64>,
@@ -146,7 +143,6 @@ impl LongitudinalQp {
         // Cost (upper triangle, column-major triplets).
         let mut p_trip: Vec<(usize, usize, f64)> = Vec::new();
         for k in 1..=n {
-            p_trip.push((idx_s(k), idx_s(k), 2.0 * shape.w_station));
             p_trip.push((iv(k), iv(k), 2.0 * shape.w_speed));
         }
         for k in 0..n {
@@ -255,7 +251,6 @@ impl LongitudinalQp {
             event_row,
             n_eq,
             v_ref: vec![0.0; n],
-            s_ref: vec![0.0; n],
             out_s: vec![0.0; n + 1],
             out_v: vec![0.0; n + 1],
             out_a: vec![0.0; n],
@@ -275,23 +270,15 @@ impl LongitudinalQp {
         &mut self.v_ref
     }
 
-    /// Reference stations for steps `1..=N` (used when `w_station > 0`).
-    pub fn s_ref_mut(&mut self) -> &mut [f64] {
-        &mut self.s_ref
-    }
-
     /// Solves for `input`; the plan is then in [`Self::station`], [`Self::speed`], [`Self::accel`].
     pub fn solve(&mut self, input: &QpInput) -> QpStatus {
         let n = self.shape.horizon;
         let dt = self.shape.dt_s;
         let sh = self.shape;
         // q: references and the previous acceleration.
-        for (k, (vr, sr)) in (1..=n).zip(self.v_ref.iter().zip(&self.s_ref)) {
+        for (k, vr) in (1..=n).zip(&self.v_ref) {
             if let Some(q) = self.q.get_mut(n + k - 1) {
                 *q = -2.0 * sh.w_speed * vr;
-            }
-            if let Some(q) = self.q.get_mut(k - 1) {
-                *q = -2.0 * sh.w_station * sr;
             }
         }
         for k in 0..n {

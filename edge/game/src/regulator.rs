@@ -244,7 +244,6 @@ impl Regulator {
             horizon: params.horizon,
             dt_s: params.dt_s,
             w_speed: 1.0,
-            w_station: 0.0,
             w_accel: 1.0,
             w_jerk: 2.0,
             w_slack: 1e4,

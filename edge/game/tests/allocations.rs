@@ -52,7 +52,6 @@ fn allocations_per_decision_come_only_from_the_solver() {
         horizon: 50,
         dt_s: 0.1,
         w_speed: 1.0,
-        w_station: 0.0,
         w_accel: 1.0,
         w_jerk: 2.0,
         w_slack: 1e4,

@@ -2,7 +2,7 @@ use super::*;
 use proptest::prelude::*;
 
 fn shape(event: EventKind, horizon: usize) -> QpShape {
-    QpShape { horizon, dt_s: 0.1, w_speed: 1.0, w_station: 0.0, w_accel: 0.5, w_jerk: 0.5, w_slack: 1e4, event }
+    QpShape { horizon, dt_s: 0.1, w_speed: 1.0, w_accel: 0.5, w_jerk: 0.5, w_slack: 1e4, event }
 }
 
 fn input(s0: f64, v0: f64, event_t_s: Option<f64>, station: f64) -> QpInput {
