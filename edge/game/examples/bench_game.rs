@@ -23,7 +23,6 @@ use std::time::Instant;
 use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams};
 use v2t_game::sim::RegulatedBv;
 use v2t_model::Style;
-use v2t_model::metrics::{ConflictKind, OccupancyInterval};
 use v2t_model::vehicle::VehicleConfig;
 use v2t_sim::bv::BvController;
 use v2t_sim::config::{ScenarioCard, SimSettings, parse_toml};
@@ -55,6 +54,9 @@ unsafe impl GlobalAlloc for Counting {
     }
 }
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
@@ -70,22 +72,6 @@ impl Rng {
     }
     fn range(&mut self, lo: f64, hi: f64) -> f64 {
         lo + (hi - lo) * self.next()
-    }
-}
-
-fn base(style: Style, tau: f64) -> RegulatorInput {
-    RegulatorInput {
-        t_s: 0.0,
-        bv: PathState { s_m: 0.0, v_mps: 10.0, age_s: 0.05 },
-        vut: PathState { s_m: 0.0, v_mps: 8.0, age_s: 0.15 },
-        bv_accel_mps2: 0.0,
-        zone_bv: OccupancyInterval { enter_s_m: 33.5, exit_s_m: 45.3 },
-        zone_vut: OccupancyInterval { enter_s_m: 74.6, exit_s_m: 86.4 },
-        zone_kind: ConflictKind::Crossing,
-        tau_s: tau,
-        style,
-        reference_speed_mps: 10.0,
-        reference_key_time_s: None,
     }
 }
 
@@ -191,7 +177,7 @@ fn main() {
         for style in [Style::Rush, Style::Yield] {
             for tau in [1.5, 2.0, 3.0, 4.0, 5.0] {
                 reg.reset();
-                let mut inp = base(style, tau);
+                let mut inp = common::left_turn_start(style, tau);
                 for k in 0..200 {
                     let d = decide(&mut reg, &inp, k >= 5, &mut approach_us);
                     inp.t_s += 0.1;
@@ -206,7 +192,8 @@ fn main() {
         // Randomized states.
         let mut rng = Rng(horizon as u64);
         for _ in 0..10_000 {
-            let mut inp = base(if rng.next() < 0.5 { Style::Rush } else { Style::Yield }, rng.range(0.5, 6.0));
+            let mut inp =
+                common::left_turn_start(if rng.next() < 0.5 { Style::Rush } else { Style::Yield }, rng.range(0.5, 6.0));
             inp.t_s = rng.range(0.0, 30.0);
             inp.bv = PathState { s_m: rng.range(-20.0, 80.0), v_mps: rng.range(0.0, 20.0), age_s: rng.range(0.0, 0.6) };
             inp.vut =

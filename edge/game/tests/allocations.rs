@@ -8,9 +8,8 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
 use v2t_game::qp::{EventKind, LongitudinalQp, QpInput, QpShape};
-use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams};
+use v2t_game::regulator::{Regulator, RegulatorParams};
 use v2t_model::Style;
-use v2t_model::metrics::{ConflictKind, OccupancyInterval};
 
 thread_local! {
     static COUNT: Cell<u64> = const { Cell::new(0) };
@@ -35,6 +34,8 @@ unsafe impl GlobalAlloc for Counting {
         unsafe { System.realloc(p, l, n) }
     }
 }
+
+mod common;
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
@@ -78,19 +79,7 @@ fn allocations_per_decision_come_only_from_the_solver() {
     }
     // The regulator over an approach, after warm-up.
     let mut reg = Regulator::new(RegulatorParams::default()).unwrap();
-    let mut inp = RegulatorInput {
-        t_s: 0.0,
-        bv: PathState { s_m: 0.0, v_mps: 10.0, age_s: 0.05 },
-        vut: PathState { s_m: 0.0, v_mps: 8.0, age_s: 0.15 },
-        bv_accel_mps2: 0.0,
-        zone_bv: OccupancyInterval { enter_s_m: 33.5, exit_s_m: 45.3 },
-        zone_vut: OccupancyInterval { enter_s_m: 74.6, exit_s_m: 86.4 },
-        zone_kind: ConflictKind::Crossing,
-        tau_s: 2.0,
-        style: Style::Rush,
-        reference_speed_mps: 10.0,
-        reference_key_time_s: None,
-    };
+    let mut inp = common::left_turn_start(Style::Rush, 2.0);
     let mut worst = 0;
     for k in 0..120 {
         let (d, n) = count(|| reg.decide(&inp));
