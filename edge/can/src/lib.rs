@@ -1,0 +1,1 @@
+//! Video2Track drive-by-wire CAN.

@@ -1,0 +1,1 @@
+//! Video2Track BV onboard runtime.

@@ -1,0 +1,1 @@
+//! Video2Track path tracking.

@@ -1,0 +1,1 @@
+//! Video2Track wire types (IPC payloads).
