@@ -1,0 +1,384 @@
+//! The IPC payloads. All `#[repr(C)]`, fixed size, self-contained.
+
+use iceoryx2::prelude::ZeroCopySend;
+use iceoryx2_bb_container::vector::{StaticVec, Vector};
+
+use crate::Header;
+
+/// Most points of a path in an [`ActivePrior`].
+pub const MAX_PATH_POINTS: usize = 512;
+/// Most samples of a speed profile in an [`ActivePrior`].
+pub const MAX_PROFILE_SAMPLES: usize = 512;
+
+/// A point in the track frame, m.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct Vec2 {
+    /// East, m.
+    pub x_m: f64,
+    /// North, m.
+    pub y_m: f64,
+}
+
+/// Pose and speed from the BV's GNSS/INS (in simulation: from the simulated ECU).
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct Localization {
+    /// Sequence and time of the fix.
+    pub header: Header,
+    /// East, m.
+    pub px_m: f64,
+    /// North, m.
+    pub py_m: f64,
+    /// Heading, rad, counter-clockwise from east.
+    pub theta_rad: f64,
+    /// Speed over ground, m/s.
+    pub speed_mps: f64,
+    /// 1 when the fix is usable.
+    pub valid: u8,
+}
+
+impl Localization {
+    /// Every number finite.
+    pub fn is_finite(&self) -> bool {
+        [self.px_m, self.py_m, self.theta_rad, self.speed_mps].iter().all(|v| v.is_finite())
+    }
+}
+
+/// What the drive-by-wire system reports over CAN, decoded by the gateway.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct VehicleFeedback {
+    /// Sequence and time the frame was received.
+    pub header: Header,
+    /// Wheel speed, m/s.
+    pub wheel_speed_mps: f64,
+    /// Yaw rate, rad/s.
+    pub yaw_rate_radps: f64,
+    /// Road-wheel angle, rad.
+    pub steer_rad: f64,
+    /// [`crate::DbwMode`] code.
+    pub mode: u8,
+}
+
+/// The BV's own state, fused by the state node.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct BvState {
+    /// Sequence, and the time of the localization fix the state is built on.
+    pub header: Header,
+    /// East, m.
+    pub px_m: f64,
+    /// North, m.
+    pub py_m: f64,
+    /// Heading, rad.
+    pub theta_rad: f64,
+    /// Speed, m/s (wheel speed when fresh, else localization).
+    pub speed_mps: f64,
+    /// Yaw rate, rad/s.
+    pub yaw_rate_radps: f64,
+    /// Road-wheel angle, rad.
+    pub steer_rad: f64,
+    /// When the CAN feedback used was received (0: none).
+    pub feedback_stamp_ns: u64,
+    /// [`crate::DbwMode`] code of the feedback used.
+    pub dbw_mode: u8,
+}
+
+impl BvState {
+    /// Every number finite.
+    pub fn is_finite(&self) -> bool {
+        [self.px_m, self.py_m, self.theta_rad, self.speed_mps, self.yaw_rate_radps, self.steer_rad]
+            .iter()
+            .all(|v| v.is_finite())
+    }
+}
+
+/// The VUT as the BV learns it (V2X, the cloud, or onboard perception).
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct VutState {
+    /// Sequence and the time the VUT was at this state.
+    pub header: Header,
+    /// East, m.
+    pub px_m: f64,
+    /// North, m.
+    pub py_m: f64,
+    /// Heading, rad.
+    pub theta_rad: f64,
+    /// Speed, m/s.
+    pub speed_mps: f64,
+}
+
+impl VutState {
+    /// Every number finite.
+    pub fn is_finite(&self) -> bool {
+        [self.px_m, self.py_m, self.theta_rad, self.speed_mps].iter().all(|v| v.is_finite())
+    }
+}
+
+/// One sample of the BV's reference timing along its path.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct ProfileSample {
+    /// Time since the start of the prior, s.
+    pub t_s: f64,
+    /// Arc length along the BV's path, m.
+    pub s_m: f64,
+    /// Speed, m/s.
+    pub v_mps: f64,
+}
+
+/// The prior the BV regulates around: both paths, the conflict zone on each, the BV's reference
+/// timing, the target PET and the style.
+#[derive(Debug, Clone, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct ActivePrior {
+    /// Sequence and the time the prior was issued.
+    pub header: Header,
+    /// Identifies the prior (changes whenever its content does).
+    pub prior_id: u64,
+    /// Target PET τ, s.
+    pub tau_s: f64,
+    /// [`crate::StyleCode`] code.
+    pub style: u8,
+    /// [`crate::ZoneKind`] code.
+    pub zone_kind: u8,
+    /// The BV's footprint is in the zone between these arc lengths of its path, m.
+    pub bv_zone_enter_s_m: f64,
+    /// See `bv_zone_enter_s_m`.
+    pub bv_zone_exit_s_m: f64,
+    /// The VUT's footprint is in the zone between these arc lengths of its path, m.
+    pub vut_zone_enter_s_m: f64,
+    /// See `vut_zone_enter_s_m`.
+    pub vut_zone_exit_s_m: f64,
+    /// The BV's reference path.
+    pub bv_path: StaticVec<Vec2, MAX_PATH_POINTS>,
+    /// The VUT's expected route.
+    pub vut_path: StaticVec<Vec2, MAX_PATH_POINTS>,
+    /// The BV's reference timing along `bv_path`.
+    pub bv_profile: StaticVec<ProfileSample, MAX_PROFILE_SAMPLES>,
+}
+
+impl ActivePrior {
+    /// Every number finite, both paths with at least two points, intervals ordered, τ positive.
+    pub fn check(&self) -> Result<(), &'static str> {
+        let numbers = [
+            self.tau_s,
+            self.bv_zone_enter_s_m,
+            self.bv_zone_exit_s_m,
+            self.vut_zone_enter_s_m,
+            self.vut_zone_exit_s_m,
+        ];
+        if !numbers.iter().all(|v| v.is_finite()) {
+            return Err("non-finite target or zone interval");
+        }
+        let tau_ok = self.tau_s > 0.0;
+        if !tau_ok {
+            return Err("target PET must be positive");
+        }
+        if !(self.bv_zone_enter_s_m < self.bv_zone_exit_s_m && self.vut_zone_enter_s_m < self.vut_zone_exit_s_m) {
+            return Err("zone interval with enter >= exit");
+        }
+        if self.bv_path.len() < 2 || self.vut_path.len() < 2 {
+            return Err("path with fewer than two points");
+        }
+        let finite_path = |p: &[Vec2]| p.iter().all(|q| q.x_m.is_finite() && q.y_m.is_finite());
+        if !finite_path(self.bv_path.as_slice()) || !finite_path(self.vut_path.as_slice()) {
+            return Err("non-finite path point");
+        }
+        let finite_profile =
+            self.bv_profile.as_slice().iter().all(|q| q.t_s.is_finite() && q.s_m.is_finite() && q.v_mps.is_finite());
+        if !finite_profile {
+            return Err("non-finite profile sample");
+        }
+        if self.bv_profile.as_slice().windows(2).any(|w| matches!(w, [a, b] if b.t_s <= a.t_s)) {
+            return Err("profile times not increasing");
+        }
+        Ok(())
+    }
+}
+
+/// What the regulator decided from one BV state.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct RegulatedPlan {
+    /// Sequence; stamp = the stamp of the BV state the plan starts from.
+    pub header: Header,
+    /// Sequence of that BV state.
+    pub state_seq: u64,
+    /// The prior regulated around (0: none).
+    pub prior_id: u64,
+    /// [`crate::PlanStatus`] code.
+    pub status: u8,
+    /// 1 when `predicted_pet_s` holds a value.
+    pub has_predicted_pet: u8,
+    /// The BV's arc length along its path at the stamp, m.
+    pub s0_m: f64,
+    /// Speed at the stamp, m/s.
+    pub v0_mps: f64,
+    /// Acceleration to hold from the stamp on, m/s².
+    pub accel_mps2: f64,
+    /// Predicted PET, s.
+    pub predicted_pet_s: f64,
+    /// CPU time of the decision, ns.
+    pub solve_ns: u64,
+}
+
+/// The tracker's request to the gateway.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct ActuationCommand {
+    /// Sequence and the time it was computed.
+    pub header: Header,
+    /// Sequence of the plan followed.
+    pub plan_seq: u64,
+    /// Sequence of the BV state it was computed from.
+    pub state_seq: u64,
+    /// Stamp of that BV state (the start of the state-in → CAN-out latency).
+    pub state_stamp_ns: u64,
+    /// When the tracker received that BV state.
+    pub state_received_ns: u64,
+    /// Requested acceleration, m/s².
+    pub accel_mps2: f64,
+    /// Requested road-wheel angle, rad.
+    pub steer_rad: f64,
+    /// Cross-track error, m (positive: left of the path).
+    pub cross_track_m: f64,
+    /// Speed error (reference − measured), m/s.
+    pub speed_error_mps: f64,
+}
+
+/// A request to the gateway from the monitor or the operator.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct SafetyCommand {
+    /// Sequence and time of the request.
+    pub header: Header,
+    /// [`crate::SafetyAction`] code.
+    pub action: u8,
+    /// [`crate::NodeKind`] code of the node whose failure caused it (0: none).
+    pub culprit: u8,
+}
+
+/// What the gateway sent and why.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct GateReport {
+    /// Sequence and time of the last transmission.
+    pub header: Header,
+    /// [`crate::GateState`] code.
+    pub state: u8,
+    /// [`crate::GateReason`] code.
+    pub reason: u8,
+    /// Acceleration sent, m/s².
+    pub accel_sent_mps2: f64,
+    /// Road-wheel angle sent, rad.
+    pub steer_sent_rad: f64,
+    /// Command frames written to the bus.
+    pub frames_tx: u64,
+    /// Frames received and accepted.
+    pub frames_rx: u64,
+    /// Frames received and rejected (checksum, counter, range, unknown id).
+    pub frames_rejected: u64,
+    /// Bus errors seen.
+    pub bus_errors: u64,
+}
+
+/// A node's liveness and timing.
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct Heartbeat {
+    /// Sequence and time.
+    pub header: Header,
+    /// [`crate::NodeKind`] code.
+    pub node: u8,
+    /// 1 when the node's inputs are healthy.
+    pub inputs_ok: u8,
+    /// Cycles completed.
+    pub cycles: u64,
+    /// Cycles that overran their period.
+    pub deadline_misses: u64,
+    /// Longest cycle so far, ns.
+    pub max_cycle_ns: u64,
+}
+
+/// A raw classic CAN frame on the virtual bus that stands in for SocketCAN where the kernel has none.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct CanFrameMsg {
+    /// Sequence and the time the frame was put on the bus.
+    pub header: Header,
+    /// 11-bit identifier.
+    pub id: u32,
+    /// Data length, 0–8.
+    pub len: u8,
+    /// Data bytes.
+    pub data: [u8; 8],
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn prior() -> ActivePrior {
+        let mut p = ActivePrior {
+            tau_s: 2.0,
+            bv_zone_enter_s_m: 10.0,
+            bv_zone_exit_s_m: 15.0,
+            vut_zone_enter_s_m: 30.0,
+            vut_zone_exit_s_m: 36.0,
+            ..ActivePrior::default()
+        };
+        for i in 0..3 {
+            let q = Vec2 { x_m: i as f64, y_m: 0.0 };
+            p.bv_path.push(q).unwrap();
+            p.vut_path.push(q).unwrap();
+            p.bv_profile.push(ProfileSample { t_s: i as f64, s_m: i as f64, v_mps: 1.0 }).unwrap();
+        }
+        p
+    }
+
+    #[test]
+    fn a_well_formed_prior_passes_its_check() {
+        assert_eq!(prior().check(), Ok(()));
+    }
+
+    #[test]
+    fn malformed_priors_are_rejected_with_a_reason() {
+        let mut p = prior();
+        p.tau_s = f64::NAN;
+        assert_eq!(p.check(), Err("non-finite target or zone interval"));
+        let mut p = prior();
+        p.tau_s = 0.0;
+        assert_eq!(p.check(), Err("target PET must be positive"));
+        let mut p = prior();
+        p.vut_zone_exit_s_m = 20.0;
+        assert_eq!(p.check(), Err("zone interval with enter >= exit"));
+        let mut p = prior();
+        p.bv_path.clear();
+        assert_eq!(p.check(), Err("path with fewer than two points"));
+        let mut p = prior();
+        p.vut_path.push(Vec2 { x_m: f64::INFINITY, y_m: 0.0 }).unwrap();
+        assert_eq!(p.check(), Err("non-finite path point"));
+        let mut p = prior();
+        p.bv_profile.push(ProfileSample { t_s: 1.0, s_m: 3.0, v_mps: 1.0 }).unwrap();
+        assert_eq!(p.check(), Err("profile times not increasing"));
+    }
+
+    #[test]
+    fn a_full_path_refuses_more_points() {
+        let mut p = ActivePrior::default();
+        for i in 0..MAX_PATH_POINTS {
+            p.bv_path.push(Vec2 { x_m: i as f64, y_m: 0.0 }).unwrap();
+        }
+        assert!(p.bv_path.push(Vec2::default()).is_err());
+    }
+
+    #[test]
+    fn header_age_never_goes_negative() {
+        let h = Header { seq: 1, stamp_ns: 2_000_000_000 };
+        assert!((h.age_s(2_500_000_000) - 0.5).abs() < 1e-12);
+        assert_eq!(h.age_s(1_000_000_000), 0.0);
+    }
+}

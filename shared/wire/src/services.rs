@@ -1,0 +1,51 @@
+//! Names of the onboard iceoryx2 services, in one place. Every BV's services live under its own
+//! namespace (`<namespace>/<leaf>`, e.g. `v2t/bv1/state`), so several BVs, or several tests, can
+//! share one machine.
+
+/// GNSS/INS fixes ([`crate::Localization`]).
+pub const LOCALIZATION: &str = "localization";
+/// Decoded drive-by-wire feedback ([`crate::VehicleFeedback`]).
+pub const FEEDBACK: &str = "feedback";
+/// The fused BV state ([`crate::BvState`]).
+pub const STATE: &str = "state";
+/// The VUT's state ([`crate::VutState`]).
+pub const VUT: &str = "vut";
+/// The active prior ([`crate::ActivePrior`]).
+pub const PRIOR: &str = "prior";
+/// Regulator decisions ([`crate::RegulatedPlan`]).
+pub const PLAN: &str = "plan";
+/// Tracker requests ([`crate::ActuationCommand`]).
+pub const ACTUATION: &str = "actuation";
+/// Monitor and operator requests to the gateway ([`crate::SafetyCommand`]).
+pub const SAFETY: &str = "safety";
+/// The gateway's report ([`crate::GateReport`]).
+pub const GATE: &str = "gate";
+/// Heartbeats of every node ([`crate::Heartbeat`]).
+pub const HEARTBEAT: &str = "heartbeat";
+/// Virtual CAN bus, gateway → ECU ([`crate::CanFrameMsg`]).
+pub const CAN_TX: &str = "can/tx";
+/// Virtual CAN bus, ECU → gateway ([`crate::CanFrameMsg`]).
+pub const CAN_RX: &str = "can/rx";
+
+/// Every service leaf.
+pub const ALL: [&str; 12] =
+    [LOCALIZATION, FEEDBACK, STATE, VUT, PRIOR, PLAN, ACTUATION, SAFETY, GATE, HEARTBEAT, CAN_TX, CAN_RX];
+
+/// The full service name of `leaf` under `namespace`.
+pub fn name(namespace: &str, leaf: &str) -> String {
+    format!("{namespace}/{leaf}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_are_unique_and_namespaced() {
+        let mut all: Vec<String> = ALL.iter().map(|l| name("v2t/bv1", l)).collect();
+        all.sort();
+        all.dedup();
+        assert_eq!(all.len(), ALL.len());
+        assert_eq!(name("v2t/bv1", STATE), "v2t/bv1/state");
+    }
+}
