@@ -168,47 +168,176 @@ pub fn run(
     if bv_controllers.len() != scenario.bvs.len() {
         return Err(RunError::ControllerCount { bvs: scenario.bvs.len(), controllers: bv_controllers.len() });
     }
-    let settings = &scenario.settings;
-    let dt = settings.plant_dt_s;
-    let agents: Vec<&Agent> =
-        std::iter::once(&scenario.vut.agent).chain(scenario.bvs.iter().map(|b| &b.agent)).collect();
-    let max_extra = settings.v2x_delay_s.max(settings.perception_delay_s);
-    let mut plants: Vec<Plant> = agents.iter().map(|a| Plant::new(a.vehicle.clone(), start_state(a))).collect();
-    let mut locs: Vec<Localization> = agents
-        .iter()
-        .enumerate()
-        .map(|(i, a)| Localization::new(a.vehicle.localization, settings.noise_enabled, seed, i as u64, max_extra))
-        .collect();
-    let n = agents.len();
-    let mut s_true = vec![0.0; n];
-    let mut l_true = vec![0.0; n];
-    let mut s_perceived = vec![0.0; n];
-    let mut requests = vec![ActuationRequest::default(); n];
-    let mut times: Vec<f64> = Vec::new();
-    let mut s_series: Vec<Vec<f64>> = vec![Vec::new(); n];
-    let mut trace: Vec<TraceSample> = Vec::new();
-    let mut min_distance = (f64::INFINITY, 0.0);
-    let mut collision: Option<CollisionEvent> = None;
-    let mut min_ttc: Option<f64> = None;
-    let n_steps = (scenario.duration_s / dt).ceil() as usize;
-    let (control_every, record_every) = (settings.control_every(), settings.record_every());
-    let mut completed = false;
-    let mut perceived_bvs =
-        vec![Perceived { state: State::default(), s_m: 0.0, l_m: 0.0, age_s: 0.0 }; scenario.bvs.len()];
-    // Until every BV has been perceived once, the VUT driver is not asked (its actuators hold).
-    let mut bv_seen = vec![false; scenario.bvs.len()];
+    let bv_name = bv_controllers.iter().map(|c| c.name()).collect::<Vec<_>>().join("+");
+    let mut sim = Simulation::new(scenario, seed);
+    while !sim.is_done() {
+        sim.step(driver, &mut |b, obs| bv_controllers.get_mut(b).map(|c| c.control(obs)));
+    }
+    Ok(sim.finish(driver.name(), &bv_name))
+}
 
-    for k in 0..=n_steps {
-        let t = k as f64 * dt;
-        // Truth: Frenet tracking, localization history, distances.
+/// The closed loop one plant step at a time, for callers that drive a BV from outside (the
+/// simulated drive-by-wire ECU of the onboard runtime feeds it the requests that arrive over CAN).
+#[derive(Debug)]
+pub struct Simulation<'s> {
+    scenario: &'s Scenario,
+    agents: Vec<&'s Agent>,
+    plants: Vec<Plant>,
+    locs: Vec<Localization>,
+    s_true: Vec<f64>,
+    l_true: Vec<f64>,
+    s_perceived: Vec<f64>,
+    requests: Vec<ActuationRequest>,
+    times: Vec<f64>,
+    s_series: Vec<Vec<f64>>,
+    trace: Vec<TraceSample>,
+    min_distance: (f64, f64),
+    collision: Option<CollisionEvent>,
+    min_ttc: Option<f64>,
+    n_steps: usize,
+    control_every: usize,
+    record_every: usize,
+    completed: bool,
+    perceived_bvs: Vec<Perceived>,
+    /// Until every BV has been perceived once, the VUT driver is not asked (its actuators hold).
+    bv_seen: Vec<bool>,
+    vut_at_bv: Option<Perceived>,
+    k: usize,
+    done: bool,
+    seed: u64,
+}
+
+impl<'s> Simulation<'s> {
+    /// The scenario at its start, deterministic for `seed`.
+    pub fn new(scenario: &'s Scenario, seed: u64) -> Self {
+        let settings = &scenario.settings;
+        let agents: Vec<&Agent> =
+            std::iter::once(&scenario.vut.agent).chain(scenario.bvs.iter().map(|b| &b.agent)).collect();
+        let max_extra = settings.v2x_delay_s.max(settings.perception_delay_s);
+        let plants = agents.iter().map(|a| Plant::new(a.vehicle.clone(), start_state(a))).collect();
+        let locs = agents
+            .iter()
+            .enumerate()
+            .map(|(i, a)| Localization::new(a.vehicle.localization, settings.noise_enabled, seed, i as u64, max_extra))
+            .collect();
+        let n = agents.len();
+        let nb = scenario.bvs.len();
+        Self {
+            scenario,
+            agents,
+            plants,
+            locs,
+            s_true: vec![0.0; n],
+            l_true: vec![0.0; n],
+            s_perceived: vec![0.0; n],
+            requests: vec![ActuationRequest::default(); n],
+            times: Vec::new(),
+            s_series: vec![Vec::new(); n],
+            trace: Vec::new(),
+            min_distance: (f64::INFINITY, 0.0),
+            collision: None,
+            min_ttc: None,
+            n_steps: (scenario.duration_s / settings.plant_dt_s).ceil() as usize,
+            control_every: settings.control_every(),
+            record_every: settings.record_every(),
+            completed: false,
+            perceived_bvs: vec![Perceived { state: State::default(), s_m: 0.0, l_m: 0.0, age_s: 0.0 }; nb],
+            bv_seen: vec![false; nb],
+            vut_at_bv: None,
+            k: 0,
+            done: false,
+            seed,
+        }
+    }
+
+    /// Simulated time of the next step, s.
+    pub fn t_s(&self) -> f64 {
+        self.k as f64 * self.scenario.settings.plant_dt_s
+    }
+
+    /// The run has ended (collision, every vehicle at its route's end, or the scenario's duration).
+    pub fn is_done(&self) -> bool {
+        self.done
+    }
+
+    /// True state of BV `b`.
+    pub fn bv_truth(&self, b: usize) -> Option<State> {
+        self.plants.get(b + 1).map(Plant::state)
+    }
+
+    /// Actuator state of BV `b`: (acceleration, road-wheel angle) as realised by the plant.
+    pub fn bv_actuators(&self, b: usize) -> Option<(f64, f64)> {
+        self.plants.get(b + 1).map(|p| (p.accel_mps2(), p.steer_rad()))
+    }
+
+    /// Sends a request to BV `b`'s actuators now (it takes effect after the actuator delay).
+    pub fn set_bv_request(&mut self, b: usize, req: ActuationRequest) {
+        let t = self.t_s();
+        if let (Some(plant), Some(slot)) = (self.plants.get_mut(b + 1), self.requests.get_mut(b + 1)) {
+            *slot = req;
+            plant.request(t, req);
+        }
+    }
+
+    /// Publishes a localization fix of BV `b` now and returns it with its age, s (as the BV's own
+    /// GNSS/INS delivers it: noise and delay from its vehicle file).
+    pub fn publish_bv_localization(&mut self, b: usize) -> Option<(State, f64)> {
+        let t = self.t_s();
+        let loc = self.locs.get_mut(b + 1)?;
+        loc.publish(t);
+        loc.seen_at(t, 0.0)
+    }
+
+    /// The VUT as the BVs last received it over V2X (refreshed every control period), with its age.
+    pub fn vut_seen_by_bvs(&self) -> Option<(State, f64)> {
+        self.vut_at_bv.map(|p| (p.state, p.age_s))
+    }
+
+    /// One plant step: record the truth; every control period ask the VUT driver and, for each BV
+    /// `b`, `bv_control(b, observation)` (`None`: the BV is driven from outside, its request
+    /// holds); every record period add a trace sample; then advance the plants.
+    pub fn step(
+        &mut self,
+        driver: &mut dyn VutDriver,
+        bv_control: &mut dyn FnMut(usize, &BvObservation<'_>) -> Option<ActuationRequest>,
+    ) {
+        if self.done {
+            return;
+        }
+        let t = self.t_s();
+        let dt = self.scenario.settings.plant_dt_s;
+        self.record_truth(t, dt);
+        if self.k % self.control_every == 0 {
+            self.control(t, driver, bv_control);
+        }
+        if self.k % self.record_every == 0 {
+            self.record(t);
+        }
+        self.completed = self.agents.iter().zip(&self.s_true).all(|(a, s)| *s >= a.route.length() - 0.5);
+        if self.collision.is_some() || self.completed || self.k >= self.n_steps {
+            self.done = true;
+            return;
+        }
+        for plant in &mut self.plants {
+            plant.step(t, dt);
+        }
+        self.k += 1;
+    }
+
+    fn record_truth(&mut self, t: f64, dt: f64) {
+        let n = self.agents.len();
         let mut boxes: Vec<OrientedBox> = Vec::with_capacity(n);
         for i in 0..n {
-            let (Some(plant), Some(agent), Some(loc)) = (plants.get(i), agents.get(i), locs.get_mut(i)) else {
+            let (Some(plant), Some(agent), Some(loc)) = (self.plants.get(i), self.agents.get(i), self.locs.get_mut(i))
+            else {
                 continue;
             };
             let st = plant.state();
-            let (s, l) = track(&agent.route, st.position(), s_true.get(i).copied().unwrap_or(0.0), st.speed_mps, dt);
-            if let (Some(sv), Some(lv), Some(series)) = (s_true.get_mut(i), l_true.get_mut(i), s_series.get_mut(i)) {
+            let hint = self.s_true.get(i).copied().unwrap_or(0.0);
+            let (s, l) = track(&agent.route, st.position(), hint, st.speed_mps, dt);
+            if let (Some(sv), Some(lv), Some(series)) =
+                (self.s_true.get_mut(i), self.l_true.get_mut(i), self.s_series.get_mut(i))
+            {
                 *sv = s;
                 *lv = l;
                 series.push(s);
@@ -216,160 +345,169 @@ pub fn run(
             loc.record_truth(t, st);
             boxes.push(agent.vehicle.footprint(&st));
         }
-        times.push(t);
+        self.times.push(t);
         for i in 0..n {
             for j in i + 1..n {
                 let (Some(a), Some(b)) = (boxes.get(i), boxes.get(j)) else { continue };
                 let d = a.distance(b);
-                if d < min_distance.0 {
-                    min_distance = (d, t);
+                if d < self.min_distance.0 {
+                    self.min_distance = (d, t);
                 }
-                if d <= 0.0 && collision.is_none() {
-                    let id = |x: usize| agents.get(x).map(|a| a.id.clone()).unwrap_or_default();
-                    collision = Some(CollisionEvent { t_s: t, agents: [id(i), id(j)] });
+                if d <= 0.0 && self.collision.is_none() {
+                    let id = |x: usize| self.agents.get(x).map(|a| a.id.clone()).unwrap_or_default();
+                    self.collision = Some(CollisionEvent { t_s: t, agents: [id(i), id(j)] });
                 }
             }
         }
+    }
 
-        if k % control_every == 0 {
-            for loc in &mut locs {
-                let _ = loc.publish(t);
-            }
-            let perceive = |i: usize, extra: f64, hint: f64| -> Option<Perceived> {
-                let (state, age_s) = locs.get(i)?.seen_at(t, extra)?;
-                let route = &agents.get(i)?.route;
-                let (s_m, l_m) =
-                    track(route, state.position(), hint, state.speed_mps, age_s + control_every as f64 * dt);
-                Some(Perceived { state, s_m, l_m, age_s })
-            };
-            let hints = s_perceived.clone();
-            let hint = |i: usize| hints.get(i).copied().unwrap_or(0.0);
-            let own: Vec<Option<Perceived>> = (0..n).map(|i| perceive(i, 0.0, hint(i))).collect();
-            for (i, p) in own.iter().enumerate() {
-                if let (Some(p), Some(sp)) = (p, s_perceived.get_mut(i)) {
-                    *sp = p.s_m;
-                }
-            }
-            let vut_at_bv = perceive(0, settings.v2x_delay_s, hint(0));
-            for (b, (slot, seen)) in perceived_bvs.iter_mut().zip(bv_seen.iter_mut()).enumerate() {
-                if let Some(p) = perceive(b + 1, settings.perception_delay_s, hint(b + 1)) {
-                    *slot = p;
-                    *seen = true;
-                }
-            }
-            let control_dt = control_every as f64 * dt;
-            if let (Some(Some(vut_own)), true) = (own.first(), bv_seen.iter().all(|s| *s)) {
-                let obs = VutObservation { t_s: t, dt_s: control_dt, own: *vut_own, bvs: &perceived_bvs, scenario };
-                if let Some(r) = requests.first_mut() {
-                    *r = driver.control(&obs);
-                }
-            }
-            for (b, ctrl) in bv_controllers.iter_mut().enumerate() {
-                let (Some(Some(bv_own)), Some(vut)) = (own.get(b + 1), vut_at_bv) else { continue };
-                let obs = BvObservation { t_s: t, dt_s: control_dt, bv_index: b, own: *bv_own, vut, scenario };
-                if let Some(r) = requests.get_mut(b + 1) {
-                    *r = ctrl.control(&obs);
-                }
-            }
-            for (plant, req) in plants.iter_mut().zip(&requests) {
-                plant.request(t, *req);
+    fn control(
+        &mut self,
+        t: f64,
+        driver: &mut dyn VutDriver,
+        bv_control: &mut dyn FnMut(usize, &BvObservation<'_>) -> Option<ActuationRequest>,
+    ) {
+        let settings = &self.scenario.settings;
+        let n = self.agents.len();
+        let dt = settings.plant_dt_s;
+        let control_every = self.control_every;
+        for loc in &mut self.locs {
+            let _ = loc.publish(t);
+        }
+        let (locs, agents) = (&self.locs, &self.agents);
+        let perceive = |i: usize, extra: f64, hint: f64| -> Option<Perceived> {
+            let (state, age_s) = locs.get(i)?.seen_at(t, extra)?;
+            let route = &agents.get(i)?.route;
+            let (s_m, l_m) = track(route, state.position(), hint, state.speed_mps, age_s + control_every as f64 * dt);
+            Some(Perceived { state, s_m, l_m, age_s })
+        };
+        let hints = self.s_perceived.clone();
+        let hint = |i: usize| hints.get(i).copied().unwrap_or(0.0);
+        let own: Vec<Option<Perceived>> = (0..n).map(|i| perceive(i, 0.0, hint(i))).collect();
+        for (i, p) in own.iter().enumerate() {
+            if let (Some(p), Some(sp)) = (p, self.s_perceived.get_mut(i)) {
+                *sp = p.s_m;
             }
         }
+        let vut_at_bv = perceive(0, settings.v2x_delay_s, hint(0));
+        self.vut_at_bv = vut_at_bv;
+        for (b, (slot, seen)) in self.perceived_bvs.iter_mut().zip(self.bv_seen.iter_mut()).enumerate() {
+            if let Some(p) = perceive(b + 1, settings.perception_delay_s, hint(b + 1)) {
+                *slot = p;
+                *seen = true;
+            }
+        }
+        let control_dt = control_every as f64 * dt;
+        let scenario = self.scenario;
+        if let (Some(Some(vut_own)), true) = (own.first(), self.bv_seen.iter().all(|s| *s)) {
+            let obs = VutObservation { t_s: t, dt_s: control_dt, own: *vut_own, bvs: &self.perceived_bvs, scenario };
+            if let Some(r) = self.requests.first_mut() {
+                *r = driver.control(&obs);
+            }
+        }
+        for b in 0..scenario.bvs.len() {
+            let (Some(Some(bv_own)), Some(vut)) = (own.get(b + 1), vut_at_bv) else { continue };
+            let obs = BvObservation { t_s: t, dt_s: control_dt, bv_index: b, own: *bv_own, vut, scenario };
+            if let (Some(req), Some(r)) = (bv_control(b, &obs), self.requests.get_mut(b + 1)) {
+                *r = req;
+            }
+        }
+        for (plant, req) in self.plants.iter_mut().zip(&self.requests) {
+            plant.request(t, *req);
+        }
+    }
 
-        if k % record_every == 0 {
-            let samples: Vec<AgentSample> = (0..n)
-                .filter_map(|i| {
-                    let p = plants.get(i)?;
-                    Some(AgentSample {
-                        state: p.state(),
-                        s_m: *s_true.get(i)?,
-                        l_m: *l_true.get(i)?,
-                        accel_mps2: p.accel_mps2(),
-                        steer_rad: p.steer_rad(),
-                        request: *requests.get(i)?,
-                    })
-                })
-                .collect();
-            let snapshot = |i: usize| -> Option<MotionSnapshot> {
-                let p = plants.get(i)?;
-                let st = p.state();
-                Some(MotionSnapshot {
-                    position: st.position(),
-                    heading_rad: st.theta_rad,
-                    speed_mps: st.speed_mps,
+    fn record(&mut self, t: f64) {
+        let n = self.agents.len();
+        let samples: Vec<AgentSample> = (0..n)
+            .filter_map(|i| {
+                let p = self.plants.get(i)?;
+                Some(AgentSample {
+                    state: p.state(),
+                    s_m: *self.s_true.get(i)?,
+                    l_m: *self.l_true.get(i)?,
                     accel_mps2: p.accel_mps2(),
-                    dims: agents.get(i)?.dims(),
+                    steer_rad: p.steer_rad(),
+                    request: *self.requests.get(i)?,
                 })
-            };
-            for b in 1..n {
-                if let (Some(v), Some(x)) = (snapshot(0), snapshot(b))
-                    && let Some(ttc) = ttc_2d(&v, &x, Motion::ConstantVelocity, 10.0)
-                {
-                    min_ttc = Some(min_ttc.map_or(ttc, |m: f64| m.min(ttc)));
-                }
+            })
+            .collect();
+        let snapshot = |i: usize| -> Option<MotionSnapshot> {
+            let p = self.plants.get(i)?;
+            let st = p.state();
+            Some(MotionSnapshot {
+                position: st.position(),
+                heading_rad: st.theta_rad,
+                speed_mps: st.speed_mps,
+                accel_mps2: p.accel_mps2(),
+                dims: self.agents.get(i)?.dims(),
+            })
+        };
+        for b in 1..n {
+            if let (Some(v), Some(x)) = (snapshot(0), snapshot(b))
+                && let Some(ttc) = ttc_2d(&v, &x, Motion::ConstantVelocity, 10.0)
+            {
+                self.min_ttc = Some(self.min_ttc.map_or(ttc, |m: f64| m.min(ttc)));
             }
-            trace.push(TraceSample { t_s: t, agents: samples, predicted_pet_s: Vec::new() });
         }
-
-        completed = agents.iter().zip(&s_true).all(|(a, s)| *s >= a.route.length() - 0.5);
-        if collision.is_some() || completed || k == n_steps {
-            break;
-        }
-        for plant in &mut plants {
-            plant.step(t, dt);
-        }
+        self.trace.push(TraceSample { t_s: t, agents: samples, predicted_pet_s: Vec::new() });
     }
 
-    let t_end = times.last().copied().unwrap_or(0.0);
-    let mut conflicts = Vec::with_capacity(scenario.conflicts.len());
-    for c in &scenario.conflicts {
-        let (Some(vut_s), Some(bv_s), Some(bv)) =
-            (s_series.first(), s_series.get(c.bv_index + 1), scenario.bvs.get(c.bv_index))
-        else {
-            continue;
+    /// Measures the interaction on the true states and returns the run's outcome.
+    pub fn finish(self, vut_model: &str, bv_controller: &str) -> RunOutcome {
+        let scenario = self.scenario;
+        let t_end = self.times.last().copied().unwrap_or(0.0);
+        let mut conflicts = Vec::with_capacity(scenario.conflicts.len());
+        for c in &scenario.conflicts {
+            let (Some(vut_s), Some(bv_s), Some(bv)) =
+                (self.s_series.first(), self.s_series.get(c.bv_index + 1), scenario.bvs.get(c.bv_index))
+            else {
+                continue;
+            };
+            let vut_passage = passage(&self.times, vut_s, &c.zone.a);
+            let bv_passage = passage(&self.times, bv_s, &c.zone.b);
+            let outcome = pet(vut_passage, bv_passage, t_end);
+            let first = outcome.first().map(|s| match s {
+                Side::A => FirstThrough::Vut,
+                Side::B => FirstThrough::Bv,
+            });
+            let wanted = match scenario.style {
+                Style::Rush => FirstThrough::Bv,
+                Style::Yield => FirstThrough::Vut,
+            };
+            conflicts.push(ConflictResult {
+                bv_id: bv.agent.id.clone(),
+                kind: c.zone.kind,
+                pet: outcome,
+                first,
+                order_matches_style: first.map(|f| f == wanted),
+                vut_passage,
+                bv_passage,
+            });
+        }
+        let mut trace = self.trace;
+        fill_predicted_pet(scenario, &mut trace);
+        let pet_min_s = conflicts.iter().filter_map(|c| c.pet.pet_s()).reduce(f64::min);
+        let zone_overlap = conflicts.iter().any(|c| matches!(c.pet, PetOutcome::Measured { overlap: true, .. }));
+        let result = RunResult {
+            scenario: scenario.name.clone(),
+            vut_model: vut_model.to_owned(),
+            bv_controller: bv_controller.to_owned(),
+            seed: self.seed,
+            style: scenario.style,
+            tau_s: scenario.tau_s,
+            duration_s: t_end,
+            completed: self.completed,
+            conflicts,
+            pet_min_s,
+            min_distance_m: self.min_distance.0,
+            min_distance_t_s: self.min_distance.1,
+            min_ttc_s: self.min_ttc,
+            collision: self.collision,
+            zone_overlap,
         };
-        let vut_passage = passage(&times, vut_s, &c.zone.a);
-        let bv_passage = passage(&times, bv_s, &c.zone.b);
-        let outcome = pet(vut_passage, bv_passage, t_end);
-        let first = outcome.first().map(|s| match s {
-            Side::A => FirstThrough::Vut,
-            Side::B => FirstThrough::Bv,
-        });
-        let wanted = match scenario.style {
-            Style::Rush => FirstThrough::Bv,
-            Style::Yield => FirstThrough::Vut,
-        };
-        conflicts.push(ConflictResult {
-            bv_id: bv.agent.id.clone(),
-            kind: c.zone.kind,
-            pet: outcome,
-            first,
-            order_matches_style: first.map(|f| f == wanted),
-            vut_passage,
-            bv_passage,
-        });
+        RunOutcome { result, agent_ids: self.agents.iter().map(|a| a.id.clone()).collect(), trace }
     }
-    fill_predicted_pet(scenario, &mut trace);
-    let pet_min_s = conflicts.iter().filter_map(|c| c.pet.pet_s()).reduce(f64::min);
-    let zone_overlap = conflicts.iter().any(|c| matches!(c.pet, PetOutcome::Measured { overlap: true, .. }));
-    let result = RunResult {
-        scenario: scenario.name.clone(),
-        vut_model: driver.name().to_owned(),
-        bv_controller: bv_controllers.iter().map(|c| c.name()).collect::<Vec<_>>().join("+"),
-        seed,
-        style: scenario.style,
-        tau_s: scenario.tau_s,
-        duration_s: t_end,
-        completed,
-        conflicts,
-        pet_min_s,
-        min_distance_m: min_distance.0,
-        min_distance_t_s: min_distance.1,
-        min_ttc_s: min_ttc,
-        collision,
-        zone_overlap,
-    };
-    Ok(RunOutcome { result, agent_ids: agents.iter().map(|a| a.id.clone()).collect(), trace })
 }
 
 /// Adds the constant-velocity predicted PET of every conflict to every trace sample.
