@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 use serde::de::DeserializeOwned;
 use v2t_model::validate::Validate;
 use v2t_model::vehicle::VehicleConfig;
-use v2t_sim::config::{ConfigError, ScenarioCard, SimSettings, parse_toml};
-use v2t_sim::scenario::{Scenario, ScenarioError};
+use crate::config::{ConfigError, ScenarioCard, SimSettings, parse_toml};
+use crate::scenario::{Scenario, ScenarioError};
 
 /// Bad input: a file that cannot be read, parsed, validated or turned into a scenario.
 #[derive(Debug, thiserror::Error)]
