@@ -34,6 +34,9 @@
 //! assert!((decision.predicted_pet_s.unwrap() - 2.0).abs() < 0.05);
 //! ```
 
+#[cfg(feature = "sim")]
+pub mod bench;
+pub mod fixtures;
 pub mod qp;
 pub mod regulator;
 #[cfg(feature = "sim")]

@@ -35,8 +35,6 @@ unsafe impl GlobalAlloc for Counting {
     }
 }
 
-mod common;
-
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
@@ -79,7 +77,7 @@ fn allocations_per_decision_come_only_from_the_solver() {
     }
     // The regulator over an approach, after warm-up.
     let mut reg = Regulator::new(RegulatorParams::default()).unwrap();
-    let mut inp = common::left_turn_start(Style::Rush, 2.0);
+    let mut inp = v2t_game::fixtures::left_turn_start(Style::Rush, 2.0);
     let mut worst = 0;
     for k in 0..120 {
         let (d, n) = count(|| reg.decide(&inp));

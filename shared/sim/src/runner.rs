@@ -307,10 +307,10 @@ impl<'s> Simulation<'s> {
         let t = self.t_s();
         let dt = self.scenario.settings.plant_dt_s;
         self.record_truth(t, dt);
-        if self.k % self.control_every == 0 {
+        if self.k.is_multiple_of(self.control_every) {
             self.control(t, driver, bv_control);
         }
-        if self.k % self.record_every == 0 {
+        if self.k.is_multiple_of(self.record_every) {
             self.record(t);
         }
         self.completed = self.agents.iter().zip(&self.s_true).all(|(a, s)| *s >= a.route.length() - 0.5);

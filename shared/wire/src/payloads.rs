@@ -79,6 +79,8 @@ pub struct BvState {
     pub yaw_rate_radps: f64,
     /// Road-wheel angle, rad.
     pub steer_rad: f64,
+    /// When the state node received the fix (start of the state-in → CAN-out latency).
+    pub received_ns: u64,
     /// When the CAN feedback used was received (0: none).
     pub feedback_stamp_ns: u64,
     /// [`crate::DbwMode`] code of the feedback used.
@@ -237,7 +239,7 @@ pub struct ActuationCommand {
     pub state_seq: u64,
     /// Stamp of that BV state (the start of the state-in → CAN-out latency).
     pub state_stamp_ns: u64,
-    /// When the tracker received that BV state.
+    /// When the state node received the fix behind that BV state.
     pub state_received_ns: u64,
     /// Requested acceleration, m/s².
     pub accel_mps2: f64,
@@ -283,6 +285,10 @@ pub struct GateReport {
     pub frames_rejected: u64,
     /// Bus errors seen.
     pub bus_errors: u64,
+    /// 1 when this transmission carried a new tracker command (0: a repeat or the gate's own profile).
+    pub fresh_command: u8,
+    /// `state_received_ns` of the command sent (latency: `header.stamp_ns − state_received_ns`).
+    pub state_received_ns: u64,
 }
 
 /// A node's liveness and timing.

@@ -27,9 +27,21 @@ pub const CAN_TX: &str = "can/tx";
 /// Virtual CAN bus, ECU → gateway ([`crate::CanFrameMsg`]).
 pub const CAN_RX: &str = "can/rx";
 
-/// Every service leaf.
+/// Event service that wakes the state node (a new localization fix).
+pub const WAKE_STATE: &str = "wake/state";
+/// Event service that wakes the tracker (a new BV state).
+pub const WAKE_TRACKER: &str = "wake/tracker";
+/// Event service that wakes the gateway (a new actuation command or safety request).
+pub const WAKE_GATEWAY: &str = "wake/gateway";
+/// Event service that wakes the simulated ECU (a frame on the virtual bus).
+pub const WAKE_ECU: &str = "wake/ecu";
+
+/// Every publish-subscribe service leaf.
 pub const ALL: [&str; 12] =
     [LOCALIZATION, FEEDBACK, STATE, VUT, PRIOR, PLAN, ACTUATION, SAFETY, GATE, HEARTBEAT, CAN_TX, CAN_RX];
+
+/// Every event service leaf.
+pub const WAKES: [&str; 4] = [WAKE_STATE, WAKE_TRACKER, WAKE_GATEWAY, WAKE_ECU];
 
 /// The full service name of `leaf` under `namespace`.
 pub fn name(namespace: &str, leaf: &str) -> String {
@@ -42,10 +54,10 @@ mod tests {
 
     #[test]
     fn names_are_unique_and_namespaced() {
-        let mut all: Vec<String> = ALL.iter().map(|l| name("v2t/bv1", l)).collect();
+        let mut all: Vec<String> = ALL.iter().chain(WAKES.iter()).map(|l| name("v2t/bv1", l)).collect();
         all.sort();
         all.dedup();
-        assert_eq!(all.len(), ALL.len());
+        assert_eq!(all.len(), ALL.len() + WAKES.len());
         assert_eq!(name("v2t/bv1", STATE), "v2t/bv1/state");
     }
 }

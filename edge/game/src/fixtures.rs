@@ -1,6 +1,6 @@
-//! Fixtures shared by the integration tests and the `bench_game` example.
+//! Fixtures for tests and benchmarks.
 
-use v2t_game::regulator::{PathState, RegulatorInput};
+use crate::regulator::{PathState, RegulatorInput};
 use v2t_model::Style;
 use v2t_model::metrics::{ConflictKind, OccupancyInterval};
 

@@ -1,6 +1,4 @@
-//! Decision latency and allocations of the regulator.
-//!
-//! `cargo run --release -p v2t-game --features sim --example bench_game -- [--json FILE]`
+//! Decision latency and allocations of the regulator (`v2t-edge bench-game`).
 //!
 //! For N = 30 and N = 50, on one thread:
 //! - *sim*: every decision of the regulated BV in the simulated proving ground — both bundled
@@ -9,19 +7,15 @@
 //!   decisions say, the VUT at constant speed);
 //! - *random*: 10,000 decisions on randomized states.
 //!
-//! It reports p50 / p99 / max latency in µs, heap allocations per decision after warm-up (all of
-//! them come from inside Clarabel: the regulator's own code allocates nothing per cycle), status
-//! counts and any non-finite output.
+//! Heap allocations are counted by the caller's global allocator (`allocations` reads its
+//! counter): all of them come from inside Clarabel; the regulator's own code allocates nothing
+//! per cycle.
 
-use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::rc::Rc;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
-use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams};
-use v2t_game::sim::RegulatedBv;
 use v2t_model::Style;
 use v2t_model::vehicle::VehicleConfig;
 use v2t_sim::bv::BvController;
@@ -32,33 +26,43 @@ use v2t_sim::runner::run;
 use v2t_sim::scenario::Scenario;
 use v2t_sim::vut::VutModel;
 
-struct Counting;
-static ALLOCS: AtomicU64 = AtomicU64::new(0);
+use crate::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams};
+use crate::sim::RegulatedBv;
 
-// SAFETY: forwards every call to the system allocator unchanged and only counts.
-#[allow(unsafe_code)]
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(p, l, n) }
-    }
+use crate::fixtures as common;
+
+/// The figures for one horizon.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct BenchFigures {
+    /// MPC horizon N.
+    pub horizon: usize,
+    /// Decisions timed (approaches + random).
+    pub decisions: u64,
+    /// Decisions timed in the closed-loop simulations.
+    pub sim_decisions: usize,
+    /// Closed loop: median, µs.
+    pub sim_p50_us: f64,
+    /// Closed loop: 99th percentile, µs.
+    pub sim_p99_us: f64,
+    /// Closed loop: largest, µs.
+    pub sim_max_us: f64,
+    /// Approaches: median, µs.
+    pub approach_p50_us: f64,
+    /// Approaches: 99th percentile, µs.
+    pub approach_p99_us: f64,
+    /// Approaches + random: median, µs.
+    pub p50_us: f64,
+    /// Approaches + random: 99th percentile, µs.
+    pub p99_us: f64,
+    /// Approaches + random: largest, µs.
+    pub max_us: f64,
+    /// Heap allocations per decision (approaches + random).
+    pub allocs_per_decision: f64,
+    /// Decisions with a non-finite acceleration.
+    pub non_finite: u64,
+    /// How often each status occurred.
+    pub statuses: BTreeMap<String, u64>,
 }
-
-#[path = "../tests/common/mod.rs"]
-mod common;
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
 
 /// A tiny deterministic generator (SplitMix64) for the randomized states.
 struct Rng(u64);
@@ -98,7 +102,7 @@ impl BvController for Timed {
     }
 }
 
-fn scenario(card: &str, vut: &str, bv: &str, sim: &str) -> Scenario {
+fn scenario(card: &str, vut: &str, bv: &str, sim: &str) -> Result<Scenario, Box<dyn std::error::Error>> {
     let parse = || -> Result<Scenario, Box<dyn std::error::Error>> {
         let card: ScenarioCard = parse_toml(card, "card")?;
         let vut: VehicleConfig = parse_toml(vut, "vut")?;
@@ -106,20 +110,17 @@ fn scenario(card: &str, vut: &str, bv: &str, sim: &str) -> Scenario {
         let sim: SimSettings = parse_toml(sim, "sim")?;
         Ok(Scenario::from_card(&card, sim, vut, vec![bv])?)
     };
-    parse().unwrap_or_else(|e| {
-        eprintln!("bundled configuration: {e}");
-        std::process::exit(1)
-    })
+    parse()
 }
 
 /// Latencies of every regulator decision in closed-loop simulations, µs.
-fn sim_latencies(settings: RegulatorParams) -> Vec<f64> {
+fn sim_latencies(settings: RegulatorParams) -> Result<Vec<f64>, Box<dyn std::error::Error>> {
     let vut = include_str!("../../../config/vehicles/vut_sedan.toml");
     let bv = include_str!("../../../config/vehicles/bv_sedan.toml");
     let sim = include_str!("../../../config/sim/default.toml");
     let scenarios = [
-        scenario(include_str!("../../../config/scenarios/left_turn_basic.toml"), vut, bv, sim),
-        scenario(include_str!("../../../config/scenarios/cut_in_basic.toml"), vut, bv, sim),
+        scenario(include_str!("../../../config/scenarios/left_turn_basic.toml"), vut, bv, sim)?,
+        scenario(include_str!("../../../config/scenarios/cut_in_basic.toml"), vut, bv, sim)?,
     ];
     let sink = Rc::new(RefCell::new(Vec::new()));
     for base in &scenarios {
@@ -139,29 +140,26 @@ fn sim_latencies(settings: RegulatorParams) -> Vec<f64> {
             }
         }
     }
-    sink.take()
+    Ok(sink.take())
 }
 
-fn main() {
-    let json_path = std::env::args().skip_while(|a| a != "--json").nth(1);
+/// Runs the benchmark; `allocations` reads the global allocator's running count of allocations.
+pub fn run_bench(allocations: fn() -> u64) -> Result<Vec<BenchFigures>, Box<dyn std::error::Error>> {
     let mut report = Vec::new();
     for horizon in [30usize, 50] {
         let params = RegulatorParams { horizon, ..RegulatorParams::default() };
-        let Ok(mut reg) = Regulator::new(params) else {
-            eprintln!("cannot build the regulator");
-            std::process::exit(1);
-        };
+        let mut reg = Regulator::new(params)?;
         let mut lat_us = Vec::new();
         let mut approach_us: Vec<f64> = Vec::new();
         let mut statuses: BTreeMap<String, u64> = BTreeMap::new();
         let (mut allocs, mut counted, mut non_finite) = (0u64, 0u64, 0u64);
         let mut random_us: Vec<f64> = Vec::new();
         let mut decide = |reg: &mut Regulator, inp: &RegulatorInput, warm: bool, sink: &mut Vec<f64>| {
-            let a0 = ALLOCS.load(Ordering::Relaxed);
+            let a0 = allocations();
             let t0 = Instant::now();
             let d = reg.decide(inp);
             let dt = t0.elapsed().as_secs_f64() * 1e6;
-            let a1 = ALLOCS.load(Ordering::Relaxed);
+            let a1 = allocations();
             if warm {
                 sink.push(dt);
                 allocs += a1 - a0;
@@ -202,34 +200,28 @@ fn main() {
             reg.reset();
             decide(&mut reg, &inp, true, &mut random_us);
         }
-        let mut sim_us = sim_latencies(params);
+        let mut sim_us = sim_latencies(params)?;
         sim_us.sort_by(f64::total_cmp);
         lat_us.extend_from_slice(&approach_us);
         lat_us.extend_from_slice(&random_us);
         lat_us.sort_by(f64::total_cmp);
         approach_us.sort_by(f64::total_cmp);
-        let line = format!(
-            "{{\"horizon\": {horizon}, \"decisions\": {counted}, \"sim_decisions\": {}, \"sim_p50_us\": {:.1}, \"sim_p99_us\": {:.1}, \"sim_max_us\": {:.1}, \"approach_p50_us\": {:.1}, \"approach_p99_us\": {:.1}, \"p50_us\": {:.1}, \"p99_us\": {:.1}, \"max_us\": {:.1}, \"allocs_per_decision\": {:.2}, \"non_finite\": {non_finite}, \"statuses\": {{{}}}}}",
-            sim_us.len(),
-            percentile(&sim_us, 0.5),
-            percentile(&sim_us, 0.99),
-            sim_us.last().copied().unwrap_or(f64::NAN),
-            percentile(&approach_us, 0.5),
-            percentile(&approach_us, 0.99),
-            percentile(&lat_us, 0.5),
-            percentile(&lat_us, 0.99),
-            lat_us.last().copied().unwrap_or(f64::NAN),
-            allocs as f64 / counted.max(1) as f64,
-            statuses.iter().map(|(k, v)| format!("\"{k}\": {v}")).collect::<Vec<_>>().join(", ")
-        );
-        println!("{line}");
-        report.push(line);
+        report.push(BenchFigures {
+            horizon,
+            decisions: counted,
+            sim_decisions: sim_us.len(),
+            sim_p50_us: percentile(&sim_us, 0.5),
+            sim_p99_us: percentile(&sim_us, 0.99),
+            sim_max_us: sim_us.last().copied().unwrap_or(f64::NAN),
+            approach_p50_us: percentile(&approach_us, 0.5),
+            approach_p99_us: percentile(&approach_us, 0.99),
+            p50_us: percentile(&lat_us, 0.5),
+            p99_us: percentile(&lat_us, 0.99),
+            max_us: lat_us.last().copied().unwrap_or(f64::NAN),
+            allocs_per_decision: allocs as f64 / counted.max(1) as f64,
+            non_finite,
+            statuses,
+        });
     }
-    if let Some(path) = json_path {
-        let text = format!("[\n  {}\n]\n", report.join(",\n  "));
-        if let Err(e) = std::fs::write(&path, text) {
-            eprintln!("writing {path}: {e}");
-            std::process::exit(1);
-        }
-    }
+    Ok(report)
 }
