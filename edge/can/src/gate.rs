@@ -31,6 +31,8 @@
 //! | MinimalRiskStop | `Disengage` or `Reset` | Disengaged (`DisengageRequest`) |
 //! | any | configuration invalid at construction | Fault (`Init`), permanently |
 //!
+//! A DBW that still reports manual while engaged is tolerated (it switches to auto when it sees
+//! the engage request); override, fault or an unknown mode code are not.
 //! In the minimal-risk stop the gate brakes on its own profile — toward `-stop_decel_mps2` at
 //! `stop_jerk_mps3` (an e-stop: toward the vehicle's `-max_decel_mps2` at its `max_jerk_mps3`),
 //! never braking less than it already did — holds the steering angle, and keeps braking at
@@ -177,7 +179,7 @@ pub enum GateState {
     Engaged = 1,
     /// The gate brakes the vehicle to a standstill on its own profile.
     MinimalRiskStop = 2,
-    /// Latched: the gate cannot work (invalid configuration).
+    /// Latched for good: the gate cannot work (invalid configuration, or an internal error).
     Fault = 3,
 }
 
@@ -559,9 +561,15 @@ impl SafetyGate {
             }
             (GateState::Disengaged | GateState::Fault, _) => (0.0, 0.0, false),
         };
-        // Unreachable by construction (every operand is finite); kept so that a NaN can never leave.
-        let (accel, steer, enable) =
-            if accel.is_finite() && steer.is_finite() { (accel, steer, enable) } else { (0.0, 0.0, false) };
+        // Unreachable by construction (every operand is finite); kept so that a NaN can never
+        // leave: the gate would latch its fault instead.
+        debug_assert!(accel.is_finite() && steer.is_finite());
+        let (accel, steer, enable) = if accel.is_finite() && steer.is_finite() {
+            (accel, steer, enable)
+        } else {
+            self.state = GateState::Fault;
+            (0.0, 0.0, false)
+        };
         self.accel_mps2 = accel;
         self.steer_rad = steer;
         GateOutput { accel_mps2: accel, steer_rad: steer, enable, state: self.state, reason: self.reason }
