@@ -254,6 +254,30 @@ fn a_command_timeout_drives_minimal_risk_stop_frames_onto_the_bus() {
     );
 }
 
+/// Fresh gate input at `now`: cruising at 5 m/s, the DBW in auto.
+fn fresh_input(now: f64, request: Option<v2t_can::gate::Request>) -> GateInput {
+    GateInput {
+        command: Some(Command { accel_mps2: 0.0, steer_rad: 0.0, stamp_s: now }),
+        request,
+        speed_mps: 5.0,
+        dbw_mode: 1,
+        feedback_stamp_s: Some(now),
+    }
+}
+
+/// An engaged gate that has cruised for a few steps; the time of its last step.
+fn engaged_gate() -> (SafetyGate, f64) {
+    let mut gate = SafetyGate::try_new(gate_config(), &vehicle()).unwrap();
+    let out = gate.step(1.0, &fresh_input(1.0, Some(v2t_can::gate::Request::Engage)));
+    assert_eq!(out.state, GateState::Engaged);
+    let mut now = 1.0;
+    for _ in 0..5 {
+        now += 0.01;
+        gate.step(now, &fresh_input(now, None));
+    }
+    (gate, now)
+}
+
 #[test]
 fn error_frames_are_reported_as_typed_errors() {
     let Some(iface) = iface("error_frames_are_reported_as_typed_errors") else { return };
@@ -275,14 +299,29 @@ fn error_frames_are_reported_as_typed_errors() {
         ("protocol violation", CAN_ERR_PROT, vec![0, 0, 0x04, 0x08], |e| matches!(e, CanError::Bus { .. })),
         ("restarted", CAN_ERR_RESTARTED, vec![], |e| matches!(e, CanError::Restarted)),
     ];
-    let mut gate = SafetyGate::try_new(gate_config(), &vehicle()).unwrap();
     for (what, class, data, expected) in cases {
+        // An engaged gateway that reads the error: its gate starts the minimal-risk stop, and
+        // the stop's first frames still go out (the controller may come back; if not, the DBW's
+        // own timeout takes over).
+        let (mut gate, now) = engaged_gate();
         inject(class, &data);
         let e = rx.recv(WAIT).expect_err(what);
         assert!(expected(&e), "{what}: {e}");
         assert!(e.is_bus_fault());
         gate.bus_error();
-        println!("{what}: {e}");
+        let out = gate.step(now + 0.01, &fresh_input(now + 0.01, None));
+        assert_eq!((out.state, out.reason), (GateState::MinimalRiskStop, GateReason::BusError), "{what}");
+        assert!(out.enable && out.accel_mps2 < 0.0, "{what}: {out:?}");
+        let stop = Encoder::default().accel(&AccelCmd { accel_mps2: out.accel_mps2, enable: out.enable }).unwrap();
+        raw.write_frame(&std_frame(&stop)).unwrap();
+        let Message::Accel(a) = Decoder::default().decode(&rx.recv(WAIT).unwrap().unwrap()).unwrap() else {
+            panic!("{what}: not the stop frame")
+        };
+        assert!(a.enable && a.accel_mps2 < 0.0, "{what}: {a:?}");
+        println!(
+            "{what}: {e}; gate -> {:?} ({:?}), braking {:.2} m/s² on the bus",
+            out.state, out.reason, a.accel_mps2
+        );
     }
     // Recovery to error-active is not an error, and lost arbitration is not subscribed: the data
     // frame behind them comes through.
