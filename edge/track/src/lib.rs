@@ -34,6 +34,7 @@
 //! assert!(out.steer_rad < 0.0, "steers right, back toward the path");
 //! assert!(out.accel_mps2 > 0.0, "speeds up");
 //! assert!(out.cross_track_m > 0.29 && out.speed_error_mps == 1.0);
+//! assert!((out.s_m - 10.0).abs() < 1e-9 && out.station_error_m.abs() < 1e-9);
 //!
 //! // NaN never reaches the actuators.
 //! let broken = State { speed_mps: f64::NAN, ..state };

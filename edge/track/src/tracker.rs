@@ -117,6 +117,9 @@ pub struct TrackerOutput {
     pub station_error_m: f64,
     /// Plan speed minus vehicle speed, m/s (positive: the vehicle is too slow).
     pub speed_error_mps: f64,
+    /// Arc length of the footprint centre's foot point on the path, m (the station the errors
+    /// are measured at).
+    pub s_m: f64,
 }
 
 /// Longitudinal PID + lateral Stanley for one vehicle.
@@ -265,6 +268,7 @@ impl Tracker {
             heading_error_rad: wrap_angle(state.theta_rad - path.heading_at(center.s_m)),
             station_error_m: plan.s_m - center.s_m,
             speed_error_mps: plan.v_mps - state.speed_mps,
+            s_m: center.s_m,
         })
     }
 

@@ -89,6 +89,7 @@ fn on_the_path_and_on_the_plan_nothing_is_corrected() {
         assert_eq!(out.steer_rad, 0.0);
         assert!(out.accel_mps2.abs() < 1e-9, "{out:?}");
         assert!(out.cross_track_m.abs() < 1e-9 && out.station_error_m.abs() < 1e-9);
+        assert!((out.s_m - s).abs() < 1e-9 && t.station_m() == Some(out.s_m), "{out:?}");
     }
 }
 
@@ -232,7 +233,7 @@ proptest! {
             prop_assert!((out.accel_mps2 - prev_a).abs() <= 8.0 * dt + 1e-9);
             prop_assert!((out.steer_rad - prev_d).abs() <= 0.6 * dt + 1e-9);
             prop_assert!(out.cross_track_m.is_finite() && out.heading_error_rad.is_finite());
-            prop_assert!(out.station_error_m.is_finite() && out.speed_error_mps.is_finite());
+            prop_assert!(out.station_error_m.is_finite() && out.speed_error_mps.is_finite() && out.s_m.is_finite());
             prev_a = out.accel_mps2;
             prev_d = out.steer_rad;
         }
