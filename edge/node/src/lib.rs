@@ -1,1 +1,69 @@
-//! Video2Track BV onboard runtime.
+//! The BV's onboard runtime: separate processes (state, regulator, tracker, CAN gateway, monitor)
+//! that talk over iceoryx2 zero-copy shared memory, a launcher that supervises them, and a
+//! simulated drive-by-wire ECU that closes the loop through the simulated proving ground.
+//!
+//! Node code is generic over the iceoryx2 service type: `ipc::Service` between processes,
+//! `local::Service` inside one test process. Every node runs the same way: open its ports, then
+//! loop until SIGINT/SIGTERM (iceoryx2's signal handling), publishing a heartbeat every
+//! `timing.heartbeat_period_s`. The monitor turns a silent node or a stale state into a
+//! minimal-risk stop, and the gateway's own command timeout does the same if the monitor is gone.
+
+use serde::{Deserialize, Serialize};
+use v2t_wire::NodeKind;
+
+pub mod bench;
+pub mod canbus;
+pub mod clock;
+pub mod config;
+pub mod ecu;
+pub mod error;
+pub mod gateway;
+pub mod heart;
+pub mod launch;
+pub mod monitor;
+pub mod operator;
+pub mod ports;
+pub mod prior;
+pub mod regulate;
+pub mod state;
+pub mod track;
+
+/// A node of the runtime, as named in the configuration and on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum NodeRole {
+    /// Localization + CAN feedback → BV state.
+    State,
+    /// The Stackelberg regulator.
+    Regulator,
+    /// PID + Stanley tracking.
+    Tracker,
+    /// Safety gate and CAN I/O.
+    Gateway,
+    /// Watchdog.
+    Monitor,
+}
+
+impl NodeRole {
+    /// The wire code of this node.
+    pub fn kind(self) -> NodeKind {
+        match self {
+            Self::State => NodeKind::State,
+            Self::Regulator => NodeKind::Regulator,
+            Self::Tracker => NodeKind::Tracker,
+            Self::Gateway => NodeKind::Gateway,
+            Self::Monitor => NodeKind::Monitor,
+        }
+    }
+
+    /// The name used on the command line and for the iceoryx2 node.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::State => "state",
+            Self::Regulator => "regulator",
+            Self::Tracker => "tracker",
+            Self::Gateway => "gateway",
+            Self::Monitor => "monitor",
+        }
+    }
+}

@@ -175,6 +175,8 @@ wire_enum!(
         Disengage = 3,
         /// Emergency stop.
         EStop = 4,
+        /// Leave a stop (back to disengaged); engaging again is a separate request.
+        Reset = 5,
     }
 );
 

@@ -1,0 +1,175 @@
+//! The onboard runtime's configuration, `config/edge/<bv>.toml`: which files hold the vehicle,
+//! regulator, tracker and gate settings, the timing of every node, the CAN transport and what the
+//! launcher starts.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use v2t_model::validate::{Validate, ValidationError, in_range};
+use v2t_model::vehicle::VehicleConfig;
+use v2t_sim::files::{load_toml, relative_to};
+
+use crate::error::EdgeError;
+
+/// The runtime of one BV, as written.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EdgeConfig {
+    /// Service namespace of this BV, e.g. `v2t/bv1`.
+    pub namespace: String,
+    /// The BV's vehicle file (limits, geometry), relative to this file.
+    pub vehicle: String,
+    /// The VUT's vehicle file (the regulator's model of its limits).
+    pub vut_vehicle: String,
+    /// Regulator settings (`config/regulator/*.toml`).
+    pub regulator: String,
+    /// Tracker settings (`config/track/*.toml`).
+    pub tracker: String,
+    /// Safety-gate settings (`config/can/*.toml`).
+    pub gate: String,
+    /// iceoryx2 settings shared by every process of the runtime (`config/iceoryx2.toml`).
+    pub iceoryx2: String,
+    /// Node timing and watchdogs.
+    pub timing: Timing,
+    /// The CAN link to the drive-by-wire system.
+    pub can: CanLink,
+    /// What the launcher starts and how it restarts.
+    pub launch: Launch,
+}
+
+/// Periods and timeouts, s.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Timing {
+    /// The regulator decides this often.
+    pub regulator_period_s: f64,
+    /// The gateway transmits commands this often (also when nothing new arrived).
+    pub gateway_period_s: f64,
+    /// The monitor checks this often.
+    pub monitor_period_s: f64,
+    /// Every node sends a heartbeat this often.
+    pub heartbeat_period_s: f64,
+    /// A node whose heartbeat is older than this is dead.
+    pub heartbeat_timeout_s: f64,
+    /// A BV state (localization) older than this is stale.
+    pub state_timeout_s: f64,
+    /// A VUT state older than this is stale.
+    pub vut_timeout_s: f64,
+    /// A plan older than this is stale.
+    pub plan_timeout_s: f64,
+}
+
+/// Which CAN transport the gateway and the simulated ECU use.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, tag = "transport", rename_all = "snake_case")]
+pub enum CanLink {
+    /// A SocketCAN interface (`can0`, `vcan0`).
+    Socketcan {
+        /// Interface name.
+        interface: String,
+    },
+    /// The iceoryx2 virtual bus (`<namespace>/can/tx`, `…/can/rx`) where the kernel has no CAN.
+    Ipc,
+}
+
+/// The launcher's work.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Launch {
+    /// Nodes to start, in order.
+    pub nodes: Vec<crate::NodeRole>,
+    /// Restarts allowed per node before the launcher gives up on the whole runtime.
+    pub max_restarts: u32,
+    /// Wait before a restart, s.
+    pub restart_delay_s: f64,
+    /// The monitor engages the gate once every node is healthy for the first time. After any
+    /// stop, engaging again takes an explicit request (`v2t-edge engage`).
+    pub auto_engage: bool,
+}
+
+impl Validate for Timing {
+    fn validate(&self) -> Result<(), ValidationError> {
+        in_range("regulator_period_s", self.regulator_period_s, 0.01, 1.0)?;
+        in_range("gateway_period_s", self.gateway_period_s, 0.001, 0.1)?;
+        in_range("monitor_period_s", self.monitor_period_s, 0.001, 0.1)?;
+        in_range("heartbeat_period_s", self.heartbeat_period_s, 0.001, 0.5)?;
+        in_range("heartbeat_timeout_s", self.heartbeat_timeout_s, 0.005, 2.0)?;
+        if self.heartbeat_timeout_s < 2.0 * self.heartbeat_period_s {
+            return Err(ValidationError::new("heartbeat_timeout_s", "must be at least twice heartbeat_period_s"));
+        }
+        in_range("state_timeout_s", self.state_timeout_s, 0.01, 2.0)?;
+        in_range("vut_timeout_s", self.vut_timeout_s, 0.01, 5.0)?;
+        in_range("plan_timeout_s", self.plan_timeout_s, 0.01, 5.0)
+    }
+}
+
+impl Validate for EdgeConfig {
+    fn validate(&self) -> Result<(), ValidationError> {
+        let ns_ok = !self.namespace.is_empty()
+            && self.namespace.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '/' | '_' | '-'));
+        if !ns_ok {
+            return Err(ValidationError::new("namespace", "must be non-empty ASCII letters, digits, '/', '_', '-'"));
+        }
+        self.timing.validate().map_err(|e| e.within("timing"))?;
+        if let CanLink::Socketcan { interface } = &self.can
+            && (interface.is_empty() || interface.len() > 15)
+        {
+            return Err(ValidationError::new("can.interface", "must have 1 to 15 characters"));
+        }
+        in_range("launch.restart_delay_s", self.launch.restart_delay_s, 0.0, 60.0)?;
+        if self.launch.nodes.is_empty() {
+            return Err(ValidationError::new("launch.nodes", "must name at least one node"));
+        }
+        Ok(())
+    }
+}
+
+/// Everything one BV's runtime needs, loaded and validated.
+#[derive(Debug, Clone)]
+pub struct Loaded {
+    /// The file it came from.
+    pub path: PathBuf,
+    /// The runtime settings.
+    pub edge: EdgeConfig,
+    /// The BV.
+    pub vehicle: VehicleConfig,
+    /// The VUT as the regulator models it.
+    pub vut_vehicle: VehicleConfig,
+    /// Regulator settings with both vehicles' limits.
+    pub regulator: v2t_game::regulator::RegulatorParams,
+    /// Tracker settings.
+    pub tracker: v2t_track::TrackerConfig,
+    /// Safety-gate settings.
+    pub gate: v2t_can::gate::GateConfig,
+    /// The iceoryx2 configuration file.
+    pub iceoryx2: PathBuf,
+}
+
+fn input(path: &Path, e: impl std::fmt::Display) -> EdgeError {
+    EdgeError::Config { path: path.to_owned(), message: e.to_string() }
+}
+
+/// Loads `path` and every file it names.
+pub fn load(path: &Path) -> Result<Loaded, EdgeError> {
+    let edge: EdgeConfig = load_toml(path).map_err(|e| input(path, e))?;
+    let file = |written: &str| relative_to(path, written);
+    let vehicle: VehicleConfig = load_toml(&file(&edge.vehicle)).map_err(|e| input(path, e))?;
+    let vut_vehicle: VehicleConfig = load_toml(&file(&edge.vut_vehicle)).map_err(|e| input(path, e))?;
+    let regulator: v2t_game::regulator::RegulatorParams =
+        load_toml(&file(&edge.regulator)).map_err(|e| input(path, e))?;
+    let lim = |l: &v2t_model::vehicle::VehicleLimits| v2t_game::regulator::Limits {
+        max_speed_mps: l.max_speed_mps,
+        max_accel_mps2: l.max_accel_mps2,
+        max_decel_mps2: l.max_decel_mps2,
+    };
+    let regulator = regulator.with_limits(lim(&vehicle.limits), lim(&vut_vehicle.limits));
+    let tracker: v2t_track::TrackerConfig = load_toml(&file(&edge.tracker)).map_err(|e| input(path, e))?;
+    let gate: v2t_can::gate::GateConfig = load_toml(&file(&edge.gate)).map_err(|e| input(path, e))?;
+    let gate_for_vehicle = gate.validate_for(&vehicle);
+    gate_for_vehicle.map_err(|e| input(path, format!("{}: {e}", edge.gate)))?;
+    let iceoryx2 = file(&edge.iceoryx2);
+    if !iceoryx2.is_file() {
+        return Err(input(path, format!("iceoryx2 configuration {} does not exist", iceoryx2.display())));
+    }
+    Ok(Loaded { path: path.to_owned(), edge, vehicle, vut_vehicle, regulator, tracker, gate, iceoryx2 })
+}

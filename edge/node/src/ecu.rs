@@ -1,0 +1,284 @@
+//! The simulated drive-by-wire ECU: the BV's actuators and sensors in the simulated proving
+//! ground, so the onboard stack runs unchanged, as separate processes. It reads the gateway's
+//! command frames (SocketCAN where the kernel has CAN, the iceoryx2 virtual bus elsewhere),
+//! checks their counters and checksums like a real ECU, drives the `v2t-sim` plant in real time,
+//! and sends back feedback frames, GNSS/INS fixes and the VUT's state (as V2X would). It also
+//! publishes the scenario's prior (the stand-in for the cloud upload) and measures the run.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use iceoryx2::service::Service;
+use v2t_can::codec::{CanFrame, DbwFeedback, Decoder, Encoder, Message};
+use v2t_can::transport::{CanTransport, SocketCanBus};
+use v2t_sim::plant::ActuationRequest;
+use v2t_sim::runner::{RunOutcome, Simulation};
+use v2t_sim::vut::VutModel;
+use v2t_wire::{ActivePrior, Code, DbwMode, Header, Localization, VutState, services};
+
+use crate::canbus::{End, IpcCanBus};
+use crate::clock::now_ns;
+use crate::config::{CanLink, Loaded};
+use crate::error::EdgeError;
+use crate::ports::{Bus, send};
+
+/// Without a valid enabled command for this long the ECU brakes on its own, s.
+const ECU_COMMAND_TIMEOUT_S: f64 = 0.1;
+/// The ECU's own braking when commands stop, m/s².
+const ECU_TIMEOUT_DECEL_MPS2: f64 = 3.0;
+/// GNSS/INS fixes every this many plant steps.
+const FIX_EVERY: usize = 2;
+
+/// What the simulated ECU runs.
+#[derive(Debug, Clone)]
+pub struct EcuOptions {
+    /// The scenario card.
+    pub card: PathBuf,
+    /// VUT driver model (the card's own if `None`).
+    pub vut: Option<VutModel>,
+    /// Seed of the noise.
+    pub seed: u64,
+    /// Longest wait for the gateway to engage before the scenario starts, s.
+    pub engage_timeout_s: f64,
+    /// Target PET instead of the card's, s.
+    pub tau_s: Option<f64>,
+    /// Style instead of the card's.
+    pub style: Option<v2t_model::Style>,
+}
+
+/// What the ECU saw of the commands.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct EcuStats {
+    /// Command frames accepted.
+    pub frames_ok: u64,
+    /// Frames rejected (checksum, counter, range, unknown id).
+    pub frames_rejected: u64,
+    /// Plant steps during which the ECU's own command timeout braked.
+    pub timeout_steps: u64,
+    /// Plant steps that started late by more than one step (real-time overruns).
+    pub late_steps: u64,
+}
+
+/// The ECU's command state: the newest enabled request, and when it arrived.
+#[derive(Debug, Default)]
+struct Commands {
+    decoder: Decoder,
+    accel: Option<(f64, u64)>,
+    steer: Option<(f64, u64)>,
+    engaged: bool,
+    stats: EcuStats,
+}
+
+impl Commands {
+    fn take(&mut self, frame: &CanFrame, now: u64) {
+        match self.decoder.decode(frame) {
+            Ok(Message::Accel(a)) => {
+                self.stats.frames_ok += 1;
+                self.accel = a.enable.then_some((a.accel_mps2, now));
+                self.engaged |= a.enable;
+            }
+            Ok(Message::Steer(s)) => {
+                self.stats.frames_ok += 1;
+                self.steer = s.enable.then_some((s.steer_rad, now));
+            }
+            Ok(_) => self.stats.frames_ok += 1,
+            Err(_) => self.stats.frames_rejected += 1,
+        }
+    }
+
+    /// The request the actuators get at `now`: the commands while fresh, else the ECU's own stop.
+    fn request(&mut self, now: u64, held_steer: f64) -> ActuationRequest {
+        let fresh =
+            |c: Option<(f64, u64)>| c.filter(|(_, t)| crate::clock::secs_between(*t, now) <= ECU_COMMAND_TIMEOUT_S);
+        match (fresh(self.accel), fresh(self.steer)) {
+            (Some((a, _)), Some((s, _))) => ActuationRequest { accel_mps2: a, steer_rad: s },
+            _ => {
+                self.stats.timeout_steps += 1;
+                ActuationRequest { accel_mps2: -ECU_TIMEOUT_DECEL_MPS2, steer_rad: held_steer }
+            }
+        }
+    }
+}
+
+fn open_transport<S: Service + 'static>(cfg: &Loaded, bus: &Bus<S>) -> Result<Box<dyn CanTransport>, EdgeError> {
+    Ok(match &cfg.edge.can {
+        CanLink::Socketcan { interface } => {
+            Box::new(SocketCanBus::open(interface).map_err(|e| EdgeError::Can(format!("{interface}: {e}")))?)
+        }
+        CanLink::Ipc => Box::new(IpcCanBus::open(bus, End::Ecu)?),
+    })
+}
+
+struct Io<S: Service + 'static> {
+    bus: Bus<S>,
+    fixes: iceoryx2::port::publisher::Publisher<S, Localization, ()>,
+    fix_wake: iceoryx2::port::notifier::Notifier<S>,
+    vut: iceoryx2::port::publisher::Publisher<S, VutState, ()>,
+    can: Box<dyn CanTransport>,
+    encoder: Encoder,
+    fix_header: Header,
+    vut_header: Header,
+}
+
+impl<S: Service + 'static> Io<S> {
+    fn drain(&mut self, cmds: &mut Commands) {
+        let now = now_ns();
+        while let Ok(Some(frame)) = self.can.recv(Duration::ZERO) {
+            cmds.take(&frame, now);
+        }
+    }
+
+    fn publish_fix(&mut self, state: &v2t_model::kinematics::State, age_s: f64) -> Result<(), EdgeError> {
+        let stamp = now_ns().saturating_sub((age_s * 1e9) as u64);
+        self.fix_header.seq += 1;
+        self.fix_header.stamp_ns = stamp;
+        let fix = Localization {
+            header: self.fix_header,
+            px_m: state.px,
+            py_m: state.py,
+            theta_rad: state.theta_rad,
+            speed_mps: state.speed_mps,
+            valid: 1,
+        };
+        send(&self.fixes, Some(&self.fix_wake), fix)
+    }
+
+    fn publish_vut(&mut self, state: &v2t_model::kinematics::State, age_s: f64) -> Result<(), EdgeError> {
+        self.vut_header.seq += 1;
+        self.vut_header.stamp_ns = now_ns().saturating_sub((age_s * 1e9) as u64);
+        let v = VutState {
+            header: self.vut_header,
+            px_m: state.px,
+            py_m: state.py,
+            theta_rad: state.theta_rad,
+            speed_mps: state.speed_mps,
+        };
+        send(&self.vut, None, v)
+    }
+
+    fn feedback(&mut self, speed: f64, yaw_rate: f64, steer: f64) -> Result<(), EdgeError> {
+        let fb = DbwFeedback {
+            wheel_speed_mps: speed,
+            yaw_rate_radps: yaw_rate,
+            steer_rad: steer,
+            mode: DbwMode::Auto.code(),
+        };
+        let frame = self.encoder.feedback(&fb).map_err(|e| EdgeError::Can(e.to_string()))?;
+        self.can.send(&frame).map_err(|e| EdgeError::Can(e.to_string()))
+    }
+}
+
+/// Runs the scenario of `opts` against the onboard stack of `cfg` in real time; returns the
+/// measured run and the ECU's statistics. Ends early (with `Ok`) on SIGINT/SIGTERM.
+pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<(RunOutcome, EcuStats), EdgeError> {
+    let mut scenario = v2t_sim::files::load_scenario(&opts.card).map_err(|e| EdgeError::Prior(e.to_string()))?;
+    if let Some(tau) = opts.tau_s {
+        if !(tau.is_finite() && tau > 0.0) {
+            return Err(EdgeError::Prior(format!("target PET must be positive, got {tau}")));
+        }
+        scenario.tau_s = tau;
+    }
+    if let Some(style) = opts.style {
+        scenario.style = style;
+    }
+    let model = opts.vut.unwrap_or(scenario.vut.default_model);
+    let mut driver = model.driver();
+    let bus = Bus::<S>::new("sim-ecu", &cfg.edge.namespace)?;
+    let prior_out = bus.publisher::<ActivePrior>(services::PRIOR)?;
+    let mut io = Io {
+        fixes: bus.publisher(services::LOCALIZATION)?,
+        fix_wake: bus.notifier(services::WAKE_STATE)?,
+        vut: bus.publisher(services::VUT)?,
+        can: open_transport(cfg, &bus)?,
+        encoder: Encoder::default(),
+        fix_header: Header::default(),
+        vut_header: Header::default(),
+        bus,
+    };
+    let prior = crate::prior::from_scenario(&scenario, 0, opts.seed.wrapping_add(1), now_ns())?;
+    // Sent again every second, as the cloud would: a node that (re)starts later gets it too.
+    let send_prior = |prior: &ActivePrior| {
+        prior_out.send_copy(prior.clone()).map_err(|e| EdgeError::ipc("send", services::PRIOR, e))
+    };
+    send_prior(&prior)?;
+    let prior_every = (1.0 / scenario.settings.plant_dt_s).round().max(1.0) as u64;
+    let mut sim = Simulation::new(&scenario, opts.seed);
+    let dt = scenario.settings.plant_dt_s;
+    let step_ns = (dt * 1e9) as u64;
+    let control_every = scenario.settings.control_every();
+    let wheelbase = scenario.bvs.first().map_or(2.8, |b| b.agent.vehicle.geometry.wheelbase_m);
+    let mut cmds = Commands::default();
+
+    // Before the start: the BV stands at its start (sensors alive) until the gateway engages.
+    let deadline = now_ns() + (opts.engage_timeout_s * 1e9) as u64;
+    let mut k: u64 = 0;
+    while !cmds.engaged {
+        if now_ns() > deadline {
+            return Err(EdgeError::Can(format!("the gateway did not engage within {} s", opts.engage_timeout_s)));
+        }
+        io.drain(&mut cmds);
+        if k.is_multiple_of(prior_every) {
+            send_prior(&prior)?;
+        }
+        if let (Some(st), Some((vut, _))) =
+            (sim.bv_truth(0), sim.vut_seen_by_bvs().or_else(|| Some((scenario_start_vut(&scenario), 0.0))))
+        {
+            if k.is_multiple_of(FIX_EVERY as u64) {
+                io.publish_fix(&st, 0.0)?;
+                io.publish_vut(&vut, 0.0)?;
+            }
+            io.feedback(st.speed_mps, 0.0, 0.0)?;
+        }
+        k += 1;
+        if !io.bus.wait(Duration::from_nanos(step_ns)) {
+            return Ok((sim.finish(model.as_str(), "v2t-edge"), cmds.stats));
+        }
+    }
+
+    let start = now_ns();
+    let mut i: usize = 0;
+    while !sim.is_done() {
+        io.drain(&mut cmds);
+        if (i as u64).is_multiple_of(prior_every) {
+            send_prior(&prior)?;
+        }
+        let now = now_ns();
+        let (_, held_steer) = sim.bv_actuators(0).unwrap_or((0.0, 0.0));
+        sim.set_bv_request(0, cmds.request(now, held_steer));
+        sim.step(driver.as_mut(), &mut |_, _| None);
+        if i.is_multiple_of(FIX_EVERY)
+            && let Some((fix, age)) = sim.publish_bv_localization(0)
+        {
+            io.publish_fix(&fix, age)?;
+        }
+        if i.is_multiple_of(control_every)
+            && let Some((vut, age)) = sim.vut_seen_by_bvs()
+        {
+            io.publish_vut(&vut, age)?;
+        }
+        if let (Some(st), Some((_, steer))) = (sim.bv_truth(0), sim.bv_actuators(0)) {
+            io.feedback(st.speed_mps, st.speed_mps * steer.tan() / wheelbase, steer)?;
+        }
+        i += 1;
+        let next = start + i as u64 * step_ns;
+        let now = now_ns();
+        if now > next + step_ns {
+            cmds.stats.late_steps += 1;
+        }
+        if !io.bus.wait(Duration::from_nanos(next.saturating_sub(now))) {
+            break;
+        }
+    }
+    Ok((sim.finish(model.as_str(), "v2t-edge"), cmds.stats))
+}
+
+fn scenario_start_vut(scenario: &v2t_sim::scenario::Scenario) -> v2t_model::kinematics::State {
+    let route = &scenario.vut.agent.route;
+    let p = route.point_at(0.0);
+    v2t_model::kinematics::State {
+        px: p.x,
+        py: p.y,
+        theta_rad: route.heading_at(0.0),
+        speed_mps: scenario.vut.agent.initial_speed_mps,
+    }
+}

@@ -1,0 +1,50 @@
+//! Errors of the onboard runtime.
+
+use std::path::PathBuf;
+
+/// Why a node could not start or had to stop.
+#[derive(Debug, thiserror::Error)]
+pub enum EdgeError {
+    /// A configuration file could not be read.
+    #[error("cannot read {path}: {source}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        source: std::io::Error,
+    },
+    /// A configuration file is malformed or out of range.
+    #[error("{path}: {message}")]
+    Config {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, and where.
+        message: String,
+    },
+    /// An iceoryx2 operation failed.
+    #[error("iceoryx2 {what} `{service}`: {detail}")]
+    Ipc {
+        /// The operation.
+        what: &'static str,
+        /// The service or node concerned.
+        service: String,
+        /// iceoryx2's error.
+        detail: String,
+    },
+    /// The CAN transport failed.
+    #[error("CAN: {0}")]
+    Can(String),
+    /// A prior could not be built or accepted.
+    #[error("prior: {0}")]
+    Prior(String),
+    /// The regulator could not be built.
+    #[error("regulator: {0}")]
+    Regulator(String),
+}
+
+impl EdgeError {
+    /// An iceoryx2 failure of `what` on `service`.
+    pub fn ipc(what: &'static str, service: &str, detail: impl std::fmt::Debug) -> Self {
+        Self::Ipc { what, service: service.to_owned(), detail: format!("{detail:?}") }
+    }
+}

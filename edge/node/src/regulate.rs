@@ -1,0 +1,274 @@
+//! The regulator node: every `timing.regulator_period_s` it turns the newest BV and VUT states and
+//! the active prior into a [`RegulatedPlan`] with the Stackelberg regulator of `v2t-game`.
+
+use std::time::Duration;
+
+use iceoryx2::service::Service;
+use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams, RegulatorStatus};
+use v2t_model::geometry::Point2;
+use v2t_model::path::ReferencePath;
+use v2t_wire::{ActivePrior, BvState, Code, Header, NodeKind, PlanStatus, RegulatedPlan, VutState, services};
+
+use crate::clock::{now_ns, secs_between};
+use crate::config::Loaded;
+use crate::error::EdgeError;
+use crate::heart::Heart;
+use crate::ports::{Bus, latest, send};
+use crate::prior::PriorContext;
+
+/// Where a vehicle is along a path, remembered between cycles so the projection never jumps to
+/// another branch of the path.
+#[derive(Debug, Clone, Copy, Default)]
+struct Tracked {
+    s_m: Option<f64>,
+}
+
+impl Tracked {
+    fn project(&mut self, path: &ReferencePath, x: f64, y: f64) -> Option<f64> {
+        let q = Point2 { x, y };
+        let f = match self.s_m {
+            Some(hint) => path.project_near(q, hint, 15.0),
+            None => path.project(q),
+        }?;
+        self.s_m = Some(f.s_m);
+        Some(f.s_m)
+    }
+}
+
+/// The regulator with the prior it regulates around. Pure: time comes in as arguments.
+#[derive(Debug)]
+pub struct Regulation {
+    regulator: Regulator,
+    prior: Option<PriorContext>,
+    bv: Tracked,
+    vut: Tracked,
+    last_accel: f64,
+    header: Header,
+}
+
+fn status_code(s: RegulatorStatus) -> PlanStatus {
+    match s {
+        RegulatorStatus::Regulating => PlanStatus::Regulating,
+        RegulatorStatus::Degraded => PlanStatus::Degraded,
+        RegulatorStatus::SafetyYield => PlanStatus::SafetyYield,
+        RegulatorStatus::Waiting => PlanStatus::Waiting,
+        RegulatorStatus::Passed => PlanStatus::Passed,
+        RegulatorStatus::Stale => PlanStatus::Stale,
+        RegulatorStatus::Fallback => PlanStatus::Fallback,
+    }
+}
+
+impl Regulation {
+    /// A regulator with `params` and no prior yet.
+    pub fn new(params: RegulatorParams) -> Result<Self, EdgeError> {
+        let regulator = Regulator::new(params).map_err(|e| EdgeError::Regulator(e.to_string()))?;
+        Ok(Self {
+            regulator,
+            prior: None,
+            bv: Tracked::default(),
+            vut: Tracked::default(),
+            last_accel: 0.0,
+            header: Header::default(),
+        })
+    }
+
+    /// Takes `prior` if it is new and well formed; a broken one leaves the active prior in place.
+    pub fn set_prior(&mut self, prior: &ActivePrior) -> Result<bool, EdgeError> {
+        if self.prior.as_ref().is_some_and(|p| p.prior_id == prior.prior_id) {
+            return Ok(false);
+        }
+        let ctx = PriorContext::new(prior)?;
+        self.prior = Some(ctx);
+        self.regulator.reset();
+        self.bv = Tracked::default();
+        self.vut = Tracked::default();
+        Ok(true)
+    }
+
+    /// The active prior.
+    pub fn prior(&self) -> Option<&PriorContext> {
+        self.prior.as_ref()
+    }
+
+    /// One decision at `now_ns` from the BV's state and the VUT's (if any has arrived).
+    pub fn decide(&mut self, bv: &BvState, vut: Option<&VutState>, now_ns: u64) -> RegulatedPlan {
+        let fallback = self.regulator.params().fallback_decel_mps2;
+        let mut plan = RegulatedPlan {
+            header: Header { seq: self.header.seq + 1, stamp_ns: bv.header.stamp_ns },
+            state_seq: bv.header.seq,
+            prior_id: 0,
+            status: PlanStatus::NoPrior.code(),
+            has_predicted_pet: 0,
+            s0_m: 0.0,
+            v0_mps: bv.speed_mps.max(0.0),
+            accel_mps2: -fallback,
+            predicted_pet_s: 0.0,
+            solve_ns: 0,
+        };
+        self.header = plan.header;
+        let Some(ctx) = self.prior.as_ref() else { return plan };
+        plan.prior_id = ctx.prior_id;
+        let Some(bv_s) = (if bv.is_finite() { self.bv.project(&ctx.bv_path, bv.px_m, bv.py_m) } else { None }) else {
+            plan.status = PlanStatus::Fallback.code();
+            return plan;
+        };
+        plan.s0_m = bv_s;
+        let vut_seen = vut.filter(|v| v.is_finite()).and_then(|v| {
+            let s = self.vut.project(&ctx.vut_path, v.px_m, v.py_m)?;
+            Some((s, v))
+        });
+        let Some((vut_s, vut)) = vut_seen else {
+            // Without the VUT there is nothing to regulate against: minimal-risk deceleration.
+            plan.status = PlanStatus::Stale.code();
+            return plan;
+        };
+        let bv_age = secs_between(bv.header.stamp_ns, now_ns).max(0.0);
+        let vut_age = secs_between(vut.header.stamp_ns, now_ns).max(0.0);
+        let v_bv = bv.speed_mps.max(0.0);
+        let v_vut = vut.speed_mps.max(0.0);
+        let input = RegulatorInput {
+            t_s: now_ns as f64 * 1e-9,
+            bv: PathState { s_m: bv_s + v_bv * bv_age, v_mps: v_bv, age_s: bv_age },
+            vut: PathState { s_m: vut_s + v_vut * vut_age, v_mps: v_vut, age_s: vut_age },
+            bv_accel_mps2: self.last_accel,
+            zone_bv: ctx.zone_bv,
+            zone_vut: ctx.zone_vut,
+            zone_kind: ctx.zone_kind,
+            tau_s: ctx.tau_s,
+            style: ctx.style,
+            reference_speed_mps: ctx.reference_speed_at(bv_s),
+            reference_key_time_s: None,
+        };
+        let d = self.regulator.decide(&input);
+        self.last_accel = d.accel_mps2;
+        plan.status = status_code(d.status).code();
+        plan.accel_mps2 = d.accel_mps2;
+        if let Some(pet) = d.predicted_pet_s {
+            plan.has_predicted_pet = 1;
+            plan.predicted_pet_s = pet;
+        }
+        plan
+    }
+}
+
+/// Runs the regulator node until termination.
+pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
+    let bus = Bus::<S>::new("regulator", &cfg.edge.namespace)?;
+    let states = bus.subscriber::<BvState>(services::STATE)?;
+    let vuts = bus.subscriber::<VutState>(services::VUT)?;
+    let priors = bus.subscriber::<ActivePrior>(services::PRIOR)?;
+    let out = bus.publisher::<RegulatedPlan>(services::PLAN)?;
+    let t = cfg.edge.timing;
+    let mut heart = Heart::new(&bus, NodeKind::Regulator, t.heartbeat_period_s)?;
+    let mut reg = Regulation::new(cfg.regulator)?;
+    let (mut bv, mut vut): (Option<BvState>, Option<VutState>) = (None, None);
+    let period_ns = (t.regulator_period_s * 1e9) as u64;
+    let mut next_ns = now_ns();
+    let mut last_status = 0;
+    loop {
+        let now = now_ns();
+        if now >= next_ns {
+            next_ns += period_ns;
+            if next_ns < now {
+                next_ns = now + period_ns;
+            }
+            while let Some(p) = priors.receive().map_err(|e| EdgeError::ipc("receive", services::PRIOR, e))? {
+                if let Err(e) = reg.set_prior(&p) {
+                    eprintln!("regulator: prior {} refused: {e}", p.prior_id);
+                }
+            }
+            bv = latest(&states)?.or(bv);
+            vut = latest(&vuts)?.or(vut);
+            if let Some(state) = bv.filter(|s| secs_between(s.header.stamp_ns, now) <= t.state_timeout_s) {
+                let vut_fresh = vut.filter(|v| secs_between(v.header.stamp_ns, now) <= t.vut_timeout_s);
+                let mut plan = reg.decide(&state, vut_fresh.as_ref(), now);
+                let done = now_ns();
+                if plan.status != last_status {
+                    last_status = plan.status;
+                    let status = PlanStatus::from_code(plan.status).map(|s| format!("{s:?}")).unwrap_or_default();
+                    eprintln!(
+                        "regulator: {status} (s {:.1} m, v {:.1} m/s, a {:.2} m/s²)",
+                        plan.s0_m, plan.v0_mps, plan.accel_mps2
+                    );
+                }
+                if std::env::var_os("V2T_TRACE_PLANS").is_some() {
+                    eprintln!(
+                        "plan {:.3} s={:.2} v={:.2} a={:.2} pet={:.2} {}",
+                        now as f64 * 1e-9,
+                        plan.s0_m,
+                        plan.v0_mps,
+                        plan.accel_mps2,
+                        plan.predicted_pet_s,
+                        plan.status
+                    );
+                }
+                plan.solve_ns = done - now;
+                send(&out, None, plan)?;
+                heart.cycle(done - now, period_ns);
+            }
+        }
+        let inputs_ok = bv.is_some_and(|s| secs_between(s.header.stamp_ns, now) <= t.state_timeout_s);
+        heart.tick(now_ns(), inputs_ok)?;
+        let sleep = next_ns.saturating_sub(now_ns()).min(heart.due_in_ns(now_ns())).max(200_000);
+        if !bus.wait(Duration::from_nanos(sleep)) {
+            return Ok(());
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn setup() -> (Regulation, ActivePrior) {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config");
+        let sc = v2t_sim::files::load_scenario(&dir.join("scenarios/left_turn_basic.toml")).unwrap();
+        let params: RegulatorParams = v2t_sim::files::load_toml(&dir.join("regulator/default.toml")).unwrap();
+        let (bv, vut) = v2t_game::sim::RegulatedBv::limits_for(&sc, 0).unwrap();
+        let prior = crate::prior::from_scenario(&sc, 0, 1, 0).unwrap();
+        (Regulation::new(params.with_limits(bv, vut)).unwrap(), prior)
+    }
+
+    fn bv_at(prior: &ActivePrior, i: usize, stamp_ns: u64) -> BvState {
+        let p = prior.bv_path[i];
+        BvState { header: Header { seq: 1, stamp_ns }, px_m: p.x_m, py_m: p.y_m, speed_mps: 8.0, ..BvState::default() }
+    }
+
+    #[test]
+    fn without_a_prior_or_a_vut_the_plan_brakes() {
+        let (mut reg, prior) = setup();
+        let bv = bv_at(&prior, 0, 1_000);
+        let plan = reg.decide(&bv, None, 2_000);
+        assert_eq!(plan.status, PlanStatus::NoPrior.code());
+        assert!(plan.accel_mps2 < 0.0);
+        assert!(reg.set_prior(&prior).unwrap());
+        assert!(!reg.set_prior(&prior).unwrap(), "the same prior again is not new");
+        let plan = reg.decide(&bv, None, 2_000);
+        assert_eq!(plan.status, PlanStatus::Stale.code());
+        assert!(plan.accel_mps2 < 0.0);
+    }
+
+    #[test]
+    fn a_fresh_pair_of_states_is_regulated_and_a_nan_state_falls_back() {
+        let (mut reg, prior) = setup();
+        reg.set_prior(&prior).unwrap();
+        let bv = bv_at(&prior, 0, 1_000_000_000);
+        let q = prior.vut_path[0];
+        let vut = VutState {
+            header: Header { seq: 1, stamp_ns: 1_000_000_000 },
+            px_m: q.x_m,
+            py_m: q.y_m,
+            speed_mps: 10.0,
+            ..VutState::default()
+        };
+        let plan = reg.decide(&bv, Some(&vut), 1_020_000_000);
+        let status = PlanStatus::from_code(plan.status).unwrap();
+        assert!(matches!(status, PlanStatus::Regulating | PlanStatus::Degraded), "{status:?}");
+        assert!(plan.accel_mps2.is_finite() && plan.s0_m.abs() < 0.5);
+        let mut nan = bv;
+        nan.px_m = f64::NAN;
+        let plan = reg.decide(&nan, Some(&vut), 1_020_000_000);
+        assert_eq!(plan.status, PlanStatus::Fallback.code());
+        assert!(plan.accel_mps2 < 0.0);
+    }
+}

@@ -1,0 +1,224 @@
+//! The onboard runtime as separate processes: the launcher with every node, the simulated ECU,
+//! iceoryx2 between them (the virtual CAN bus: this kernel has no CAN). Each test runs in its own
+//! service namespace, so they can run in parallel.
+
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc::{Receiver, channel};
+use std::time::{Duration, Instant};
+
+use iceoryx2::prelude::ipc;
+use iceoryx2_bb_posix::signal::Signal;
+use v2t_edge::clock::now_ns;
+use v2t_edge::launch::send_signal;
+use v2t_edge::ports::Bus;
+use v2t_wire::{Code, GateReport, GateState, services};
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn config() -> String {
+    root().join("config/edge/bv1.toml").display().to_string()
+}
+
+fn namespace(test: &str) -> String {
+    format!("v2t/test/{test}{}", std::process::id())
+}
+
+/// A child whose stderr lines arrive on a channel, killed when dropped.
+struct Proc {
+    child: Child,
+    lines: Receiver<String>,
+}
+
+impl Proc {
+    fn start(args: &[&str]) -> Self {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_v2t-edge"))
+            .args(args)
+            .current_dir(root())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let stderr = child.stderr.take().unwrap();
+        let (tx, lines) = channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+                eprintln!("  | {line}");
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        Self { child, lines }
+    }
+
+    /// Waits for a stderr line containing `needle`; returns it.
+    fn expect_line(&self, needle: &str, timeout: Duration) -> String {
+        let deadline = Instant::now() + timeout;
+        while let Some(left) = deadline.checked_duration_since(Instant::now()) {
+            match self.lines.recv_timeout(left) {
+                Ok(line) if line.contains(needle) => return line,
+                Ok(_) => {}
+                Err(_) => break,
+            }
+        }
+        panic!("no line containing {needle:?} within {timeout:?}");
+    }
+
+    fn terminate(&mut self) -> std::process::ExitStatus {
+        send_signal(&self.child, Signal::Terminate);
+        let deadline = Instant::now() + Duration::from_secs(10);
+        loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                return status;
+            }
+            assert!(Instant::now() < deadline, "did not stop within 10 s of SIGTERM");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        // A launcher stops its nodes on SIGTERM; nodes also stop when their launcher is gone.
+        send_signal(&self.child, Signal::Terminate);
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while Instant::now() < deadline {
+            if matches!(self.child.try_wait(), Ok(Some(_))) {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn pid_of(line: &str) -> u32 {
+    let at = line.find("pid ").unwrap() + 4;
+    line[at..].chars().take_while(char::is_ascii_digit).collect::<String>().parse().unwrap()
+}
+
+/// Gate reports on `ns`, read by this test process.
+struct GateWatch {
+    bus: Bus<ipc::Service>,
+    reports: iceoryx2::port::subscriber::Subscriber<ipc::Service, GateReport, ()>,
+}
+
+impl GateWatch {
+    fn new(ns: &str) -> Self {
+        static CONFIG: std::sync::Once = std::sync::Once::new();
+        CONFIG.call_once(|| v2t_edge::ports::use_iceoryx2_config(&root().join("config/iceoryx2.toml")).unwrap());
+        let bus = Bus::<ipc::Service>::new("test-watch", ns).unwrap();
+        let reports = bus.subscriber::<GateReport>(services::GATE).unwrap();
+        Self { bus, reports }
+    }
+
+    /// Waits until a report in `state` arrives; returns it.
+    fn until(&self, state: GateState, timeout: Duration) -> GateReport {
+        let deadline = Instant::now() + timeout;
+        while Instant::now() < deadline {
+            while let Some(r) = self.reports.receive().unwrap() {
+                if r.state == state.code() {
+                    return *r;
+                }
+            }
+            self.bus.wait(Duration::from_millis(1));
+        }
+        panic!("the gate did not reach {state:?} within {timeout:?}");
+    }
+}
+
+#[test]
+fn a_yielding_left_turn_runs_to_the_end_through_the_processes_and_lands_on_the_target_pet() {
+    let ns = namespace("closed");
+    let cfg = config();
+    let out = std::env::temp_dir().join(format!("v2t-edge-closed-{}.json", std::process::id()));
+    let mut launcher = Proc::start(&["launch", "--config", &cfg, "--namespace", &ns]);
+    let card = root().join("config/scenarios/left_turn_basic.toml").display().to_string();
+    let ecu = Command::new(env!("CARGO_BIN_EXE_v2t-edge"))
+        .args(["sim-ecu", "--config", &cfg, "--namespace", &ns, "--scenario", &card])
+        .args(["--style", "yield", "--tau", "3", "--seed", "1", "--out"])
+        .arg(&out)
+        .current_dir(root())
+        .output()
+        .unwrap();
+    let summary = String::from_utf8_lossy(&ecu.stdout);
+    eprintln!("{summary}{}", String::from_utf8_lossy(&ecu.stderr));
+    assert!(ecu.status.success());
+    let status = launcher.terminate();
+    assert!(status.success(), "the launcher shuts down cleanly on SIGTERM: {status}");
+
+    let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let r = &run["result"];
+    assert_eq!(r["collision"], serde_json::Value::Null);
+    assert_eq!(r["zone_overlap"], false);
+    assert_eq!(r["completed"], true, "every vehicle reaches its route's end");
+    let tau = r["tau_s"].as_f64().unwrap();
+    let pet = r["pet_min_s"].as_f64().unwrap();
+    assert!((pet - tau).abs() / tau <= 0.10, "PET {pet:.2} s vs τ {tau:.2} s");
+    assert_eq!(r["conflicts"][0]["order_matches_style"], true);
+    assert_eq!(run["ecu"]["frames_rejected"], 0);
+}
+
+#[test]
+fn a_killed_regulator_brings_the_minimal_risk_stop_within_100_ms_and_its_restart_resumes() {
+    let ns = namespace("kill");
+    let cfg = config();
+    let watch = GateWatch::new(&ns);
+    let launcher = Proc::start(&["launch", "--config", &cfg, "--namespace", &ns]);
+    let regulator = pid_of(&launcher.expect_line("started regulator", Duration::from_secs(10)));
+    let card = root().join("config/scenarios/left_turn_basic.toml").display().to_string();
+    let _ecu = Proc::start(&["sim-ecu", "--config", &cfg, "--namespace", &ns, "--scenario", &card]);
+    watch.until(GateState::Engaged, Duration::from_secs(20));
+    std::thread::sleep(Duration::from_millis(500));
+
+    let killed_ns = now_ns();
+    v2t_edge::launch::signal_pid(regulator, Signal::Kill);
+    let stop = watch.until(GateState::MinimalRiskStop, Duration::from_secs(2));
+    let reaction_ms = (stop.header.stamp_ns - killed_ns) as f64 * 1e-6;
+    eprintln!("regulator killed -> minimal-risk stop commanded after {reaction_ms:.1} ms");
+    assert!(reaction_ms <= 100.0, "{reaction_ms:.1} ms");
+
+    // The launcher restarts it; the stop holds until the operator engages again.
+    launcher.expect_line("restarted regulator", Duration::from_secs(5));
+    std::thread::sleep(Duration::from_millis(500));
+    assert_eq!(
+        watch.until(GateState::MinimalRiskStop, Duration::from_secs(1)).state,
+        GateState::MinimalRiskStop.code()
+    );
+    for request in ["reset", "engage"] {
+        let status = Command::new(env!("CARGO_BIN_EXE_v2t-edge"))
+            .args([request, "--config", &cfg, "--namespace", &ns])
+            .current_dir(root())
+            .status()
+            .unwrap();
+        assert!(status.success(), "{request}");
+    }
+    watch.until(GateState::Engaged, Duration::from_secs(3));
+}
+
+#[test]
+fn a_stale_state_brings_the_minimal_risk_stop() {
+    let ns = namespace("stale");
+    let cfg = config();
+    let watch = GateWatch::new(&ns);
+    let _launcher = Proc::start(&["launch", "--config", &cfg, "--namespace", &ns]);
+    let card = root().join("config/scenarios/left_turn_basic.toml").display().to_string();
+    let ecu = Proc::start(&["sim-ecu", "--config", &cfg, "--namespace", &ns, "--scenario", &card]);
+    watch.until(GateState::Engaged, Duration::from_secs(20));
+    std::thread::sleep(Duration::from_millis(500));
+    // Freeze the ECU: no more fixes, no more feedback.
+    let frozen_ns = now_ns();
+    send_signal(&ecu.child, Signal::StopExecution);
+    let stop = watch.until(GateState::MinimalRiskStop, Duration::from_secs(2));
+    send_signal(&ecu.child, Signal::Continue);
+    let after_ms = (stop.header.stamp_ns - frozen_ns) as f64 * 1e-6;
+    eprintln!("inputs frozen -> minimal-risk stop after {after_ms:.1} ms (state timeout 200 ms)");
+    // The state goes stale 200 ms after the last fix; the stop must follow within 100 ms of that.
+    assert!(after_ms <= 300.0, "{after_ms:.1} ms");
+}
