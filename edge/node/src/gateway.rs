@@ -175,11 +175,17 @@ pub fn run<S: Service + 'static>(cfg: &Loaded) -> Result<(), EdgeError> {
                     }
                 }
                 Ok(None) => break,
-                Err(e) => {
+                // A controller fault (bus-off, error-passive, …) stops the BV; a frame we do not
+                // speak (extended, remote, FD) from another node is counted and skipped.
+                Err(e) if e.is_bus_fault() => {
                     gw.counters.bus_errors += 1;
                     eprintln!("gateway: bus error: {e}");
                     gw.gate_bus_error();
                     break;
+                }
+                Err(e) => {
+                    gw.counters.rejected += 1;
+                    eprintln!("gateway: frame rejected: {e}");
                 }
             }
         }
