@@ -3,11 +3,11 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::config::{ConfigError, ScenarioCard, SimSettings, parse_toml};
+use crate::scenario::{Scenario, ScenarioError};
 use serde::de::DeserializeOwned;
 use v2t_model::validate::Validate;
 use v2t_model::vehicle::VehicleConfig;
-use crate::config::{ConfigError, ScenarioCard, SimSettings, parse_toml};
-use crate::scenario::{Scenario, ScenarioError};
 
 /// Bad input: a file that cannot be read, parsed, validated or turned into a scenario.
 #[derive(Debug, thiserror::Error)]
