@@ -10,7 +10,7 @@ use iceoryx2_bb_posix::process::{Process, ProcessId};
 use iceoryx2_bb_posix::signal::Signal;
 
 use crate::NodeRole;
-use crate::config::Loaded;
+use crate::config::{CanLink, Loaded};
 use crate::error::EdgeError;
 use crate::ports::{Bus, clean_dead_nodes};
 
@@ -25,20 +25,18 @@ struct Supervised {
     restart_at: Option<Instant>,
 }
 
-fn spawn(exe: &Path, config: &Path, namespace: &str, role: NodeRole) -> Result<Child, EdgeError> {
-    Command::new(exe)
-        .arg("node")
-        .arg(role.as_str())
-        .arg("--config")
-        .arg(config)
-        .arg("--namespace")
-        .arg(namespace)
-        .env(crate::ports::PARENT_ENV, std::process::id().to_string())
-        .spawn()
-        .map_err(|e| EdgeError::Config {
-            path: config.to_owned(),
-            message: format!("cannot start {}: {e}", role.as_str()),
-        })
+/// Starts `role` with the launcher's configuration, including what its command line overrode
+/// (namespace, CAN interface).
+fn spawn(exe: &Path, cfg: &Loaded, role: NodeRole) -> Result<Child, EdgeError> {
+    let mut cmd = Command::new(exe);
+    cmd.arg("node").arg(role.as_str()).arg("--config").arg(&cfg.path).arg("--namespace").arg(&cfg.edge.namespace);
+    if let CanLink::Socketcan { interface } = &cfg.edge.can {
+        cmd.arg("--can-iface").arg(interface);
+    }
+    cmd.env(crate::ports::PARENT_ENV, std::process::id().to_string()).spawn().map_err(|e| EdgeError::Config {
+        path: cfg.path.clone(),
+        message: format!("cannot start {}: {e}", role.as_str()),
+    })
 }
 
 /// Sends `signal` to `child` (a child that is gone already needs none).
@@ -78,10 +76,9 @@ pub fn run<S: Service>(cfg: &Loaded, exe: &Path) -> Result<(), EdgeError> {
     if cleaned > 0 {
         eprintln!("launcher: removed what {cleaned} dead node(s) left behind");
     }
-    let ns = cfg.edge.namespace.as_str();
     let mut nodes = Vec::with_capacity(cfg.edge.launch.nodes.len());
     for role in &cfg.edge.launch.nodes {
-        let child = spawn(exe, &cfg.path, ns, *role)?;
+        let child = spawn(exe, cfg, *role)?;
         eprintln!("launcher: started {} (pid {})", role.as_str(), child.id());
         nodes.push(Supervised { role: *role, child: Some(child), restarts: 0, restart_at: None });
     }
@@ -104,7 +101,7 @@ pub fn run<S: Service>(cfg: &Loaded, exe: &Path) -> Result<(), EdgeError> {
                 clean_dead_nodes::<S>();
                 n.restarts += 1;
                 n.restart_at = None;
-                let child = spawn(exe, &cfg.path, ns, n.role)?;
+                let child = spawn(exe, cfg, n.role)?;
                 eprintln!("launcher: restarted {} (pid {}, restart {})", n.role.as_str(), child.id(), n.restarts);
                 n.child = Some(child);
             }

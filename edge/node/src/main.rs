@@ -20,6 +20,7 @@ use iceoryx2::prelude::ipc;
 use v2t_edge::NodeRole;
 use v2t_edge::config::{Loaded, load};
 use v2t_edge::ecu::EcuOptions;
+use v2t_model::validate::Validate;
 use v2t_wire::SafetyAction;
 
 /// Counts heap allocations, so the benches can report allocations per decision.
@@ -67,6 +68,9 @@ struct Common {
     /// Override the service namespace of the configuration.
     #[arg(long)]
     namespace: Option<String>,
+    /// Use this SocketCAN interface (`can0`, `vcan0`) instead of the configured CAN transport.
+    #[arg(long)]
+    can_iface: Option<String>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -147,6 +151,10 @@ fn loaded(c: &Common) -> anyhow::Result<Loaded> {
     let mut cfg = load(&c.config)?;
     if let Some(ns) = &c.namespace {
         cfg.edge.namespace.clone_from(ns);
+    }
+    if let Some(interface) = &c.can_iface {
+        cfg.edge.can = v2t_edge::config::CanLink::Socketcan { interface: interface.clone() };
+        cfg.edge.validate().with_context(|| format!("--can-iface {interface}"))?;
     }
     v2t_edge::ports::use_iceoryx2_config(&cfg.iceoryx2)?;
     Ok(cfg)

@@ -1,6 +1,8 @@
 //! The onboard runtime as separate processes: the launcher with every node, the simulated ECU,
-//! iceoryx2 between them (the virtual CAN bus: this kernel has no CAN). Each test runs in its own
-//! service namespace, so they can run in parallel.
+//! iceoryx2 between them. The CAN frames go over iceoryx2's virtual CAN bus (the kernels of our
+//! machines and CI have no CAN), except in the vcan guest (`tests/vcan/bench.sh`), where
+//! `V2T_CAN_IFACE` names a SocketCAN interface and the closed-loop test runs the gateway and the
+//! simulated ECU over it. Each test runs in its own service namespace, so they can run in parallel.
 
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
 
@@ -23,6 +25,15 @@ fn root() -> PathBuf {
 
 fn config() -> String {
     root().join("config/edge/bv1.toml").display().to_string()
+}
+
+/// `--can-iface IFACE` when `V2T_CAN_IFACE` names a SocketCAN interface (the vcan guest sets
+/// it): the gateway and the simulated ECU then talk over the kernel's CAN instead of iceoryx2.
+fn can_args() -> Vec<String> {
+    match std::env::var("V2T_CAN_IFACE") {
+        Ok(iface) if !iface.is_empty() => vec!["--can-iface".into(), iface],
+        _ => Vec::new(),
+    }
 }
 
 fn namespace(test: &str) -> String {
@@ -84,6 +95,9 @@ impl Proc {
 
 impl Drop for Proc {
     fn drop(&mut self) {
+        if matches!(self.child.try_wait(), Ok(Some(_))) {
+            return;
+        }
         // A launcher stops its nodes on SIGTERM; nodes also stop when their launcher is gone.
         send_signal(&self.child, Signal::Terminate);
         let deadline = Instant::now() + Duration::from_secs(5);
@@ -138,10 +152,14 @@ fn a_yielding_left_turn_runs_to_the_end_through_the_processes_and_lands_on_the_t
     let ns = namespace("closed");
     let cfg = config();
     let out = std::env::temp_dir().join(format!("v2t-edge-closed-{}.json", std::process::id()));
-    let mut launcher = Proc::start(&["launch", "--config", &cfg, "--namespace", &ns]);
+    let can = can_args();
+    let mut args = vec!["launch", "--config", &cfg, "--namespace", &ns];
+    args.extend(can.iter().map(String::as_str));
+    let mut launcher = Proc::start(&args);
     let card = root().join("config/scenarios/left_turn_basic.toml").display().to_string();
     let ecu = Command::new(env!("CARGO_BIN_EXE_v2t-edge"))
         .args(["sim-ecu", "--config", &cfg, "--namespace", &ns, "--scenario", &card])
+        .args(&can)
         .args(["--style", "yield", "--tau", "3", "--seed", "1", "--out"])
         .arg(&out)
         .current_dir(root())
