@@ -6,8 +6,8 @@
 # The host kernel of our machines and CI has no CAN support (CONFIG_CAN unset), so the SocketCAN
 # tests run in a guest: Debian's `user-mode-linux` kernel (6.1, it ships the can, can-raw, can-dev
 # and vcan modules), booted with the host's file system as its root (hostfs), so the command sees
-# the same paths, binaries and working directory as here. In the guest: proc, sys, a fresh /tmp
-# and /dev/shm are mounted, the four modules are loaded with `insmod` (can, can-raw, can-dev, vcan,
+# the same paths, binaries and working directory as here. In the guest: proc, sys, /dev/shm and a
+# fresh /tmp/iceoryx2 are mounted, the four modules are loaded with `insmod` (can, can-raw, can-dev, vcan,
 # in that order), vcan0 is created and set up, and the command runs with V2T_CAN_IFACE=vcan0. Its
 # exit status comes back through a marker line on the console and becomes this script's.
 #
@@ -65,8 +65,10 @@ marker="V2T_GUEST_EXIT_$$_$RANDOM"
   echo 'fail() { echo "guest: $*"; echo "'"$marker"'=125"; echo o > /proc/sysrq-trigger; sleep 5; exit 1; }'
   echo 'mount -t proc proc /proc || fail "mount /proc"'
   echo 'mount -t sysfs sys /sys || fail "mount /sys"'
-  echo 'mount -t tmpfs -o size=256m tmp /tmp || fail "mount /tmp"'
-  # hostfs shows the host's root directory, not its mounts: /dev, /tmp and /dev/shm are the guest's.
+  # The host's /tmp stays visible (the checkout or the build may live there); iceoryx2's own
+  # directory gets a fresh tmpfs so the guest's nodes never meet (or clean up) the host's.
+  echo 'mkdir -p /tmp/iceoryx2 && mount -t tmpfs -o size=64m iceoryx2 /tmp/iceoryx2 || fail "mount /tmp/iceoryx2"'
+  # /dev is the guest's own devtmpfs (mounted by the kernel) with a fresh tmpfs on /dev/shm.
   echo 'grep -q " /dev " /proc/mounts || mount -t devtmpfs dev /dev || fail "mount /dev"'
   echo 'mkdir -p /dev/shm /dev/pts && mount -t tmpfs -o size=256m shm /dev/shm || fail "mount /dev/shm"'
   echo 'hostname v2t-guest'
