@@ -59,6 +59,29 @@ enum Command {
         #[arg(long, default_value = "config/regulator/default.toml")]
         regulator: PathBuf,
     },
+    /// OpenDRIVE maps and their topology library.
+    Map {
+        #[command(subcommand)]
+        command: MapCommand,
+    },
+}
+
+#[derive(Debug, Subcommand)]
+enum MapCommand {
+    /// Parse an OpenDRIVE map, build its topology library and report fragments, anchors and timings.
+    Inspect {
+        /// The map (.xodr).
+        map: PathBuf,
+        /// Write the topology library (fragments, anchors, maneuver paths) as JSON here.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Draw lanes, marks, fragments and anchors as SVG here.
+        #[arg(long)]
+        svg: Option<PathBuf>,
+        /// Hand annotations (TOML; default: the map's name with .toml, when it exists).
+        #[arg(long)]
+        annotations: Option<PathBuf>,
+    },
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -73,7 +96,8 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
             eprintln!("error: {err:#}");
-            if err.chain().any(|e| e.is::<InputError>()) { ExitCode::from(2) } else { ExitCode::FAILURE }
+            let bad_input = err.chain().any(|e| e.is::<InputError>() || e.is::<v2t_map::MapError>());
+            if bad_input { ExitCode::from(2) } else { ExitCode::FAILURE }
         }
     }
 }
@@ -114,6 +138,22 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             if let Some(path) = json {
                 let text = serde_json::to_string_pretty(&report).context("serializing the report")?;
                 std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
+                println!("wrote {}", path.display());
+            }
+            Ok(())
+        }
+        Command::Map { command: MapCommand::Inspect { map, json, svg, annotations } } => {
+            let inspection = video2track::map::inspect(&map, annotations.as_deref())?;
+            print!("{}", video2track::map::report(&map, &inspection));
+            if let Some(path) = json {
+                let doc = video2track::map::json(&map, &inspection);
+                let text = serde_json::to_string_pretty(&doc).context("serializing the library")?;
+                std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
+                println!("wrote {}", path.display());
+            }
+            if let Some(path) = svg {
+                let text = v2t_map::svg::render(&inspection.map, &inspection.library);
+                std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
                 println!("wrote {}", path.display());
             }
             Ok(())

@@ -1,0 +1,156 @@
+//! Broken maps give clear errors naming the road, lane or junction, never a panic; a map with one
+//! bad road still loads the rest with a warning.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)] // test code
+
+use proptest::prelude::*;
+use v2t_map::library::TopologyLibrary;
+use v2t_map::{Map, MapError};
+
+fn road(id: &str, x: f64, succ: &str, geometry: &str, width: &str) -> String {
+    format!(
+        r#"<road id="{id}" length="50" junction="-1">
+  <link>{succ}</link>
+  <planView><geometry s="0" x="{x}" y="0" hdg="0" length="50">{geometry}</geometry></planView>
+  <lanes><laneSection s="0">
+    <center><lane id="0" type="none"/></center>
+    <right>
+      <lane id="-1" type="driving"><link><successor id="-1"/><predecessor id="-1"/></link><width sOffset="0" a="{width}" b="0" c="0" d="0"/></lane>
+    </right>
+  </laneSection></lanes>
+</road>"#
+    )
+}
+
+fn doc(roads: &[String]) -> String {
+    format!(
+        r#"<?xml version="1.0"?><OpenDRIVE><header revMajor="1" revMinor="4" name="t"/>{}</OpenDRIVE>"#,
+        roads.concat()
+    )
+}
+
+fn good_pair() -> Vec<String> {
+    vec![
+        road("1", 0.0, r#"<successor elementType="road" elementId="2" contactPoint="start"/>"#, "<line/>", "3.5"),
+        road("2", 50.0, r#"<predecessor elementType="road" elementId="1" contactPoint="end"/>"#, "<line/>", "3.5"),
+    ]
+}
+
+#[test]
+fn a_good_pair_of_roads_links_without_warnings() {
+    let map = Map::parse(&doc(&good_pair()), "t").unwrap();
+    assert!(map.warnings.is_empty(), "{:?}", map.warnings);
+    assert_eq!(map.graph.links.len(), 1);
+    assert!(map.graph.links[0].gap_m < 1e-9);
+}
+
+#[test]
+fn malformed_xml_is_an_error_with_the_position() {
+    let e = Map::parse("<OpenDRIVE><header revMajor=\"1\" revMinor=\"4\"></OpenDRIVE>", "t").unwrap_err();
+    assert!(matches!(e, MapError::Xml(_)), "{e}");
+    assert!(e.to_string().contains("1:"), "names the position: {e}");
+    let e = Map::parse("<osm/>", "t").unwrap_err();
+    assert!(e.to_string().contains("<osm>"), "{e}");
+    let e = Map::parse("<OpenDRIVE/>", "t").unwrap_err();
+    assert!(e.to_string().contains("header"), "{e}");
+}
+
+#[test]
+fn an_unknown_geometry_leaves_out_that_road_only_and_says_which() {
+    let mut roads = good_pair();
+    roads[1] = road("2", 50.0, "", r#"<clothoidSpline foo="1"/>"#, "3.5");
+    let map = Map::parse(&doc(&roads), "t").unwrap();
+    assert_eq!(map.document.roads.len(), 1);
+    let text: Vec<String> = map.warnings.iter().map(ToString::to_string).collect();
+    assert!(
+        text.iter().any(|w| w.starts_with("road 2") && w.contains("unknown plan-view geometry <clothoidSpline>")),
+        "{text:?}"
+    );
+    // Road 1 still links to the missing road: a warning, not a crash.
+    assert!(text.iter().any(|w| w.contains("road 1") && w.contains("road 2, which does not exist")), "{text:?}");
+    assert!(map.graph.lanes.iter().all(|l| l.key.road == "1"));
+    let _ = TopologyLibrary::build(&map);
+}
+
+#[test]
+fn missing_attributes_and_non_finite_numbers_name_the_road_and_line() {
+    let mut roads = good_pair();
+    roads[1] = roads[1].replace(r#"length="50" junction"#, r#"junction"#);
+    let map = Map::parse(&doc(&roads), "t").unwrap();
+    let w = map.warnings.iter().find(|w| w.context == "road 2").unwrap().to_string();
+    assert!(w.contains("lacks the attribute length") && w.contains("line"), "{w}");
+
+    let mut roads = good_pair();
+    roads[0] = road("1", 0.0, "", "<line/>", "NaN");
+    let map = Map::parse(&doc(&roads), "t").unwrap();
+    let w = map.warnings.iter().find(|w| w.context == "road 1").unwrap().to_string();
+    assert!(w.contains("lane -1") && w.contains("not finite"), "{w}");
+
+    let mut roads = good_pair();
+    roads[0] = roads[0].replace(r#"x="0""#, r#"x="east""#);
+    let map = Map::parse(&doc(&roads), "t").unwrap();
+    let w = map.warnings.iter().find(|w| w.context == "road 1").unwrap().to_string();
+    assert!(w.contains("x=\"east\" is not a number"), "{w}");
+}
+
+#[test]
+fn broken_links_and_lane_id_gaps_are_reported() {
+    let mut roads = good_pair();
+    roads[0] =
+        road("1", 0.0, r#"<successor elementType="road" elementId="9" contactPoint="start"/>"#, "<line/>", "3.5");
+    let map = Map::parse(&doc(&roads), "t").unwrap();
+    assert!(map.warnings.iter().any(|w| w.context == "road 1" && w.message.contains("road 9, which does not exist")));
+
+    let mut roads = good_pair();
+    roads[0] = roads[0].replace(r#"lane id="-1" type="driving""#, r#"lane id="-2" type="driving""#);
+    let map = Map::parse(&doc(&roads), "t").unwrap();
+    let w = map.warnings.iter().find(|w| w.context == "road 1").unwrap().to_string();
+    assert!(w.contains("without gaps"), "{w}");
+
+    let mut roads = good_pair();
+    roads[1] = roads[1].replace(r#"contactPoint="end""#, r#"contactPoint="middle""#);
+    let map = Map::parse(&doc(&roads), "t").unwrap();
+    let w = map.warnings.iter().find(|w| w.context == "road 2").unwrap().to_string();
+    assert!(w.contains("contactPoint \"middle\""), "{w}");
+}
+
+#[test]
+fn directions_that_run_into_each_other_are_reported_not_linked() {
+    let mut roads = good_pair();
+    // Road 2 turned around: its end touches road 1's end, both lanes drive towards the joint.
+    roads[1] =
+        road("2", 100.0, r#"<successor elementType="road" elementId="1" contactPoint="end"/>"#, "<line/>", "3.5")
+            .replace(r#"hdg="0""#, r#"hdg="3.141592653589793""#);
+    roads[0] = road("1", 0.0, r#"<successor elementType="road" elementId="2" contactPoint="end"/>"#, "<line/>", "3.5");
+    let map = Map::parse(&doc(&roads), "t").unwrap();
+    assert!(map.graph.links.is_empty());
+    assert!(
+        map.warnings.iter().any(|w| w.message.contains("driving directions run into each other")),
+        "{:?}",
+        map.warnings
+    );
+}
+
+#[test]
+fn a_map_without_a_usable_road_is_an_error() {
+    let e = Map::parse(&doc(&[road("1", 0.0, "", "<spiral/>", "3.5")]), "t").unwrap_err();
+    assert!(e.to_string().contains("no usable road"), "{e}");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+    /// Truncated files and random bytes spliced in anywhere: an error or a map, never a panic.
+    #[test]
+    fn corrupted_maps_never_panic(cut in 0.0..1.0_f64, at in 0.0..1.0_f64, junk in "[ -~]{0,12}") {
+        let text = doc(&good_pair());
+        let cut = ((text.len() as f64) * cut) as usize;
+        let at = ((cut as f64) * at) as usize;
+        let mut broken: String = text.chars().take(cut).collect();
+        let at = broken.char_indices().map(|(i, _)| i).find(|&i| i >= at).unwrap_or(broken.len());
+        broken.insert_str(at, &junk);
+        if let Ok(map) = Map::parse(&broken, "t") {
+            let _ = TopologyLibrary::build(&map);
+        }
+    }
+}
