@@ -12,11 +12,21 @@ use crate::geometry::ReferenceLine;
 use crate::graph::LaneGraph;
 use crate::xodr::{MarkType, Road};
 
+/// Narrowest a lane may get and still count as a lane of a multi-lane segment, m.
+const MIN_LANE_WIDTH_M: f64 = 2.5;
+
 /// Drivable lanes of one section driving one way, left to right in the driving direction.
 fn lanes_of(g: &LaneGraph, road: &str, section: usize, forward: bool) -> Vec<usize> {
     // Start from any lane of the direction and walk to the leftmost, then rightwards.
+    // Lanes that narrow below 2.5 m (a taper, an ending acceleration lane) do not count.
     let mine = |i: usize| {
-        g.lane(i).is_some_and(|l| l.key.road == road && l.key.section == section && l.forward == forward && l.drivable)
+        g.lane(i).is_some_and(|l| {
+            l.key.road == road
+                && l.key.section == section
+                && l.forward == forward
+                && l.drivable
+                && l.samples.iter().all(|q| q.width >= MIN_LANE_WIDTH_M)
+        })
     };
     let Some(start) = (0..g.lanes.len()).find(|&i| mine(i)) else { return Vec::new() };
     let mut left = start;
