@@ -53,6 +53,23 @@ fn every_configuration_file_loads_and_validates() {
                 let parsed: Result<iceoryx2::config::Config, _> = toml::from_str(&text);
                 parsed.unwrap_or_else(|e| panic!("{rel}: {e}"));
             }
+            // Track maps: each parses without a warning; annotations name fragments of their map; the
+            // generator is checked by CI (`proving_ground.py --check`) and the ASAM checker.
+            "maps" if rel.ends_with(".xodr") => {
+                let map = v2t_map::Map::load(path).unwrap_or_else(|e| panic!("{e}"));
+                assert!(map.warnings.is_empty(), "{rel}: {:?}", map.warnings);
+            }
+            "maps" if rel.ends_with(".toml") => {
+                let map =
+                    v2t_map::Map::load(&path.with_extension("xodr")).unwrap_or_else(|e| panic!("{rel}: its map: {e}"));
+                let text = std::fs::read_to_string(path).unwrap();
+                let notes = v2t_map::annotate::Annotations::parse(&text, &rel).unwrap_or_else(|e| panic!("{e}"));
+                v2t_map::library::TopologyLibrary::build(&map).annotate(&notes).unwrap_or_else(|e| panic!("{e}"));
+            }
+            "maps" if rel.ends_with(".py") => {
+                assert!(path.with_extension("xodr").exists(), "{rel}: the map it generates is missing");
+            }
+            "maps" if rel.ends_with("README.md") => {}
             _ => panic!("config/{rel}: no validator knows this file; add one to tests/config_files.rs"),
         }
         checked += 1;
