@@ -135,7 +135,7 @@ fn help_lists_only_real_commands() {
         .take_while(|l| !l.trim().is_empty())
         .filter_map(|l| l.split_whitespace().next())
         .collect();
-    assert_eq!(commands, ["sim", "experiment", "help"], "{out}");
+    assert_eq!(commands, ["sim", "experiment", "map", "help"], "{out}");
 }
 
 #[test]

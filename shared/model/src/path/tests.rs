@@ -21,8 +21,12 @@ proptest! {
 
     #[test]
     fn round_trip_on_arcs(
-        r in 8.0f64..200.0, ang in 0.2f64..4.7, left in any::<bool>(), u in 0.0f64..1.0, lf in -1.0f64..1.0,
+        r in 8.0f64..200.0, ang in 0.2f64..3.0, left in any::<bool>(), u in 0.0f64..1.0, lf in -1.0f64..1.0,
     ) {
+        // At most ~172° of turning: beyond that a tight arc brings the path's end back within a
+        // few metres of its start (r = 8 m, 262° put the end 0.5 m from a point 2.2 m beside the
+        // start), and the nearest point is honestly the other one. Self-approach has its own test
+        // with `project_near`.
         let angle = if left { ang } else { -ang };
         let path = PathBuilder::new(0.0, 0.0, 0.3).line(10.0).arc(r, angle).line(10.0).build(0.5).unwrap();
         let l = lf * (0.5 * r).min(3.5);
@@ -134,3 +138,4 @@ fn resampling_keeps_the_shape() {
         assert!(coarse.point_at(s).dist(path.point_at(s)) < 0.05);
     }
 }
+
