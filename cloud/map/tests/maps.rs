@@ -192,3 +192,42 @@ fn the_proving_ground_has_its_intersection_three_lane_straight_and_ramp_merge_an
     let e = lib.annotate(&bad).unwrap_err().to_string();
     assert!(e.contains("bad.toml") && e.contains("J9"), "{e}");
 }
+
+/// Every maneuver path of every fragment runs forward only (no segment turns back on the one
+/// before), and every anchor that names a path lies on it at the arc length it gives: a merging
+/// path reaches the target lane's centreline at the merge point, a through path does not run to
+/// a lane's end and restart.
+#[test]
+fn maneuver_paths_run_forward_and_pass_through_their_anchors() {
+    let mut checked = 0;
+    for path in all_maps() {
+        let (_, lib) = load(&path);
+        let name = path.file_name().unwrap().to_string_lossy();
+        for f in &lib.fragments {
+            for m in &f.maneuvers {
+                for w in m.path.windows(3) {
+                    let (a, b, c) = (w[0], w[1], w[2]);
+                    let turn_back = b.sub(a).dot(c.sub(b));
+                    assert!(turn_back >= -1e-9, "{name}: {} turns back at ({:.2}, {:.2})", m.id, b.x, b.y);
+                }
+                // (A lane may come twice, apart: the proving ground's loop road leaves and
+                // re-enters its junction, so one lane is both approach and departure.)
+                for w in m.lanes.windows(2) {
+                    assert!(w[0] != w[1], "{name}: {} lists lane {} twice in a row", m.id, w[0]);
+                }
+            }
+            for a in &f.anchors {
+                for (pid, s) in &a.on_paths {
+                    let m = f.maneuver(pid).unwrap_or_else(|| panic!("{name}: {} names unknown {pid}", a.id));
+                    let line = v2t_map::library::Polyline::new(&m.path);
+                    let (p, _) = line.at(*s).unwrap();
+                    let off = p.dist(a.position);
+                    assert!(off < 0.10, "{name}: {} lies {off:.2} m off {pid} at s = {s:.1}", a.id);
+                    checked += 1;
+                }
+            }
+        }
+    }
+    println!("{checked} anchor-on-path positions checked");
+    assert!(checked > 50, "{checked}");
+}

@@ -4,6 +4,8 @@
 
 use std::collections::HashSet;
 
+use v2t_model::geometry::Point2;
+
 use super::{
     APPROACH_M, Anchor, AnchorKind, DEPARTURE_M, Fragment, FragmentKind, Maneuver, Polyline, Turn, anchor_on,
     back_from_end, compass, forward_from_start, lane_label, run_points,
@@ -13,8 +15,10 @@ use crate::graph::LaneGraph;
 
 /// Width at its end below which a lane counts as tapering out, m.
 const TAPERED_M: f64 = 0.5;
-/// How far into the target lane the merging path joins it, m.
+/// How far past the merge point a merge's core reaches, m.
 const JOIN_M: f64 = 15.0;
+/// The merging path moves across into the target lane over this much of the ending lane's end, m.
+const BLEND_M: f64 = 60.0;
 
 pub(super) fn build(map: &Map, intersections: &HashSet<String>) -> Vec<Fragment> {
     let g = &map.graph;
@@ -67,34 +71,37 @@ fn lane_drop(g: &LaneGraph, ending: usize, target: usize, turn: Turn) -> Option<
     // Where the ending lane's end lies along the target lane.
     let target_line = Polyline::new(&t.samples.iter().map(|q| q.p).collect::<Vec<_>>());
     let (merge_s, _) = target_line.project(end.p)?;
-    // The merging path: the ending lane (up to APPROACH_M plus its own length), then the target
-    // lane from JOIN_M past the merge point on.
-    let back = back_from_end(g, ending, APPROACH_M + l.length);
-    let (mut merge_path, back_len) = run_points(g, &back);
-    let join_s = merge_s + JOIN_M;
-    let (mut through_path, through_back_len) = run_points(g, &back_from_end(g, target, APPROACH_M + t.length));
-    let through_merge_s = through_back_len - (t.length - merge_s);
-    let after = forward_ahead(g, target, join_s, DEPARTURE_M);
-    let (after_pts, after_len) = run_points(g, &after);
-    merge_path.extend(&after_pts);
-    let through_after = forward_ahead(g, target, merge_s, JOIN_M + DEPARTURE_M);
-    through_path.extend(run_points(g, &through_after).0);
-    let merge_line = Polyline::new(&merge_path);
+    // The through path: the target lane and what feeds it, up to the merge point, then on.
+    let mut through_back = back_from_end(g, target, APPROACH_M + t.length);
+    if let Some(last) = through_back.last_mut() {
+        last.2 = merge_s.max(last.1);
+    }
+    let (mut through_path, through_merge_s) = run_points(g, &through_back);
+    let after = forward_ahead(g, target, merge_s, JOIN_M + DEPARTURE_M);
+    let (after_pts, _) = run_points(g, &after);
+    through_path.extend(after_pts.iter().skip(1));
     let through_line = Polyline::new(&through_path);
+    // The merging path: the ending lane (up to APPROACH_M plus its own length), drawn over its
+    // last BLEND_M into the target lane so that it reaches the target's centreline at the merge
+    // point, then the target lane on.
+    let back = back_from_end(g, ending, APPROACH_M + l.length);
+    let (raw, back_len) = run_points(g, &back);
+    let mut merge_path = blend_into(&raw, &through_line, BLEND_M.min(back_len));
+    let merge_on_merging = Polyline::new(&merge_path).length();
+    merge_path.extend(after_pts.iter().skip(1));
+    let merge_line = Polyline::new(&merge_path);
     let mut anchors = Vec::new();
     let entry_merge = format!("{fid}/entry/merging");
     let entry_through = format!("{fid}/entry/through");
     let exit = format!("{fid}/exit");
     let &(mi, ms, _) = back.first()?;
     anchors.push(anchor_on(g, mi, ms, entry_merge.clone(), AnchorKind::Entry)?);
-    let through_back = back_from_end(g, target, APPROACH_M + t.length);
     let &(ti, ts, _) = through_back.first()?;
     anchors.push(anchor_on(g, ti, ts, entry_through.clone(), AnchorKind::Entry)?);
     let &(ei, _, es) = after.last()?;
     anchors.push(anchor_on(g, ei, es, exit.clone(), AnchorKind::Exit)?);
     let merging_id = format!("{fid}/m/merging");
     let through_id = format!("{fid}/m/through");
-    let (merge_on_merging, _) = merge_line.project(end.p)?;
     let mut merge_anchor = anchor_on(g, target, merge_s, format!("{fid}/merge"), AnchorKind::Merge)?;
     merge_anchor.on_paths =
         vec![(merging_id.clone(), merge_on_merging), (through_id.clone(), through_merge_s.max(0.0))];
@@ -104,7 +111,9 @@ fn lane_drop(g: &LaneGraph, ending: usize, target: usize, turn: Turn) -> Option<
     let mut merging_lanes = keys(&back);
     merging_lanes.extend(keys(&after));
     let mut through_lanes = keys(&through_back);
-    through_lanes.extend(keys(&through_after));
+    through_lanes.extend(keys(&after));
+    // The target lane ends the approach and starts what follows the merge point: name it once.
+    through_lanes.dedup();
     let maneuvers = vec![
         Maneuver {
             id: merging_id,
@@ -116,7 +125,7 @@ fn lane_drop(g: &LaneGraph, ending: usize, target: usize, turn: Turn) -> Option<
             entry: entry_merge,
             exit: exit.clone(),
             core_from_m: (back_len - l.length).max(0.0),
-            core_to_m: merge_line.length() - after_len,
+            core_to_m: (merge_on_merging + JOIN_M).min(merge_line.length()),
         },
         Maneuver {
             id: through_id,
@@ -161,6 +170,34 @@ fn lane_drop(g: &LaneGraph, ending: usize, target: usize, turn: Turn) -> Option<
         usable_length_m: l.length,
         test_area_m: None,
     })
+}
+
+/// `points` with their last `blend_m` moved onto `onto`: each point goes the fraction
+/// `w(u) = 10u³ − 15u⁴ + 6u⁵` of the way to its nearest point on `onto`, `u` running from 0 at the
+/// blend's start to 1 at the last point, so the result leaves `points` with zero slope and
+/// curvature and ends on `onto`.
+fn blend_into(points: &[Point2], onto: &Polyline, blend_m: f64) -> Vec<Point2> {
+    let line = Polyline::new(points);
+    let total = line.length();
+    let start = total - blend_m;
+    let mut s = 0.0;
+    let mut out = Vec::with_capacity(points.len());
+    for (k, &p) in points.iter().enumerate() {
+        if k > 0
+            && let Some(prev) = points.get(k - 1)
+        {
+            s += prev.dist(p);
+        }
+        if blend_m <= 0.0 || s < start {
+            out.push(p);
+            continue;
+        }
+        let u = ((s - start) / blend_m).clamp(0.0, 1.0);
+        let w = u * u * u * (10.0 - 15.0 * u + 6.0 * u * u);
+        let q = onto.project(p).and_then(|(sq, _)| onto.at(sq)).map_or(p, |(q, _)| q);
+        out.push(p.lerp(q, w));
+    }
+    out
 }
 
 /// Same-direction drivable lanes beside `lane` (not counting it).

@@ -138,4 +138,3 @@ fn resampling_keeps_the_shape() {
         assert!(coarse.point_at(s).dist(path.point_at(s)) < 0.05);
     }
 }
-
