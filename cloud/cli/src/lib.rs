@@ -5,6 +5,7 @@
 //! file, and [`sim`] runs and reports a scenario in the simulated proving ground.
 
 pub mod experiment;
+pub mod ground;
 pub mod map;
 /// Loading configuration files (lives in `v2t-sim`, shared with the onboard runtime).
 pub use v2t_sim::files;

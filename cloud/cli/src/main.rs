@@ -59,6 +59,27 @@ enum Command {
         #[arg(long, default_value = "config/regulator/default.toml")]
         regulator: PathBuf,
     },
+    /// Place a video's semantics on the proving ground: rank the map's fragments, ground the VUT,
+    /// the BVs and their conflict on the best that fits, write the grounded scenario.
+    Ground {
+        /// Scenario semantics (JSON, as `abstract` writes it), e.g. config/examples/semantics_cut_in.json.
+        semantics: PathBuf,
+        /// The proving ground's map (.xodr); its annotations `<map>.toml` apply when they exist.
+        #[arg(long, default_value = video2track::ground::DEFAULT_MAP)]
+        map: PathBuf,
+        /// Hand annotations (TOML; default: the map's name with .toml, when it exists).
+        #[arg(long)]
+        annotations: Option<PathBuf>,
+        /// Write the grounded scenario (JSON) here.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Write the whole grounding (scenario, routes, planned timing, notes, ranking) as JSON here.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Show this many ranked fragments with their scores and reasons.
+        #[arg(long, default_value_t = 3)]
+        top: usize,
+    },
     /// OpenDRIVE maps and their topology library.
     Map {
         #[command(subcommand)]
@@ -96,7 +117,9 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
             eprintln!("error: {err:#}");
-            let bad_input = err.chain().any(|e| e.is::<InputError>() || e.is::<v2t_map::MapError>());
+            let bad_input = err.chain().any(|e| {
+                e.is::<InputError>() || e.is::<v2t_map::MapError>() || e.is::<video2track::ground::SemanticsFileError>()
+            });
             if bad_input { ExitCode::from(2) } else { ExitCode::FAILURE }
         }
     }
@@ -137,6 +160,34 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             print!("{}", experiment::steer_markdown(&report));
             if let Some(path) = json {
                 let text = serde_json::to_string_pretty(&report).context("serializing the report")?;
+                std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
+                println!("wrote {}", path.display());
+            }
+            Ok(())
+        }
+        Command::Ground { semantics, map, annotations, out, json, top } => {
+            let sem = video2track::ground::load_semantics(&semantics)?;
+            let inspection = video2track::map::inspect(&map, annotations.as_deref())?;
+            for w in &inspection.map.warnings {
+                eprintln!("warning: {}: {w}", map.display());
+            }
+            let ranking = v2t_ground::rank(&inspection.library, &sem);
+            print!("{}", video2track::ground::ranking_report(&ranking, top));
+            let grounding = v2t_ground::ground(&inspection.map, &inspection.library, &sem)
+                .with_context(|| format!("grounding {} on {}", semantics.display(), map.display()))?;
+            print!("{}", video2track::ground::report(&grounding));
+            if let Some(path) = out {
+                let text = serde_json::to_string_pretty(&grounding.scenario).context("serializing the scenario")?;
+                std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
+                println!("wrote {}", path.display());
+            }
+            if let Some(path) = json {
+                let doc = video2track::ground::GroundJson {
+                    semantics: semantics.display().to_string(),
+                    map: map.display().to_string(),
+                    grounding: &grounding,
+                };
+                let text = serde_json::to_string_pretty(&doc).context("serializing the grounding")?;
                 std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
                 println!("wrote {}", path.display());
             }

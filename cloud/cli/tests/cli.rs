@@ -135,7 +135,7 @@ fn help_lists_only_real_commands() {
         .take_while(|l| !l.trim().is_empty())
         .filter_map(|l| l.split_whitespace().next())
         .collect();
-    assert_eq!(commands, ["sim", "experiment", "map", "help"], "{out}");
+    assert_eq!(commands, ["sim", "experiment", "ground", "map", "help"], "{out}");
 }
 
 #[test]
@@ -189,4 +189,75 @@ fn a_bad_regulator_file_is_an_input_error() {
     let (_, err) = text(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("regulator.toml") && err.contains("horizon"), "{err}");
+}
+
+#[test]
+fn map_inspect_and_ground_work_on_the_proving_ground() {
+    let dir = tempdir("ground");
+    let lib = dir.join("library.json");
+    let svg = dir.join("pg.svg");
+    let o = video2track(&[
+        "map",
+        "inspect",
+        "config/maps/proving_ground.xodr",
+        "--json",
+        lib.to_str().unwrap(),
+        "--svg",
+        svg.to_str().unwrap(),
+    ]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(out.contains("fragments:") && out.contains("annotations"), "{out}");
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&lib).unwrap()).unwrap();
+    assert!(!v["library"]["fragments"].as_array().unwrap().is_empty());
+    assert!(std::fs::read_to_string(&svg).unwrap().starts_with("<svg"));
+
+    for (example, anchor) in [("semantics_cut_in", "/cutin/"), ("semantics_left_turn", "/x/")] {
+        let scenario = dir.join(format!("{example}.grounded.json"));
+        let full = dir.join(format!("{example}.grounding.json"));
+        let o = video2track(&[
+            "ground",
+            &format!("config/examples/{example}.json"),
+            "--top",
+            "2",
+            "--out",
+            scenario.to_str().unwrap(),
+            "--json",
+            full.to_str().unwrap(),
+        ]);
+        let (out, err) = text(&o);
+        assert!(o.status.success(), "{example}: {err}");
+        assert!(out.contains("ranking:") && out.contains("#2 ") && !out.contains("#3 "), "{out}");
+        assert!(out.contains("grounded on") && out.contains("planned PET"), "{out}");
+        let s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&scenario).unwrap()).unwrap();
+        assert_eq!(s["agents"][0]["role"], "vut", "{s}");
+        let anchor_id = s["conflicts"][0]["anchor_id"].as_str().unwrap();
+        assert!(anchor_id.contains(anchor), "{anchor_id}");
+        let g: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&full).unwrap()).unwrap();
+        assert_eq!(g["scenario"], s);
+        assert!(g["ranking"].as_array().unwrap().len() >= 2 && g["timing"].as_array().unwrap().len() == 1);
+    }
+}
+
+#[test]
+fn ground_refuses_bad_semantics_and_explains_a_misfit() {
+    let dir = tempdir("ground-bad");
+    let bad = dir.join("bad.json");
+    std::fs::write(&bad, "{ \"road_topology\": 3 }").unwrap();
+    let o = video2track(&["ground", bad.to_str().unwrap()]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("bad.json") && err.contains("line 1"), "{err}");
+
+    let missing_map = video2track(&["ground", "config/examples/semantics_cut_in.json", "--map", "no/such.xodr"]);
+    assert_eq!(missing_map.status.code(), Some(2), "{}", text(&missing_map).1);
+
+    // A roundabout: the proving ground has none, and every fragment says why not.
+    let o = video2track(&["ground", "cloud/ground/tests/data/roundabout.json"]);
+    let (out, err) = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{out}\n{err}");
+    assert!(
+        out.contains("ranking:") && err.contains("no fragment of the library fits") && err.contains("J100"),
+        "{err}"
+    );
 }
