@@ -23,6 +23,7 @@
 //! ```
 
 pub mod annotate;
+pub mod drivable;
 pub mod error;
 pub mod geometry;
 pub mod graph;

@@ -1,12 +1,19 @@
-//! Priors on the BV: building the IPC [`ActivePrior`] from a scenario (the stand-in for the cloud
-//! upload until the MQTT link exists), and turning a received one back into paths the regulator
-//! and the tracker use.
+//! Priors on the BV: checking a prior uploaded over the cloud link ([`from_upload`]: validity,
+//! time window, vehicle limits, drivable area) and building the IPC [`ActivePrior`] from it, building
+//! one from a scenario card (the simulated ECU's stand-in for the cloud), and turning a received one
+//! back into paths the regulator and the tracker use.
 
+use v2t_map::drivable::DrivableArea;
 use v2t_model::Style;
 use v2t_model::geometry::Point2;
-use v2t_model::metrics::{ConflictKind, OccupancyInterval};
+use v2t_model::grounded::AgentRole;
+use v2t_model::kinematics::State;
+use v2t_model::metrics::{ConflictKind, ConflictOptions, Dimensions, OccupancyInterval, conflict_zones};
 use v2t_model::path::ReferencePath;
+use v2t_model::validate::Validate;
+use v2t_model::vehicle::VehicleLimits;
 use v2t_sim::scenario::Scenario;
+use v2t_wire::link::PriorUpload;
 use v2t_wire::{ActivePrior, Code, Header, MAX_PATH_POINTS, ProfileSample, StyleCode, Vec2, Vector, ZoneKind};
 
 use crate::error::EdgeError;
@@ -66,6 +73,161 @@ pub fn from_scenario(
     }
     prior.check().map_err(|e| EdgeError::Prior(e.to_owned()))?;
     Ok(prior)
+}
+
+/// What a BV checks an uploaded prior against before it may reach the regulator.
+#[derive(Debug, Clone)]
+pub struct PriorChecks {
+    /// The BV's limits (speed, acceleration, deceleration, jerk, lateral acceleration).
+    pub limits: VehicleLimits,
+    /// The BV's footprint (conflict zone).
+    pub bv: Dimensions,
+    /// The VUT's footprint.
+    pub vut: Dimensions,
+    /// The track's drivable area; every state of the BV's trajectory must lie on it.
+    pub area: Option<DrivableArea>,
+    /// How far off the drivable area a trajectory point may lie, m.
+    pub geofence_margin_m: f64,
+}
+
+/// Relative slack on the vehicle limits (the generator works to them; rounding must not refuse).
+const LIMIT_SLACK: f64 = 1.01;
+
+/// Checks an uploaded prior at Unix time `now_ms` — validity, time window, the BV's agent and its
+/// conflict with the VUT, the vehicle limits, the drivable area — and builds the IPC prior with
+/// `stamp_ns` (monotonic) as its header time. Every refusal names what failed.
+pub fn from_upload(
+    up: &PriorUpload,
+    now_ms: u64,
+    checks: &PriorChecks,
+    stamp_ns: u64,
+) -> Result<ActivePrior, EdgeError> {
+    let refuse = |m: String| Err(EdgeError::Prior(format!("prior {}: {m}", up.prior_id)));
+    let p = &up.prior;
+    if let Err(e) = p.validate() {
+        return refuse(format!("invalid: {e}"));
+    }
+    if up.valid_until_ms < up.valid_from_ms {
+        return refuse(format!("validity window ends ({}) before it starts ({})", up.valid_until_ms, up.valid_from_ms));
+    }
+    if now_ms > up.valid_until_ms {
+        return refuse(format!("expired {} ms ago", now_ms - up.valid_until_ms));
+    }
+    let Some(bv) = p.agents.iter().find(|a| a.id == up.bv_agent) else {
+        return refuse(format!("has no agent `{}`", up.bv_agent));
+    };
+    if bv.role != AgentRole::Bv {
+        return refuse(format!("agent `{}` is not a BV", up.bv_agent));
+    }
+    let Some(vut) = p.agents.iter().find(|a| a.role == AgentRole::Vut) else {
+        return refuse("has no VUT trajectory".into());
+    };
+    let dt = p.dt_s;
+    let l = &checks.limits;
+    let mut prev_a: Option<f64> = None;
+    for (k, (x, u)) in bv.states.iter().zip(&bv.controls).enumerate() {
+        let t = k as f64 * dt;
+        let a = u.accel_mps2;
+        if x.speed_mps > l.max_speed_mps * LIMIT_SLACK || x.speed_mps < -0.1 {
+            return refuse(format!("speed {:.2} m/s at t = {t:.1} s outside 0–{} m/s", x.speed_mps, l.max_speed_mps));
+        }
+        if a > l.max_accel_mps2 * LIMIT_SLACK || -a > l.max_decel_mps2 * LIMIT_SLACK {
+            return refuse(format!(
+                "acceleration {a:.2} m/s² at t = {t:.1} s outside −{}…{} m/s²",
+                l.max_decel_mps2, l.max_accel_mps2
+            ));
+        }
+        let lat = (x.speed_mps * u.yaw_rate_radps).abs();
+        if lat > l.max_lat_accel_mps2 * LIMIT_SLACK {
+            return refuse(format!(
+                "lateral acceleration {lat:.2} m/s² at t = {t:.1} s above {} m/s²",
+                l.max_lat_accel_mps2
+            ));
+        }
+        if let Some(pa) = prev_a {
+            let jerk = (a - pa).abs() / dt;
+            if jerk > l.max_jerk_mps3 * LIMIT_SLACK {
+                return refuse(format!("jerk {jerk:.1} m/s³ at t = {t:.1} s above {} m/s³", l.max_jerk_mps3));
+            }
+        }
+        prev_a = Some(a);
+    }
+    if let Some(area) = &checks.area
+        && let Some((k, q)) = area.first_outside(bv.states.iter().map(|x| x.position()), checks.geofence_margin_m)
+    {
+        return refuse(format!(
+            "leaves the drivable area at t = {:.1} s ({:.1}, {:.1}) by more than {} m",
+            k as f64 * dt,
+            q.x,
+            q.y,
+            checks.geofence_margin_m
+        ));
+    }
+    let bv_path =
+        trajectory_path(&bv.states).map_err(|e| EdgeError::Prior(format!("prior {}: BV path: {e}", up.prior_id)))?;
+    let vut_path =
+        trajectory_path(&vut.states).map_err(|e| EdgeError::Prior(format!("prior {}: VUT path: {e}", up.prior_id)))?;
+    let hint = p.conflicts.iter().find(|c| c.bv_id == up.bv_agent).map(|c| c.point);
+    let options = ConflictOptions::default();
+    let zones = conflict_zones(&bv_path, checks.bv, &vut_path, checks.vut, &options);
+    let zone = zones.into_iter().min_by(|a, b| {
+        let d = |z: &v2t_model::metrics::ConflictZone| hint.map_or(z.a.enter_s_m, |h| z.anchor.dist(h));
+        d(a).total_cmp(&d(b))
+    });
+    let Some(zone) = zone else {
+        return refuse(format!("the trajectories of `{}` and the VUT never share a conflict zone", up.bv_agent));
+    };
+    let mut prior = ActivePrior {
+        header: Header { seq: up.prior_id, stamp_ns },
+        prior_id: up.prior_id,
+        tau_s: p.tau_s,
+        style: match p.style {
+            Style::Rush => StyleCode::Rush,
+            Style::Yield => StyleCode::Yield,
+        }
+        .code(),
+        zone_kind: match zone.kind {
+            ConflictKind::Crossing => ZoneKind::Crossing,
+            ConflictKind::Merge => ZoneKind::Merge,
+        }
+        .code(),
+        bv_zone_enter_s_m: zone.a.enter_s_m,
+        bv_zone_exit_s_m: zone.a.exit_s_m,
+        vut_zone_enter_s_m: zone.b.enter_s_m,
+        vut_zone_exit_s_m: zone.b.exit_s_m,
+        ..ActivePrior::default()
+    };
+    path_points(&bv_path, &mut prior.bv_path)?;
+    path_points(&vut_path, &mut prior.vut_path)?;
+    let n = bv.states.len();
+    let stride = n.div_ceil(prior.bv_profile.capacity()).max(1);
+    let mut s_m = 0.0;
+    let mut last = bv.states.first().map(|x| x.position());
+    for (k, x) in bv.states.iter().enumerate() {
+        if let Some(q) = last {
+            s_m += q.dist(x.position());
+        }
+        last = Some(x.position());
+        if k % stride == 0 || k + 1 == n {
+            let sample = ProfileSample { t_s: k as f64 * dt, s_m, v_mps: x.speed_mps.max(0.0) };
+            prior.bv_profile.push(sample).map_err(|e| EdgeError::Prior(format!("profile: {e:?}")))?;
+        }
+    }
+    prior.check().map_err(|e| EdgeError::Prior(format!("prior {}: {e}", up.prior_id)))?;
+    Ok(prior)
+}
+
+/// The path a trajectory's positions trace (points closer than 1 cm to the last kept are
+/// dropped: a standstill repeats its position).
+fn trajectory_path(states: &[State]) -> Result<ReferencePath, String> {
+    let mut pts: Vec<Point2> = Vec::with_capacity(states.len());
+    for x in states {
+        let p = x.position();
+        if pts.last().is_none_or(|q| q.dist(p) > 0.01) {
+            pts.push(p);
+        }
+    }
+    ReferencePath::from_points(&pts).map_err(|e| e.to_string())
 }
 
 /// A received prior, checked and turned into paths.
@@ -168,6 +330,149 @@ mod tests {
         for t in [0.0, 2.0, 5.0] {
             let s = bv.reference.distance_at(t);
             assert!((ctx.reference_speed_at(s) - bv.reference.speed_at(t)).abs() < 0.2, "t = {t}");
+        }
+    }
+
+    mod upload {
+        use super::super::*;
+        use v2t_model::grounded::GroundedScenario;
+        use v2t_model::kinematics::Control;
+        use v2t_model::prior::{AgentTrajectory, TrajectoryPrior};
+
+        fn root() -> std::path::PathBuf {
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+        }
+
+        /// The left turn grounded on the proving ground, and its map.
+        fn grounded() -> (v2t_map::Map, GroundedScenario) {
+            let map = v2t_map::Map::load(&root().join("config/maps/proving_ground.xodr")).unwrap();
+            let lib = v2t_map::library::TopologyLibrary::build(&map);
+            let text = std::fs::read_to_string(root().join("config/examples/semantics_left_turn.json")).unwrap();
+            let sem = v2t_model::semantics::parse_semantics_json(&text).unwrap();
+            let g = v2t_ground::ground(&map, &lib, &sem).unwrap();
+            (map, g.scenario)
+        }
+
+        /// Constant speed along `route` for `n` steps of `dt`, states consistent with the controls.
+        fn along(id: &str, role: AgentRole, route: &[Point2], speed: f64, n: usize, dt: f64) -> AgentTrajectory {
+            let path = ReferencePath::from_points(route).unwrap();
+            let mut states = Vec::with_capacity(n + 1);
+            for k in 0..=n {
+                let s = (speed * k as f64 * dt).min(path.length());
+                let p = path.point_at(s);
+                states.push(State { px: p.x, py: p.y, theta_rad: path.heading_at(s), speed_mps: speed });
+            }
+            let controls = states
+                .windows(2)
+                .map(|w| {
+                    let d = (w[1].theta_rad - w[0].theta_rad + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                        - std::f64::consts::PI;
+                    Control { accel_mps2: 0.0, yaw_rate_radps: d / dt }
+                })
+                .collect();
+            AgentTrajectory { id: id.into(), role, states, controls }
+        }
+
+        fn upload() -> (PriorUpload, PriorChecks) {
+            let (map, sc) = grounded();
+            let vut = sc.vut().unwrap();
+            let bv = sc.bvs().next().unwrap();
+            let (n, dt) = (120, 0.1);
+            let prior = TrajectoryPrior {
+                fragment_id: sc.fragment_id.clone(),
+                dt_s: dt,
+                agents: vec![
+                    along("vut", AgentRole::Vut, &vut.route, vut.start.speed_mps, n, dt),
+                    along(&bv.id, AgentRole::Bv, &bv.route, bv.start.speed_mps, n, dt),
+                ],
+                conflicts: sc.conflicts.clone(),
+                tau_s: sc.tau_s,
+                style: sc.style,
+            };
+            let up = PriorUpload {
+                prior_id: 77,
+                bv_agent: bv.id.clone(),
+                valid_from_ms: 1_000,
+                valid_until_ms: 61_000,
+                prior,
+            };
+            let vehicle: v2t_model::vehicle::VehicleConfig =
+                v2t_sim::files::load_toml(&root().join("config/vehicles/bv_sedan.toml")).unwrap();
+            let checks = PriorChecks {
+                limits: vehicle.limits,
+                bv: Dimensions { length_m: 4.8, width_m: 1.85 },
+                vut: Dimensions { length_m: 4.7, width_m: 1.85 },
+                area: Some(DrivableArea::from_map(&map)),
+                geofence_margin_m: 0.5,
+            };
+            (up, checks)
+        }
+
+        fn refused(up: &PriorUpload, checks: &PriorChecks, now_ms: u64) -> String {
+            from_upload(up, now_ms, checks, 5).unwrap_err().to_string()
+        }
+
+        #[test]
+        fn a_grounded_prior_is_accepted_and_its_zone_lies_where_the_routes_cross() {
+            let (up, checks) = upload();
+            let prior = from_upload(&up, 2_000, &checks, 5).unwrap();
+            assert_eq!((prior.prior_id, prior.header.stamp_ns), (77, 5));
+            let ctx = PriorContext::new(&prior).unwrap();
+            assert_eq!((ctx.tau_s, ctx.style), (up.prior.tau_s, up.prior.style));
+            let c = &up.prior.conflicts[0];
+            let zone_mid = ctx.bv_path.point_at(0.5 * (ctx.zone_bv.enter_s_m + ctx.zone_bv.exit_s_m));
+            assert!(zone_mid.dist(c.point) < 3.0, "zone at {zone_mid:?}, grounded conflict at {:?}", c.point);
+            let vut_mid = ctx.vut_path.point_at(0.5 * (ctx.zone_vut.enter_s_m + ctx.zone_vut.exit_s_m));
+            assert!(vut_mid.dist(c.point) < 3.0);
+            let v0 = up.prior.agents[1].states[0].speed_mps;
+            assert!((ctx.reference_speed_at(10.0) - v0).abs() < 1e-9);
+        }
+
+        #[test]
+        fn every_broken_upload_is_refused_with_its_reason() {
+            let (up, checks) = upload();
+            assert!(refused(&up, &checks, 61_001).contains("expired 1 ms ago"));
+            let mut u = up.clone();
+            u.valid_until_ms = 500;
+            assert!(refused(&u, &checks, 400).contains("ends"));
+            let mut u = up.clone();
+            u.bv_agent = "bv9".into();
+            assert!(refused(&u, &checks, 2_000).contains("no agent `bv9`"));
+            let mut u = up.clone();
+            u.bv_agent = "vut".into();
+            assert!(refused(&u, &checks, 2_000).contains("not a BV"));
+            let mut u = up.clone();
+            u.prior.agents.remove(0);
+            assert!(refused(&u, &checks, 2_000).contains("no VUT"));
+            let mut u = up.clone();
+            u.prior.agents[1].states[40].py = f64::NAN;
+            assert!(refused(&u, &checks, 2_000).contains("invalid"));
+            let mut u = up.clone();
+            for x in &mut u.prior.agents[1].states {
+                x.speed_mps = checks.limits.max_speed_mps + 1.0;
+            }
+            assert!(refused(&u, &checks, 2_000).contains("speed"));
+            let mut u = up.clone();
+            u.prior.agents[1].controls[30].accel_mps2 = -(checks.limits.max_decel_mps2 + 1.0);
+            assert!(refused(&u, &checks, 2_000).contains("acceleration"));
+            let mut u = up.clone();
+            u.prior.agents[1].controls[30].accel_mps2 = 0.5 * checks.limits.max_accel_mps2;
+            u.prior.agents[1].controls[31].accel_mps2 = -0.5 * checks.limits.max_decel_mps2;
+            assert!(refused(&u, &checks, 2_000).contains("jerk"));
+            let mut u = up.clone();
+            u.prior.agents[1].controls[50].yaw_rate_radps = 2.0;
+            assert!(refused(&u, &checks, 2_000).contains("lateral acceleration"));
+            let mut u = up.clone();
+            for x in &mut u.prior.agents[1].states[60..] {
+                x.px += 40.0;
+            }
+            assert!(refused(&u, &checks, 2_000).contains("leaves the drivable area at t = 6.0 s"));
+            let mut u = up.clone();
+            for x in &mut u.prior.agents[0].states {
+                x.px += 500.0;
+            }
+            let far = PriorChecks { area: None, ..checks.clone() };
+            assert!(refused(&u, &far, 2_000).contains("never share a conflict zone"));
         }
     }
 

@@ -23,6 +23,7 @@ use iceoryx2::prelude::ZeroCopySend;
 pub use iceoryx2_bb_container::vector::{StaticVec, Vector};
 
 mod codes;
+pub mod link;
 mod payloads;
 pub mod services;
 

@@ -1,0 +1,531 @@
+//! What crosses the cloud–edge link (MQTT): versioned `postcard` frames. The cloud signs what it
+//! sends (priors and commands) with Ed25519; a BV accepts a frame only if the signature checks out
+//! against the cloud key in its configuration, the version is one it speaks, the frame is addressed
+//! to it, its sequence number is newer than every one it accepted before, and its timestamp lies
+//! in the acceptance window. What the BV sends back (telemetry, heartbeats) is framed the same way,
+//! unsigned.
+//!
+//! A frame is `b"V2T"`, the link version, the frame kind, the `postcard` body, and — for the
+//! signed kinds — the 64-byte Ed25519 signature over everything before it. The header bytes are
+//! signed too, so a body cannot be replayed as another kind or version.
+//!
+//! ```
+//! use v2t_wire::link::{self, CloudBody, CloudMessage, Command, Receiver, SigningKey};
+//!
+//! let key = SigningKey::from_bytes(&[7; 32]);
+//! let mut rx = Receiver::new(key.verifying_key(), "bv1", link::Window::default());
+//! let msg = CloudMessage { fleet: "pg".into(), bv_id: "bv1".into(), seq: 1, issued_ms: 1_000, body: CloudBody::Command(Command::Abort) };
+//! let frame = link::seal(&msg, &key).unwrap();
+//! assert_eq!(rx.open(&frame, 1_200).unwrap(), msg);
+//! // The same frame again is a replay.
+//! assert!(matches!(rx.open(&frame, 1_300), Err(link::LinkError::Replay { .. })));
+//! ```
+
+use ed25519_dalek::Signer as _;
+pub use ed25519_dalek::{SigningKey, VerifyingKey};
+use serde::{Deserialize, Serialize};
+use v2t_model::Style;
+use v2t_model::prior::TrajectoryPrior;
+
+/// The link version this build speaks.
+pub const LINK_VERSION: u8 = 1;
+/// The first bytes of every frame.
+pub const MAGIC: &[u8; 3] = b"V2T";
+/// Header length: magic, version, kind.
+pub const HEADER_LEN: usize = 5;
+/// Ed25519 signature length.
+pub const SIGNATURE_LEN: usize = 64;
+/// Largest frame a receiver decodes, bytes (a prior of 3 agents × 30 s at 10 Hz is ~60 kB).
+pub const MAX_FRAME_LEN: usize = 1 << 20;
+/// A message addressed to every BV of the fleet.
+pub const ALL_BVS: &str = "*";
+
+/// What a frame carries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum FrameKind {
+    /// [`CloudMessage`], signed.
+    Cloud = 1,
+    /// [`Telemetry`], unsigned.
+    Telemetry = 2,
+    /// [`Heartbeat`], unsigned.
+    Heartbeat = 3,
+}
+
+impl FrameKind {
+    fn from_u8(b: u8) -> Option<Self> {
+        match b {
+            1 => Some(Self::Cloud),
+            2 => Some(Self::Telemetry),
+            3 => Some(Self::Heartbeat),
+            _ => None,
+        }
+    }
+}
+
+/// A message from the cloud supervisor to one BV (or every BV: [`ALL_BVS`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CloudMessage {
+    /// Fleet (test session) id.
+    pub fleet: String,
+    /// The BV it is for, or [`ALL_BVS`].
+    pub bv_id: String,
+    /// Strictly increasing per cloud key; a BV rejects any number it has seen or passed.
+    pub seq: u64,
+    /// When the cloud issued it, Unix time in ms.
+    pub issued_ms: u64,
+    /// What it says.
+    pub body: CloudBody,
+}
+
+/// The content of a [`CloudMessage`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum CloudBody {
+    /// A trajectory prior to regulate around.
+    Prior(PriorUpload),
+    /// A supervision command.
+    Command(Command),
+}
+
+/// A prior for one BV: the generated trajectories of the scenario, which of them this BV drives,
+/// and when it may be used.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PriorUpload {
+    /// Identifier the BV reports back in its telemetry.
+    pub prior_id: u64,
+    /// The agent of `prior` this BV drives.
+    pub bv_agent: String,
+    /// Not to be used before, Unix ms.
+    pub valid_from_ms: u64,
+    /// Not to be used after, Unix ms.
+    pub valid_until_ms: u64,
+    /// The trajectories (VUT and BVs), conflicts, τ and style.
+    pub prior: TrajectoryPrior,
+}
+
+/// A supervision command.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum Command {
+    /// Prepare: the accepted prior becomes active, the BV waits at its start.
+    Arm,
+    /// Go: engage and drive the active prior.
+    Start,
+    /// Stop now: the minimal-risk stop.
+    Abort,
+    /// Re-target the running interaction.
+    SetTarget {
+        /// New target PET, s.
+        tau_s: f64,
+        /// New style.
+        style: Style,
+    },
+}
+
+/// What a BV reports at 10 Hz.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Telemetry {
+    /// The BV.
+    pub bv_id: String,
+    /// Per-BV sequence number.
+    pub seq: u64,
+    /// When, Unix ms.
+    pub stamp_ms: u64,
+    /// The active prior, 0 when none.
+    pub prior_id: u64,
+    /// Position x, m (map frame).
+    pub px_m: f64,
+    /// Position y, m.
+    pub py_m: f64,
+    /// Heading, rad.
+    pub theta_rad: f64,
+    /// Speed, m/s.
+    pub speed_mps: f64,
+    /// The regulator's last plan status (`v2t_wire::PlanStatus` code).
+    pub plan_status: u8,
+    /// The regulator's predicted PET, s (NaN-free: `None` when it has none).
+    pub predicted_pet_s: Option<f64>,
+    /// The actuation gate's state (`v2t_wire::GateState` code).
+    pub gate_state: u8,
+    /// Why the gate is in that state (`v2t_wire::GateReason` code).
+    pub gate_reason: u8,
+}
+
+/// A BV's sign of life at 5 Hz.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Heartbeat {
+    /// The BV.
+    pub bv_id: String,
+    /// Per-BV sequence number.
+    pub seq: u64,
+    /// When, Unix ms.
+    pub stamp_ms: u64,
+    /// Whether every onboard node is alive.
+    pub healthy: bool,
+}
+
+/// A frame that cannot be made or accepted.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LinkError {
+    /// Too short, too long, wrong magic or unknown kind.
+    #[error("malformed frame: {0}")]
+    Malformed(String),
+    /// Another link version.
+    #[error("link version {got}, this build speaks {LINK_VERSION}")]
+    Version {
+        /// The frame's version.
+        got: u8,
+    },
+    /// Not signed by the configured cloud key, or altered.
+    #[error("bad signature: not from the configured cloud key, or altered")]
+    Signature,
+    /// The body does not decode.
+    #[error("undecodable body: {0}")]
+    Decode(String),
+    /// Addressed to another BV.
+    #[error("addressed to {to}, this is {me}")]
+    NotForMe {
+        /// The addressee.
+        to: String,
+        /// This BV.
+        me: String,
+    },
+    /// A sequence number already seen or passed.
+    #[error("replay: sequence {seq} ≤ last accepted {last}")]
+    Replay {
+        /// The frame's.
+        seq: u64,
+        /// The last accepted.
+        last: u64,
+    },
+    /// Issued too long ago.
+    #[error("stale: issued {age_ms} ms ago (window {max_ms} ms)")]
+    Stale {
+        /// Age.
+        age_ms: u64,
+        /// Window.
+        max_ms: u64,
+    },
+    /// Issued in the future beyond the allowed clock skew.
+    #[error("issued {ahead_ms} ms in the future (allowed skew {max_ms} ms)")]
+    Future {
+        /// How far ahead.
+        ahead_ms: u64,
+        /// Allowed skew.
+        max_ms: u64,
+    },
+    /// The body does not encode.
+    #[error("cannot encode: {0}")]
+    Encode(String),
+}
+
+fn header(kind: FrameKind) -> [u8; HEADER_LEN] {
+    [MAGIC[0], MAGIC[1], MAGIC[2], LINK_VERSION, kind as u8]
+}
+
+fn encode<T: Serialize>(kind: FrameKind, body: &T) -> Result<Vec<u8>, LinkError> {
+    let mut out = header(kind).to_vec();
+    out.extend(postcard::to_allocvec(body).map_err(|e| LinkError::Encode(e.to_string()))?);
+    Ok(out)
+}
+
+/// Splits a frame into kind and the bytes after the header, checking magic, version and length.
+pub fn parse_header(frame: &[u8]) -> Result<(FrameKind, &[u8]), LinkError> {
+    if frame.len() > MAX_FRAME_LEN {
+        return Err(LinkError::Malformed(format!("{} bytes, at most {MAX_FRAME_LEN}", frame.len())));
+    }
+    let (Some(head), Some(rest)) = (frame.get(..HEADER_LEN), frame.get(HEADER_LEN..)) else {
+        return Err(LinkError::Malformed(format!("{} bytes, shorter than the header", frame.len())));
+    };
+    if head.get(..3) != Some(MAGIC.as_slice()) {
+        return Err(LinkError::Malformed("not a Video2Track frame (magic)".into()));
+    }
+    let version = head.get(3).copied().unwrap_or(0);
+    if version != LINK_VERSION {
+        return Err(LinkError::Version { got: version });
+    }
+    let kind_byte = head.get(4).copied().unwrap_or(0);
+    let kind =
+        FrameKind::from_u8(kind_byte).ok_or_else(|| LinkError::Malformed(format!("unknown kind {kind_byte}")))?;
+    Ok((kind, rest))
+}
+
+/// The signed frame of `msg`.
+pub fn seal(msg: &CloudMessage, key: &SigningKey) -> Result<Vec<u8>, LinkError> {
+    let mut frame = encode(FrameKind::Cloud, msg)?;
+    let sig = key.sign(&frame);
+    frame.extend(sig.to_bytes());
+    Ok(frame)
+}
+
+/// The frame of a telemetry report.
+pub fn telemetry_frame(t: &Telemetry) -> Result<Vec<u8>, LinkError> {
+    encode(FrameKind::Telemetry, t)
+}
+
+/// The frame of a heartbeat.
+pub fn heartbeat_frame(h: &Heartbeat) -> Result<Vec<u8>, LinkError> {
+    encode(FrameKind::Heartbeat, h)
+}
+
+/// What the cloud reads from a BV.
+#[derive(Debug, Clone, PartialEq)]
+pub enum EdgeReport {
+    /// Telemetry.
+    Telemetry(Telemetry),
+    /// Heartbeat.
+    Heartbeat(Heartbeat),
+}
+
+/// Decodes a telemetry or heartbeat frame.
+pub fn read_report(frame: &[u8]) -> Result<EdgeReport, LinkError> {
+    let decode = |e: postcard::Error| LinkError::Decode(e.to_string());
+    match parse_header(frame)? {
+        (FrameKind::Telemetry, body) => Ok(EdgeReport::Telemetry(postcard::from_bytes(body).map_err(decode)?)),
+        (FrameKind::Heartbeat, body) => Ok(EdgeReport::Heartbeat(postcard::from_bytes(body).map_err(decode)?)),
+        (FrameKind::Cloud, _) => Err(LinkError::Malformed("a cloud frame where a BV report was expected".into())),
+    }
+}
+
+/// How far a cloud message's timestamp may lie from the BV's clock.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Window {
+    /// Older than this is stale, ms.
+    pub max_age_ms: u64,
+    /// Further ahead than this is refused, ms (clock skew between cloud and BV).
+    pub max_skew_ms: u64,
+}
+
+impl Default for Window {
+    /// 30 s of age (a broker that held a QoS 1 message through a short outage), 2 s of skew.
+    fn default() -> Self {
+        Self { max_age_ms: 30_000, max_skew_ms: 2_000 }
+    }
+}
+
+/// A BV's side of the link: checks every cloud frame and remembers the last sequence accepted.
+#[derive(Debug, Clone)]
+pub struct Receiver {
+    key: VerifyingKey,
+    bv_id: String,
+    window: Window,
+    last_seq: Option<u64>,
+}
+
+impl Receiver {
+    /// A receiver for BV `bv_id` that trusts `key`.
+    pub fn new(key: VerifyingKey, bv_id: &str, window: Window) -> Self {
+        Self { key, bv_id: bv_id.to_owned(), window, last_seq: None }
+    }
+
+    /// The last sequence number accepted.
+    pub fn last_seq(&self) -> Option<u64> {
+        self.last_seq
+    }
+
+    /// Starts after `seq` (a sequence persisted across restarts).
+    pub fn resume_after(&mut self, seq: u64) {
+        self.last_seq = Some(self.last_seq.map_or(seq, |s| s.max(seq)));
+    }
+
+    /// Checks `frame` at Unix time `now_ms` — header, signature, addressee, sequence, time — and
+    /// returns the message. Only an accepted frame advances the sequence.
+    pub fn open(&mut self, frame: &[u8], now_ms: u64) -> Result<CloudMessage, LinkError> {
+        let (kind, _) = parse_header(frame)?;
+        if kind != FrameKind::Cloud {
+            return Err(LinkError::Malformed(format!("{kind:?} frame where a cloud frame was expected")));
+        }
+        let Some(split) = frame.len().checked_sub(SIGNATURE_LEN).filter(|&n| n >= HEADER_LEN) else {
+            return Err(LinkError::Malformed("shorter than header and signature".into()));
+        };
+        let (signed, sig) = frame.split_at(split);
+        let sig: [u8; SIGNATURE_LEN] = sig.try_into().map_err(|_| LinkError::Signature)?;
+        self.key
+            .verify_strict(signed, &ed25519_dalek::Signature::from_bytes(&sig))
+            .map_err(|_| LinkError::Signature)?;
+        let body = signed.get(HEADER_LEN..).unwrap_or_default();
+        let msg: CloudMessage = postcard::from_bytes(body).map_err(|e| LinkError::Decode(e.to_string()))?;
+        if msg.bv_id != self.bv_id && msg.bv_id != ALL_BVS {
+            return Err(LinkError::NotForMe { to: msg.bv_id, me: self.bv_id.clone() });
+        }
+        if let Some(last) = self.last_seq
+            && msg.seq <= last
+        {
+            return Err(LinkError::Replay { seq: msg.seq, last });
+        }
+        let age = now_ms.saturating_sub(msg.issued_ms);
+        if age > self.window.max_age_ms {
+            return Err(LinkError::Stale { age_ms: age, max_ms: self.window.max_age_ms });
+        }
+        let ahead = msg.issued_ms.saturating_sub(now_ms);
+        if ahead > self.window.max_skew_ms {
+            return Err(LinkError::Future { ahead_ms: ahead, max_ms: self.window.max_skew_ms });
+        }
+        self.last_seq = Some(msg.seq);
+        Ok(msg)
+    }
+}
+
+/// Reads a 32-byte Ed25519 key seed written as 64 hex digits (whitespace around it allowed).
+pub fn key_from_hex(text: &str) -> Result<[u8; 32], String> {
+    let t = text.trim();
+    if t.len() != 64 {
+        return Err(format!("expected 64 hex digits, got {} characters", t.len()));
+    }
+    let mut out = [0u8; 32];
+    for (i, byte) in out.iter_mut().enumerate() {
+        let pair = t.get(2 * i..2 * i + 2).ok_or("not ASCII hex")?;
+        *byte = u8::from_str_radix(pair, 16).map_err(|_| format!("not hex: {pair:?}"))?;
+    }
+    Ok(out)
+}
+
+/// A key as 64 hex digits.
+pub fn key_to_hex(key: &[u8; 32]) -> String {
+    key.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use v2t_model::grounded::AgentRole;
+    use v2t_model::kinematics::{Control, State, rollout};
+    use v2t_model::prior::AgentTrajectory;
+
+    fn key() -> SigningKey {
+        SigningKey::from_bytes(&[42; 32])
+    }
+
+    fn msg(seq: u64, issued_ms: u64, body: CloudBody) -> CloudMessage {
+        CloudMessage { fleet: "pg".into(), bv_id: "bv1".into(), seq, issued_ms, body }
+    }
+
+    fn prior() -> PriorUpload {
+        let controls = vec![Control { accel_mps2: 0.2, yaw_rate_radps: 0.0 }; 30];
+        let states = rollout(State { px: 0.0, py: 0.0, theta_rad: 0.0, speed_mps: 8.0 }, &controls, 0.1);
+        PriorUpload {
+            prior_id: 9,
+            bv_agent: "bv1".into(),
+            valid_from_ms: 0,
+            valid_until_ms: 60_000,
+            prior: TrajectoryPrior {
+                fragment_id: "J100".into(),
+                dt_s: 0.1,
+                agents: vec![AgentTrajectory { id: "bv1".into(), role: AgentRole::Bv, states, controls }],
+                conflicts: vec![],
+                tau_s: 2.0,
+                style: Style::Yield,
+            },
+        }
+    }
+
+    fn rx() -> Receiver {
+        Receiver::new(key().verifying_key(), "bv1", Window::default())
+    }
+
+    #[test]
+    fn a_signed_prior_round_trips() {
+        let m = msg(1, 10_000, CloudBody::Prior(prior()));
+        let frame = seal(&m, &key()).unwrap();
+        assert_eq!(rx().open(&frame, 10_050).unwrap(), m);
+    }
+
+    #[test]
+    fn tampering_anywhere_breaks_the_signature_or_the_header() {
+        let frame = seal(&msg(1, 10_000, CloudBody::Prior(prior())), &key()).unwrap();
+        for i in 0..frame.len() {
+            let mut bad = frame.clone();
+            bad[i] ^= 0x01;
+            let e = rx().open(&bad, 10_000).unwrap_err();
+            assert!(
+                matches!(e, LinkError::Signature | LinkError::Malformed(_) | LinkError::Version { .. }),
+                "byte {i}: {e}"
+            );
+        }
+    }
+
+    #[test]
+    fn another_key_unsigned_and_truncated_frames_are_refused() {
+        let m = msg(1, 10_000, CloudBody::Command(Command::Start));
+        let other = SigningKey::from_bytes(&[1; 32]);
+        assert_eq!(rx().open(&seal(&m, &other).unwrap(), 10_000), Err(LinkError::Signature));
+        let unsigned = encode(FrameKind::Cloud, &m).unwrap();
+        assert!(rx().open(&unsigned, 10_000).is_err());
+        assert!(matches!(rx().open(b"V2", 0), Err(LinkError::Malformed(_))));
+        assert!(matches!(rx().open(b"XYZ\x01\x01", 0), Err(LinkError::Malformed(_))));
+        let mut v2 = seal(&m, &key()).unwrap();
+        v2[3] = 2;
+        assert_eq!(rx().open(&v2, 10_000), Err(LinkError::Version { got: 2 }));
+        let tele = telemetry_frame(&Telemetry {
+            bv_id: "bv1".into(),
+            seq: 1,
+            stamp_ms: 0,
+            prior_id: 0,
+            px_m: 0.0,
+            py_m: 0.0,
+            theta_rad: 0.0,
+            speed_mps: 0.0,
+            plan_status: 0,
+            predicted_pet_s: None,
+            gate_state: 0,
+            gate_reason: 0,
+        })
+        .unwrap();
+        assert!(matches!(rx().open(&tele, 0), Err(LinkError::Malformed(_))));
+        assert!(matches!(read_report(&tele), Ok(EdgeReport::Telemetry(_))));
+    }
+
+    #[test]
+    fn replays_old_sequences_stale_and_future_frames_are_refused_and_do_not_advance() {
+        let mut r = rx();
+        let f5 = seal(&msg(5, 10_000, CloudBody::Command(Command::Arm)), &key()).unwrap();
+        assert!(r.open(&f5, 10_000).is_ok());
+        assert_eq!(r.open(&f5, 10_001), Err(LinkError::Replay { seq: 5, last: 5 }));
+        let f4 = seal(&msg(4, 10_000, CloudBody::Command(Command::Arm)), &key()).unwrap();
+        assert_eq!(r.open(&f4, 10_001), Err(LinkError::Replay { seq: 4, last: 5 }));
+        let stale = seal(&msg(6, 10_000, CloudBody::Command(Command::Start)), &key()).unwrap();
+        assert!(matches!(r.open(&stale, 50_001), Err(LinkError::Stale { .. })));
+        let future = seal(&msg(7, 20_000, CloudBody::Command(Command::Start)), &key()).unwrap();
+        assert!(matches!(r.open(&future, 10_000), Err(LinkError::Future { .. })));
+        assert_eq!(r.last_seq(), Some(5), "refused frames leave the sequence where it was");
+        // The stale one is still acceptable in its window (nothing consumed its number).
+        assert!(r.open(&stale, 10_100).is_ok());
+        let mut other = msg(8, 10_100, CloudBody::Command(Command::Abort));
+        other.bv_id = "bv2".into();
+        assert!(matches!(r.open(&seal(&other, &key()).unwrap(), 10_100), Err(LinkError::NotForMe { .. })));
+        other.bv_id = ALL_BVS.into();
+        assert!(r.open(&seal(&other, &key()).unwrap(), 10_100).is_ok());
+    }
+
+    #[test]
+    fn keys_read_from_hex_and_refuse_garbage() {
+        let k = [0xabu8; 32];
+        assert_eq!(key_from_hex(&format!(" {}\n", key_to_hex(&k))).unwrap(), k);
+        assert!(key_from_hex("abc").is_err());
+        assert!(key_from_hex(&"zz".repeat(32)).is_err());
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+
+        #[test]
+        fn random_bytes_never_panic_and_never_pass(bytes in proptest::collection::vec(any::<u8>(), 0..400), prefix in any::<bool>()) {
+            let mut frame = bytes;
+            if prefix {
+                let mut f = header(FrameKind::Cloud).to_vec();
+                f.extend(frame);
+                frame = f;
+            }
+            prop_assert!(rx().open(&frame, 0).is_err());
+            let _ = read_report(&frame);
+        }
+
+        #[test]
+        fn set_target_round_trips(tau in 0.5f64..10.0, rush in any::<bool>(), seq in 1u64..u64::MAX) {
+            let style = if rush { Style::Rush } else { Style::Yield };
+            let m = msg(seq, 5_000, CloudBody::Command(Command::SetTarget { tau_s: tau, style }));
+            prop_assert_eq!(rx().open(&seal(&m, &key()).unwrap(), 5_000).unwrap(), m);
+        }
+    }
+}
