@@ -35,6 +35,9 @@ pub struct EdgeConfig {
     pub can: CanLink,
     /// What the launcher starts and how it restarts.
     pub launch: Launch,
+    /// The cloud link (needed when `launch.nodes` has `uplink`).
+    #[serde(default)]
+    pub uplink: Option<crate::uplink::UplinkConfig>,
 }
 
 /// Periods and timeouts, s.
@@ -120,6 +123,11 @@ impl Validate for EdgeConfig {
         if self.launch.nodes.is_empty() {
             return Err(ValidationError::new("launch.nodes", "must name at least one node"));
         }
+        if let Some(u) = &self.uplink {
+            u.validate().map_err(|e| e.within("uplink"))?;
+        } else if self.launch.nodes.contains(&crate::NodeRole::Uplink) {
+            return Err(ValidationError::new("uplink", "launch.nodes has `uplink`: an [uplink] section is needed"));
+        }
         Ok(())
     }
 }
@@ -143,6 +151,8 @@ pub struct Loaded {
     pub gate: v2t_can::gate::GateConfig,
     /// The iceoryx2 configuration file.
     pub iceoryx2: PathBuf,
+    /// The cloud link with its key and the track's drivable area, when configured.
+    pub uplink: Option<crate::uplink::UplinkSettings>,
 }
 
 fn input(path: &Path, e: impl std::fmt::Display) -> EdgeError {
@@ -171,5 +181,6 @@ pub fn load(path: &Path) -> Result<Loaded, EdgeError> {
     if !iceoryx2.is_file() {
         return Err(input(path, format!("iceoryx2 configuration {} does not exist", iceoryx2.display())));
     }
-    Ok(Loaded { path: path.to_owned(), edge, vehicle, vut_vehicle, regulator, tracker, gate, iceoryx2 })
+    let uplink = edge.uplink.as_ref().map(|u| crate::uplink::UplinkSettings::load(u, path)).transpose()?;
+    Ok(Loaded { path: path.to_owned(), edge, vehicle, vut_vehicle, regulator, tracker, gate, iceoryx2, uplink })
 }

@@ -27,6 +27,7 @@ pub mod prior;
 pub mod regulate;
 pub mod state;
 pub mod track;
+pub mod uplink;
 
 /// A node of the runtime, as named in the configuration and on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
@@ -42,6 +43,8 @@ pub enum NodeRole {
     Gateway,
     /// Watchdog.
     Monitor,
+    /// The cloud link: priors and commands in, telemetry out (MQTT).
+    Uplink,
 }
 
 impl NodeRole {
@@ -53,6 +56,7 @@ impl NodeRole {
             Self::Tracker => NodeKind::Tracker,
             Self::Gateway => NodeKind::Gateway,
             Self::Monitor => NodeKind::Monitor,
+            Self::Uplink => NodeKind::Uplink,
         }
     }
 
@@ -64,6 +68,7 @@ impl NodeRole {
             Self::Tracker => "tracker",
             Self::Gateway => "gateway",
             Self::Monitor => "monitor",
+            Self::Uplink => "uplink",
         }
     }
 }

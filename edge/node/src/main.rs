@@ -179,6 +179,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 NodeRole::Tracker => v2t_edge::track::run::<ipc::Service>(&cfg)?,
                 NodeRole::Gateway => v2t_edge::gateway::run::<ipc::Service>(&cfg)?,
                 NodeRole::Monitor => v2t_edge::monitor::run::<ipc::Service>(&cfg)?,
+                NodeRole::Uplink => v2t_edge::uplink::run::<ipc::Service>(&cfg)?,
             }
         }
         Cmd::SimEcu { common, scenario, vut, seed, out, engage_timeout_s, tau, style } => {

@@ -6,10 +6,11 @@
 use v2t_map::drivable::DrivableArea;
 use v2t_model::Style;
 use v2t_model::geometry::Point2;
-use v2t_model::grounded::AgentRole;
-use v2t_model::kinematics::State;
+use v2t_model::grounded::{AgentRole, GroundedScenario};
+use v2t_model::kinematics::{Control, State};
 use v2t_model::metrics::{ConflictKind, ConflictOptions, Dimensions, OccupancyInterval, conflict_zones};
 use v2t_model::path::ReferencePath;
+use v2t_model::prior::{AgentTrajectory, TrajectoryPrior};
 use v2t_model::validate::Validate;
 use v2t_model::vehicle::VehicleLimits;
 use v2t_sim::scenario::Scenario;
@@ -230,6 +231,60 @@ fn trajectory_path(states: &[State]) -> Result<ReferencePath, String> {
     ReferencePath::from_points(&pts).map_err(|e| e.to_string())
 }
 
+/// A prior upload in which every agent of `scenario` drives its grounded route at its start speed
+/// from t = 0 for `horizon_s` (dt 0.1 s; states and controls consistent), valid over `valid_ms`
+/// (Unix ms, from–until). A stand-in for generated priors in link tests and benches: it keeps the
+/// routes and the conflict, not the agents' start times.
+pub fn upload_along_routes(
+    scenario: &GroundedScenario,
+    prior_id: u64,
+    horizon_s: f64,
+    valid_ms: (u64, u64),
+) -> Result<PriorUpload, EdgeError> {
+    let dt = 0.1;
+    let n = (horizon_s / dt).round().max(1.0) as usize;
+    let mut agents = Vec::with_capacity(scenario.agents.len());
+    for a in &scenario.agents {
+        let path =
+            ReferencePath::from_points(&a.route).map_err(|e| EdgeError::Prior(format!("{}: route: {e}", a.id)))?;
+        let v = a.start.speed_mps;
+        let states: Vec<State> = (0..=n)
+            .map(|k| {
+                let s = (v * k as f64 * dt).min(path.length());
+                let p = path.point_at(s);
+                State { px: p.x, py: p.y, theta_rad: path.heading_at(s), speed_mps: v }
+            })
+            .collect();
+        let controls = states
+            .windows(2)
+            .map(|w| match w {
+                [x0, x1] => {
+                    let d = (x1.theta_rad - x0.theta_rad + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                        - std::f64::consts::PI;
+                    Control { accel_mps2: 0.0, yaw_rate_radps: d / dt }
+                }
+                _ => Control::default(),
+            })
+            .collect();
+        agents.push(AgentTrajectory { id: a.id.clone(), role: a.role, states, controls });
+    }
+    let bv = scenario.bvs().next().ok_or_else(|| EdgeError::Prior("the scenario has no BV".into()))?;
+    Ok(PriorUpload {
+        prior_id,
+        bv_agent: bv.id.clone(),
+        valid_from_ms: valid_ms.0,
+        valid_until_ms: valid_ms.1,
+        prior: TrajectoryPrior {
+            fragment_id: scenario.fragment_id.clone(),
+            dt_s: dt,
+            agents,
+            conflicts: scenario.conflicts.clone(),
+            tau_s: scenario.tau_s,
+            style: scenario.style,
+        },
+    })
+}
+
 /// A received prior, checked and turned into paths.
 #[derive(Debug, Clone)]
 pub struct PriorContext {
@@ -336,8 +391,6 @@ mod tests {
     mod upload {
         use super::super::*;
         use v2t_model::grounded::GroundedScenario;
-        use v2t_model::kinematics::Control;
-        use v2t_model::prior::{AgentTrajectory, TrajectoryPrior};
 
         fn root() -> std::path::PathBuf {
             std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -353,49 +406,9 @@ mod tests {
             (map, g.scenario)
         }
 
-        /// Constant speed along `route` for `n` steps of `dt`, states consistent with the controls.
-        fn along(id: &str, role: AgentRole, route: &[Point2], speed: f64, n: usize, dt: f64) -> AgentTrajectory {
-            let path = ReferencePath::from_points(route).unwrap();
-            let mut states = Vec::with_capacity(n + 1);
-            for k in 0..=n {
-                let s = (speed * k as f64 * dt).min(path.length());
-                let p = path.point_at(s);
-                states.push(State { px: p.x, py: p.y, theta_rad: path.heading_at(s), speed_mps: speed });
-            }
-            let controls = states
-                .windows(2)
-                .map(|w| {
-                    let d = (w[1].theta_rad - w[0].theta_rad + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
-                        - std::f64::consts::PI;
-                    Control { accel_mps2: 0.0, yaw_rate_radps: d / dt }
-                })
-                .collect();
-            AgentTrajectory { id: id.into(), role, states, controls }
-        }
-
         fn upload() -> (PriorUpload, PriorChecks) {
             let (map, sc) = grounded();
-            let vut = sc.vut().unwrap();
-            let bv = sc.bvs().next().unwrap();
-            let (n, dt) = (120, 0.1);
-            let prior = TrajectoryPrior {
-                fragment_id: sc.fragment_id.clone(),
-                dt_s: dt,
-                agents: vec![
-                    along("vut", AgentRole::Vut, &vut.route, vut.start.speed_mps, n, dt),
-                    along(&bv.id, AgentRole::Bv, &bv.route, bv.start.speed_mps, n, dt),
-                ],
-                conflicts: sc.conflicts.clone(),
-                tau_s: sc.tau_s,
-                style: sc.style,
-            };
-            let up = PriorUpload {
-                prior_id: 77,
-                bv_agent: bv.id.clone(),
-                valid_from_ms: 1_000,
-                valid_until_ms: 61_000,
-                prior,
-            };
+            let up = upload_along_routes(&sc, 77, 12.0, (1_000, 61_000)).unwrap();
             let vehicle: v2t_model::vehicle::VehicleConfig =
                 v2t_sim::files::load_toml(&root().join("config/vehicles/bv_sedan.toml")).unwrap();
             let checks = PriorChecks {

@@ -161,6 +161,8 @@ wire_enum!(
         Monitor = 5,
         /// The simulated drive-by-wire ECU.
         SimEcu = 6,
+        /// The cloud link (MQTT).
+        Uplink = 7,
     }
 );
 

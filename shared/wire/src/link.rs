@@ -40,6 +40,36 @@ pub const MAX_FRAME_LEN: usize = 1 << 20;
 /// A message addressed to every BV of the fleet.
 pub const ALL_BVS: &str = "*";
 
+/// MQTT topics: `v2t/<fleet>/bv/<bv>/<leaf>` for one BV, `v2t/<fleet>/all/cmd` for every BV.
+pub mod topics {
+    /// Cloud → BV: prior uploads (signed).
+    pub const PRIOR: &str = "prior";
+    /// Cloud → BV: commands (signed).
+    pub const CMD: &str = "cmd";
+    /// BV → cloud: telemetry at 10 Hz.
+    pub const TELEMETRY: &str = "telemetry";
+    /// BV → cloud: heartbeat at 5 Hz.
+    pub const HEARTBEAT: &str = "heartbeat";
+    /// BV → cloud: what the BV accepted, refused or did, as JSON text.
+    pub const EVENT: &str = "event";
+
+    /// The topic `leaf` of BV `bv` in `fleet`.
+    pub fn bv(fleet: &str, bv: &str, leaf: &str) -> String {
+        format!("v2t/{fleet}/bv/{bv}/{leaf}")
+    }
+
+    /// Commands to every BV of `fleet`.
+    pub fn all_cmd(fleet: &str) -> String {
+        format!("v2t/{fleet}/all/{CMD}")
+    }
+
+    /// Whether a fleet or BV id can be part of a topic: ASCII letters, digits, `_`, `-`, 1–64 long
+    /// (no MQTT wildcards or level separators).
+    pub fn valid_id(id: &str) -> bool {
+        (1..=64).contains(&id.len()) && id.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-'))
+    }
+}
+
 /// What a frame carries.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(u8)]
