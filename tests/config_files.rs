@@ -47,6 +47,17 @@ fn every_configuration_file_loads_and_validates() {
                     assert!(text.contains(&format!("BO_ {id} ")), "{rel}: no message {id}");
                 }
             }
+            // The demo key pair: the public half is the key of the secret half.
+            "keys" if rel.ends_with(".pub") => {
+                let public = std::fs::read_to_string(path).unwrap();
+                let secret = video2track::link::load_signing_key(&path.with_extension("key"))
+                    .unwrap_or_else(|e| panic!("{rel}: its secret half: {e}"));
+                let bytes = v2t_wire::link::key_from_hex(&public).unwrap_or_else(|e| panic!("{rel}: {e}"));
+                assert_eq!(bytes, secret.verifying_key().to_bytes(), "{rel} is not the key of its .key");
+                assert!(video2track::link::is_demo_key(&secret), "{rel}: not the demo key the tools warn about");
+            }
+            "keys" if rel.ends_with(".key") => assert!(path.with_extension("pub").exists(), "{rel} has no .pub"),
+            "keys" if rel.ends_with("README.md") => {}
             "edge" => drop(v2t_edge::config::load(path).unwrap_or_else(|e| panic!("{e}"))),
             "iceoryx2.toml" => {
                 let text = std::fs::read_to_string(path).unwrap();

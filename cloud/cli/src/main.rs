@@ -5,10 +5,15 @@ use std::process::ExitCode;
 
 use anyhow::Context as _;
 use clap::{Parser, Subcommand};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use v2t_game::regulator::RegulatorParams;
 use v2t_sim::vut::VutModel;
+use v2t_wire::link::{ALL_BVS, CloudBody, key_to_hex};
 use video2track::experiment;
 use video2track::files::{InputError, load_scenario, load_toml};
+use video2track::link::{BvEvent, Connection, Signer};
+use video2track::serve::ServeOptions;
 use video2track::sim::{report, run_reference};
 
 /// Video2Track: real interaction videos → steerable adversarial tests on a closed track.
@@ -85,6 +90,141 @@ enum Command {
         #[command(subcommand)]
         command: MapCommand,
     },
+    /// Make the supervisor's Ed25519 key pair: DIR/cloud.key (secret) and DIR/cloud.pub (for every
+    /// BV's edge config).
+    Keygen {
+        /// Where to write the pair.
+        #[arg(long, default_value = "keys")]
+        out: PathBuf,
+    },
+    /// The cloud supervisor: embedded MQTT broker (or --broker), live status of every BV, operator
+    /// commands on the console, abort all on Ctrl-C or `quit`.
+    Serve {
+        #[command(flatten)]
+        link: LinkArgs,
+        /// An external broker (mqtt://host:port or mqtts://…) instead of the embedded one.
+        #[arg(long)]
+        broker: Option<String>,
+        /// Address of the embedded broker.
+        #[arg(long, default_value = "127.0.0.1:1883")]
+        listen: std::net::SocketAddr,
+        /// Log every message received as JSON lines here.
+        #[arg(long)]
+        log: Option<PathBuf>,
+        /// Print the fleet table every this many seconds (0: only on `status`).
+        #[arg(long, default_value_t = 2.0)]
+        status_period_s: f64,
+        /// A prior uploaded from the console stays valid this long, s.
+        #[arg(long, default_value_t = 600.0)]
+        valid_s: f64,
+    },
+    /// Sign a prior (TrajectoryPrior JSON, or a GroundedScenario: then constant speed along its
+    /// routes) and send it to one BV; wait for the BV's verdict.
+    Upload {
+        /// The priors file.
+        priors: PathBuf,
+        /// The BV it is for.
+        #[arg(long)]
+        bv: String,
+        /// The prior's BV agent this BV drives (default: the first BV).
+        #[arg(long)]
+        agent: Option<String>,
+        /// Target PET τ, s (default: the file's).
+        #[arg(long)]
+        tau: Option<f64>,
+        /// Style, rush or yield (default: the file's).
+        #[arg(long, value_parser = ["rush", "yield"])]
+        style: Option<String>,
+        /// Identifier the BV reports back (default: from the clock).
+        #[arg(long)]
+        prior_id: Option<u64>,
+        /// Valid for this long from now, s.
+        #[arg(long, default_value_t = 600.0)]
+        valid_s: f64,
+        #[command(flatten)]
+        link: LinkArgs,
+        /// The broker.
+        #[arg(long, default_value = "mqtt://127.0.0.1:1883")]
+        broker: String,
+        /// Wait this long for the BV's verdict, s (0: do not wait).
+        #[arg(long, default_value_t = 3.0)]
+        wait_s: f64,
+    },
+    /// Send one signed supervision command: arm, start, abort or target (with --tau and --style).
+    Send {
+        /// What.
+        #[arg(value_parser = ["arm", "start", "abort", "target"])]
+        action: String,
+        /// The BV, or `all`.
+        #[arg(long, default_value = "all")]
+        bv: String,
+        /// New target PET τ, s (target).
+        #[arg(long)]
+        tau: Option<f64>,
+        /// New style (target).
+        #[arg(long, value_parser = ["rush", "yield"])]
+        style: Option<String>,
+        #[command(flatten)]
+        link: LinkArgs,
+        /// The broker.
+        #[arg(long, default_value = "mqtt://127.0.0.1:1883")]
+        broker: String,
+        /// Wait this long for the BV's verdict, s (0 or `--bv all`: do not wait).
+        #[arg(long, default_value_t = 3.0)]
+        wait_s: f64,
+    },
+}
+
+/// Who signs, for which fleet, and how to log in to the broker.
+#[derive(Debug, clap::Args)]
+struct LinkArgs {
+    /// Fleet (test session) id: part of every topic.
+    #[arg(long, default_value = "demo")]
+    fleet: String,
+    /// The supervisor's secret key (`video2track keygen`). The default is the committed demo key,
+    /// for simulated BVs only.
+    #[arg(long, default_value = "config/keys/demo_cloud.key")]
+    key: PathBuf,
+    /// MQTT user name.
+    #[arg(long)]
+    username: Option<String>,
+    /// Environment variable holding the MQTT password.
+    #[arg(long)]
+    password_env: Option<String>,
+    /// CA certificate (PEM) of an mqtts:// broker.
+    #[arg(long)]
+    ca_file: Option<PathBuf>,
+}
+
+impl LinkArgs {
+    fn signer(&self) -> anyhow::Result<Signer> {
+        let key = video2track::link::load_signing_key(&self.key)?;
+        if video2track::link::is_demo_key(&key) {
+            eprintln!(
+                "warning: signing with the public demo key {}: for simulated BVs only; make your own with `video2track keygen`",
+                self.key.display()
+            );
+        }
+        Ok(Signer::new(key, &self.fleet)?)
+    }
+
+    fn connection(&self, broker: &str) -> anyhow::Result<Connection> {
+        Ok(Connection::new(broker, self.username.as_deref(), self.password_env.as_deref(), self.ca_file.as_deref())?)
+    }
+}
+
+fn verdict(bv: &str, answer: Option<BvEvent>) -> anyhow::Result<()> {
+    match answer {
+        Some(e) if e.verdict == "accepted" => {
+            println!("{bv}: accepted {}", e.detail);
+            Ok(())
+        }
+        Some(e) => Err(anyhow::anyhow!("{bv} refused it: {}", e.detail)),
+        None => {
+            println!("sent");
+            Ok(())
+        }
+    }
 }
 
 #[derive(Debug, Subcommand)]
@@ -118,11 +258,24 @@ fn main() -> ExitCode {
         Err(err) => {
             eprintln!("error: {err:#}");
             let bad_input = err.chain().any(|e| {
-                e.is::<InputError>() || e.is::<v2t_map::MapError>() || e.is::<video2track::ground::SemanticsFileError>()
+                e.is::<InputError>()
+                    || e.is::<v2t_map::MapError>()
+                    || e.is::<video2track::ground::SemanticsFileError>()
+                    || matches!(
+                        e.downcast_ref::<video2track::link::LinkError>(),
+                        Some(video2track::link::LinkError::Prior { .. } | video2track::link::LinkError::Usage(_))
+                    )
             });
             if bad_input { ExitCode::from(2) } else { ExitCode::FAILURE }
         }
     }
+}
+
+fn wait_duration(s: f64) -> anyhow::Result<std::time::Duration> {
+    if !(0.0..=600.0).contains(&s) {
+        anyhow::bail!("--wait-s must lie in [0, 600], got {s}");
+    }
+    Ok(std::time::Duration::from_secs_f64(s))
 }
 
 fn execute(cli: Cli) -> anyhow::Result<()> {
@@ -192,6 +345,71 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
                 println!("wrote {}", path.display());
             }
             Ok(())
+        }
+        Command::Keygen { out } => {
+            let vk = video2track::link::keygen(&out)?;
+            println!("wrote {0}/cloud.key (secret, mode 600) and {0}/cloud.pub", out.display());
+            println!(
+                "public key {}: name cloud.pub as `cloud_key` in every BV's [uplink] section",
+                key_to_hex(vk.as_bytes())
+            );
+            Ok(())
+        }
+        Command::Serve { link, broker, listen, log, status_period_s, valid_s } => {
+            if !(0.0..=3600.0).contains(&status_period_s) {
+                anyhow::bail!("--status-period-s must lie in [0, 3600], got {status_period_s}");
+            }
+            let signer = link.signer()?;
+            let (url, embedded) = match broker {
+                Some(b) => (b, None),
+                None => (format!("mqtt://{listen}"), Some(listen)),
+            };
+            let stop = Arc::new(AtomicBool::new(false));
+            let flag = Arc::clone(&stop);
+            ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst)).context("installing the Ctrl-C handler")?;
+            let opts = ServeOptions {
+                connection: link.connection(&url)?,
+                embedded,
+                signer,
+                log,
+                status_period: std::time::Duration::from_secs_f64(status_period_s),
+                prior_valid_s: valid_s,
+            };
+            Ok(video2track::serve::serve(opts, &stop)?)
+        }
+        Command::Upload { priors, bv, agent, tau, style, prior_id, valid_s, link, broker, wait_s } => {
+            let style = style.as_deref().map(video2track::link::parse_style).transpose()?;
+            let id = prior_id.unwrap_or_else(|| (video2track::link::unix_ms() % 1_000_000_000).max(1));
+            let up = video2track::link::prior_from_file(&priors, agent.as_deref(), (tau, style), valid_s, id)?;
+            println!(
+                "prior {id}: {} agents, {:.1} s, τ {} s, {:?}, {} drives {}",
+                up.prior.agents.len(),
+                up.prior.duration_s(),
+                up.prior.tau_s,
+                up.prior.style,
+                bv,
+                up.bv_agent
+            );
+            let mut signer = link.signer()?;
+            let wait = wait_duration(wait_s)?;
+            let answer =
+                video2track::link::send_once(&link.connection(&broker)?, &mut signer, &bv, CloudBody::Prior(up), wait)?;
+            verdict(&bv, answer)
+        }
+        Command::Send { action, bv, tau, style, link, broker, wait_s } => {
+            let style = style.as_deref().map(video2track::link::parse_style).transpose()?;
+            let cmd = video2track::link::command(&action, tau, style)?;
+            let bv = if bv == "all" { ALL_BVS.to_owned() } else { bv };
+            let mut signer = link.signer()?;
+            let wait = wait_duration(wait_s)?;
+            let answer = video2track::link::send_once(
+                &link.connection(&broker)?,
+                &mut signer,
+                &bv,
+                CloudBody::Command(cmd),
+                wait,
+            )?;
+            verdict(&bv, answer)
         }
         Command::Map { command: MapCommand::Inspect { map, json, svg, annotations } } => {
             let inspection = video2track::map::inspect(&map, annotations.as_deref())?;

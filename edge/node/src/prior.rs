@@ -7,10 +7,10 @@ use v2t_map::drivable::DrivableArea;
 use v2t_model::Style;
 use v2t_model::geometry::Point2;
 use v2t_model::grounded::{AgentRole, GroundedScenario};
-use v2t_model::kinematics::{Control, State};
+use v2t_model::kinematics::State;
 use v2t_model::metrics::{ConflictKind, ConflictOptions, Dimensions, OccupancyInterval, conflict_zones};
 use v2t_model::path::ReferencePath;
-use v2t_model::prior::{AgentTrajectory, TrajectoryPrior};
+use v2t_model::prior::TrajectoryPrior;
 use v2t_model::validate::Validate;
 use v2t_model::vehicle::VehicleLimits;
 use v2t_sim::scenario::Scenario;
@@ -241,48 +241,10 @@ pub fn upload_along_routes(
     horizon_s: f64,
     valid_ms: (u64, u64),
 ) -> Result<PriorUpload, EdgeError> {
-    let dt = 0.1;
-    let n = (horizon_s / dt).round().max(1.0) as usize;
-    let mut agents = Vec::with_capacity(scenario.agents.len());
-    for a in &scenario.agents {
-        let path =
-            ReferencePath::from_points(&a.route).map_err(|e| EdgeError::Prior(format!("{}: route: {e}", a.id)))?;
-        let v = a.start.speed_mps;
-        let states: Vec<State> = (0..=n)
-            .map(|k| {
-                let s = (v * k as f64 * dt).min(path.length());
-                let p = path.point_at(s);
-                State { px: p.x, py: p.y, theta_rad: path.heading_at(s), speed_mps: v }
-            })
-            .collect();
-        let controls = states
-            .windows(2)
-            .map(|w| match w {
-                [x0, x1] => {
-                    let d = (x1.theta_rad - x0.theta_rad + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
-                        - std::f64::consts::PI;
-                    Control { accel_mps2: 0.0, yaw_rate_radps: d / dt }
-                }
-                _ => Control::default(),
-            })
-            .collect();
-        agents.push(AgentTrajectory { id: a.id.clone(), role: a.role, states, controls });
-    }
+    let prior = TrajectoryPrior::along_routes_at_start_speed(scenario, horizon_s)
+        .map_err(|e| EdgeError::Prior(format!("stand-in prior: {e}")))?;
     let bv = scenario.bvs().next().ok_or_else(|| EdgeError::Prior("the scenario has no BV".into()))?;
-    Ok(PriorUpload {
-        prior_id,
-        bv_agent: bv.id.clone(),
-        valid_from_ms: valid_ms.0,
-        valid_until_ms: valid_ms.1,
-        prior: TrajectoryPrior {
-            fragment_id: scenario.fragment_id.clone(),
-            dt_s: dt,
-            agents,
-            conflicts: scenario.conflicts.clone(),
-            tau_s: scenario.tau_s,
-            style: scenario.style,
-        },
-    })
+    Ok(PriorUpload { prior_id, bv_agent: bv.id.clone(), valid_from_ms: valid_ms.0, valid_until_ms: valid_ms.1, prior })
 }
 
 /// A received prior, checked and turned into paths.

@@ -9,7 +9,6 @@
 //! with backoff, TLS with rustls when the broker URL is `mqtts://`); [`run`] joins them.
 
 use std::path::{Path, PathBuf};
-use std::sync::mpsc;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use iceoryx2::service::Service;
@@ -18,6 +17,7 @@ use v2t_map::drivable::DrivableArea;
 use v2t_model::metrics::Dimensions;
 use v2t_model::validate::{Validate, ValidationError, in_range};
 use v2t_wire::link::{self, CloudBody, Command, Receiver, Window, topics};
+use v2t_wire::mqtt::{BrokerUrl, LinkEvent, MqttLink, MqttSettings};
 use v2t_wire::{
     ActivePrior, BvState, Code, GateReport, Header, NodeKind, RegulatedPlan, SafetyAction, SafetyCommand, StyleCode,
     services,
@@ -87,7 +87,7 @@ pub struct UplinkConfig {
 
 impl Validate for UplinkConfig {
     fn validate(&self) -> Result<(), ValidationError> {
-        parse_broker(&self.broker).map_err(|m| ValidationError::new("broker", m))?;
+        BrokerUrl::parse(&self.broker).map_err(|m| ValidationError::new("broker", m))?;
         if !topics::valid_id(&self.fleet) {
             return Err(ValidationError::new("fleet", "must be 1–64 ASCII letters, digits, '_' or '-'"));
         }
@@ -110,26 +110,6 @@ impl Validate for UplinkConfig {
     }
 }
 
-/// Host, port and whether TLS is on.
-pub fn parse_broker(url: &str) -> Result<(String, u16, bool), String> {
-    let (tls, rest) = if let Some(r) = url.strip_prefix("mqtts://") {
-        (true, r)
-    } else if let Some(r) = url.strip_prefix("mqtt://") {
-        (false, r)
-    } else {
-        return Err(format!("`{url}`: must start with mqtt:// or mqtts://"));
-    };
-    let rest = rest.trim_end_matches('/');
-    let (host, port) = match rest.rsplit_once(':') {
-        Some((h, p)) => (h, p.parse::<u16>().map_err(|_| format!("`{url}`: bad port `{p}`"))?),
-        None => (rest, if tls { 8883 } else { 1883 }),
-    };
-    if host.is_empty() {
-        return Err(format!("`{url}`: no host"));
-    }
-    Ok((host.to_owned(), port, tls))
-}
-
 /// The uplink settings with the files they name loaded.
 #[derive(Debug, Clone)]
 pub struct UplinkSettings {
@@ -139,10 +119,8 @@ pub struct UplinkSettings {
     pub cloud_key: link::VerifyingKey,
     /// The drivable area of the track.
     pub area: DrivableArea,
-    /// CA certificate, PEM.
-    pub ca_pem: Option<Vec<u8>>,
-    /// Client certificate and key, PEM.
-    pub client_auth: Option<(Vec<u8>, Vec<u8>)>,
+    /// How to reach the broker (credentials and certificates loaded).
+    pub mqtt: MqttSettings,
 }
 
 impl UplinkSettings {
@@ -166,7 +144,31 @@ impl UplinkSettings {
             (Some(c), Some(k)) => Some((read(c)?, read(k)?)),
             _ => None,
         };
-        Ok(Self { config: config.clone(), cloud_key, area, ca_pem, client_auth })
+        let credentials = match &config.username {
+            Some(user) => {
+                let password = match &config.password_env {
+                    Some(var) => {
+                        std::env::var(var).map_err(|_| bad(format!("the password variable {var} is not set")))?
+                    }
+                    None => String::new(),
+                };
+                Some((user.clone(), password))
+            }
+            None => None,
+        };
+        let broker = BrokerUrl::parse(&config.broker).map_err(bad)?;
+        if broker.tls && ca_pem.is_none() {
+            return Err(bad("an mqtts:// broker needs ca_file".into()));
+        }
+        let mqtt = MqttSettings {
+            broker,
+            client_id: format!("v2t-{}-{}", config.fleet, config.bv_id),
+            credentials,
+            ca_pem,
+            client_auth,
+            persistent: true,
+        };
+        Ok(Self { config: config.clone(), cloud_key, area, mqtt })
     }
 }
 
@@ -191,6 +193,8 @@ pub struct Outcome {
     pub actions: Vec<Action>,
     /// `accepted` or `refused`.
     pub verdict: &'static str,
+    /// The frame's sequence number, when it could be read.
+    pub seq: Option<u64>,
     /// What, or why not.
     pub detail: String,
 }
@@ -198,8 +202,10 @@ pub struct Outcome {
 impl Outcome {
     /// The event as one JSON line.
     pub fn event_json(&self, bv_id: &str, stamp_ms: u64) -> String {
-        serde_json::json!({"bv_id": bv_id, "stamp_ms": stamp_ms, "verdict": self.verdict, "detail": self.detail})
-            .to_string()
+        serde_json::json!({
+            "bv_id": bv_id, "stamp_ms": stamp_ms, "seq": self.seq, "verdict": self.verdict, "detail": self.detail
+        })
+        .to_string()
     }
 }
 
@@ -224,12 +230,15 @@ impl UplinkLogic {
 
     /// One frame at Unix time `now_ms` and monotonic `mono_ns`.
     pub fn on_frame(&mut self, frame: &[u8], now_ms: u64, mono_ns: u64) -> Outcome {
-        let refused = |detail: String| Outcome { actions: Vec::new(), verdict: "refused", detail };
         let msg = match self.rx.open(frame, now_ms) {
             Ok(m) => m,
-            Err(e) => return refused(format!("frame: {e}")),
+            Err(e) => {
+                return Outcome { actions: Vec::new(), verdict: "refused", seq: None, detail: format!("frame: {e}") };
+            }
         };
-        let ok = |actions: Vec<Action>, detail: String| Outcome { actions, verdict: "accepted", detail };
+        let seq = Some(msg.seq);
+        let refused = |detail: String| Outcome { actions: Vec::new(), verdict: "refused", seq, detail };
+        let ok = |actions: Vec<Action>, detail: String| Outcome { actions, verdict: "accepted", seq, detail };
         match msg.body {
             CloudBody::Prior(up) => match from_upload(&up, now_ms, &self.checks, mono_ns) {
                 Ok(prior) => {
@@ -272,119 +281,6 @@ impl UplinkLogic {
     }
 }
 
-/// What the MQTT thread reports.
-#[derive(Debug)]
-pub enum LinkEvent {
-    /// Connected (again) and subscribed.
-    Connected,
-    /// The connection failed or dropped.
-    Down(String),
-    /// A message on one of the subscribed topics.
-    Frame(Vec<u8>),
-}
-
-/// The MQTT client on its own thread.
-pub struct MqttLink {
-    client: rumqttc::Client,
-    events: mpsc::Receiver<LinkEvent>,
-}
-
-impl std::fmt::Debug for MqttLink {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("MqttLink").finish_non_exhaustive()
-    }
-}
-
-/// Reconnect backoff: 100 ms doubling to 5 s.
-const BACKOFF_MIN: Duration = Duration::from_millis(100);
-const BACKOFF_MAX: Duration = Duration::from_secs(5);
-
-impl MqttLink {
-    /// Connects as `client_id` and subscribes `subscribe` (QoS 1) after every (re)connection.
-    pub fn start(s: &UplinkSettings, client_id: &str, subscribe: Vec<String>) -> Result<Self, EdgeError> {
-        let c = &s.config;
-        let (host, port, tls) = parse_broker(&c.broker).map_err(EdgeError::Prior)?;
-        let mut opts = rumqttc::MqttOptions::new(client_id, host, port);
-        opts.set_keep_alive(Duration::from_secs(5));
-        opts.set_clean_session(false);
-        opts.set_max_packet_size(link::MAX_FRAME_LEN + 1024, link::MAX_FRAME_LEN + 1024);
-        if let Some(user) = &c.username {
-            let password = match &c.password_env {
-                Some(var) => std::env::var(var)
-                    .map_err(|_| EdgeError::Prior(format!("uplink: the password variable {var} is not set")))?,
-                None => String::new(),
-            };
-            opts.set_credentials(user, password);
-        }
-        if tls {
-            // The process-wide rustls provider (ring); a second install in one process is harmless.
-            let _ = rustls::crypto::ring::default_provider().install_default();
-            let ca = s.ca_pem.clone().ok_or_else(|| EdgeError::Prior("uplink: mqtts:// needs ca_file".into()))?;
-            opts.set_transport(rumqttc::Transport::Tls(rumqttc::TlsConfiguration::Simple {
-                ca,
-                alpn: None,
-                client_auth: s.client_auth.clone(),
-            }));
-        }
-        let (client, mut connection) = rumqttc::Client::new(opts, 64);
-        // No Nagle: a command must not wait for the acknowledgement of the last small packet.
-        let mut net = rumqttc::NetworkOptions::new();
-        net.set_tcp_nodelay(true);
-        connection.eventloop.set_network_options(net);
-        let (tx, events) = mpsc::channel();
-        let sub_client = client.clone();
-        std::thread::Builder::new()
-            .name("mqtt".into())
-            .spawn(move || {
-                let mut backoff = BACKOFF_MIN;
-                for notification in connection.iter() {
-                    let event = match notification {
-                        Ok(rumqttc::Event::Incoming(rumqttc::Packet::ConnAck(_))) => {
-                            backoff = BACKOFF_MIN;
-                            for t in &subscribe {
-                                let _ = sub_client.try_subscribe(t.as_str(), rumqttc::QoS::AtLeastOnce);
-                            }
-                            LinkEvent::Connected
-                        }
-                        Ok(rumqttc::Event::Incoming(rumqttc::Packet::Publish(p))) => {
-                            LinkEvent::Frame(p.payload.to_vec())
-                        }
-                        Ok(_) => continue,
-                        Err(e) => {
-                            let down = LinkEvent::Down(e.to_string());
-                            if tx.send(down).is_err() {
-                                return;
-                            }
-                            std::thread::sleep(backoff);
-                            backoff = (backoff * 2).min(BACKOFF_MAX);
-                            continue;
-                        }
-                    };
-                    if tx.send(event).is_err() {
-                        return;
-                    }
-                }
-            })
-            .map_err(|e| EdgeError::Prior(format!("uplink: cannot start the MQTT thread: {e}")))?;
-        Ok(Self { client, events })
-    }
-
-    /// The next event, if any.
-    pub fn poll(&self) -> Option<LinkEvent> {
-        self.events.try_recv().ok()
-    }
-
-    /// The next event, waiting up to `timeout` for one.
-    pub fn wait(&self, timeout: Duration) -> Option<LinkEvent> {
-        self.events.recv_timeout(timeout).ok()
-    }
-
-    /// Queues a publication (QoS 1). A full queue while the broker is away is reported, not fatal.
-    pub fn publish(&self, topic: &str, payload: Vec<u8>) -> Result<(), String> {
-        self.client.try_publish(topic, rumqttc::QoS::AtLeastOnce, false, payload).map_err(|e| e.to_string())
-    }
-}
-
 /// Runs the uplink node until termination.
 pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
     let settings = cfg
@@ -416,7 +312,7 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
     let mut logic = UplinkLogic::new(settings.cloud_key, &u.bv_id, window, checks);
     let topic = |leaf: &str| topics::bv(&u.fleet, &u.bv_id, leaf);
     let subscribe = vec![topic(topics::PRIOR), topic(topics::CMD), topics::all_cmd(&u.fleet)];
-    let mqtt = MqttLink::start(settings, &format!("v2t-{}-{}", u.fleet, u.bv_id), subscribe)?;
+    let mqtt = MqttLink::start(&settings.mqtt, subscribe).map_err(|m| EdgeError::Prior(format!("uplink: {m}")))?;
     let period = Duration::from_millis(5);
     let (mut tele_seq, mut beat_seq, mut safety_seq) = (0u64, 0u64, 0u64);
     let (mut last_tele, mut last_beat) = (0u64, 0u64);
@@ -451,7 +347,7 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
                         down_since = Some(now);
                     }
                 }
-                LinkEvent::Frame(bytes) => {
+                LinkEvent::Frame { payload: bytes, .. } => {
                     let outcome = logic.on_frame(&bytes, unix_ms(), now_ns());
                     eprintln!("uplink: {} {}", outcome.verdict, outcome.detail);
                     for a in &outcome.actions {
@@ -473,7 +369,7 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
                         }
                     }
                     let event = outcome.event_json(&u.bv_id, unix_ms());
-                    if let Err(e) = mqtt.publish(&topic(topics::EVENT), event.into_bytes()) {
+                    if let Err(e) = mqtt.publish(&topic(topics::EVENT), event.into_bytes(), true) {
                         eprintln!("uplink: event not queued: {e}");
                     }
                 }
@@ -524,7 +420,7 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
             };
             match link::telemetry_frame(&tele) {
                 Ok(frame) => {
-                    if mqtt.publish(&topic(topics::TELEMETRY), frame).is_err() {
+                    if mqtt.publish(&topic(topics::TELEMETRY), frame, false).is_err() {
                         unsent += 1;
                     }
                 }
@@ -545,7 +441,7 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
             };
             match link::heartbeat_frame(&beat) {
                 Ok(frame) => {
-                    if mqtt.publish(&topic(topics::HEARTBEAT), frame).is_err() {
+                    if mqtt.publish(&topic(topics::HEARTBEAT), frame, false).is_err() {
                         unsent += 1;
                     }
                 }
@@ -654,14 +550,7 @@ mod tests {
     }
 
     #[test]
-    fn broker_urls_and_configs_are_checked() {
-        assert_eq!(parse_broker("mqtt://127.0.0.1:1884").unwrap(), ("127.0.0.1".into(), 1884, false));
-        assert_eq!(parse_broker("mqtts://broker.track").unwrap(), ("broker.track".into(), 8883, true));
-        assert!(
-            parse_broker("tcp://x:1").is_err()
-                && parse_broker("mqtt://:1").is_err()
-                && parse_broker("mqtt://x:y").is_err()
-        );
+    fn uplink_configs_are_checked() {
         let mut c = UplinkConfig {
             broker: "mqtt://127.0.0.1:1883".into(),
             fleet: "pg".into(),

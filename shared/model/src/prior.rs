@@ -4,8 +4,9 @@
 use serde::{Deserialize, Serialize};
 
 use crate::Style;
-use crate::grounded::{AgentRole, GroundedConflict};
+use crate::grounded::{AgentRole, GroundedConflict, GroundedScenario};
 use crate::kinematics::{Control, State, step};
+use crate::path::ReferencePath;
 use crate::validate::{Validate, ValidationError, in_range};
 
 /// One agent's reference: `states[k]` at `t = k·dt`, `controls[k]` applied over `[k·dt, (k+1)·dt)`.
@@ -41,6 +42,53 @@ pub struct TrajectoryPrior {
 }
 
 impl TrajectoryPrior {
+    /// The predefined reference of the TroubleMaker-like baseline and the stand-in where no
+    /// diffusion prior exists: every agent of `scenario` drives its route at its start speed (the
+    /// route's end holds it), sampled at 10 Hz over `horizon_s`; controls are the yaw rates of the
+    /// path (acceleration 0), so states and controls agree to the path's discretization.
+    pub fn along_routes_at_start_speed(scenario: &GroundedScenario, horizon_s: f64) -> Result<Self, ValidationError> {
+        let dt = 0.1;
+        if !(horizon_s >= dt && horizon_s <= 600.0) {
+            return Err(ValidationError::new("horizon_s", format!("must lie in [0.1, 600] s, got {horizon_s}")));
+        }
+        let n = (horizon_s / dt).round() as usize;
+        let mut agents = Vec::with_capacity(scenario.agents.len());
+        for a in &scenario.agents {
+            let path = ReferencePath::from_points(&a.route)
+                .map_err(|e| ValidationError::new(format!("{}.route", a.id), e.to_string()))?;
+            let v = a.start.speed_mps;
+            let states: Vec<State> = (0..=n)
+                .map(|k| {
+                    let s = (v * k as f64 * dt).min(path.length());
+                    let p = path.point_at(s);
+                    State { px: p.x, py: p.y, theta_rad: path.heading_at(s), speed_mps: v }
+                })
+                .collect();
+            let controls = states
+                .windows(2)
+                .map(|w| match w {
+                    [x0, x1] => {
+                        let d = (x1.theta_rad - x0.theta_rad + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                            - std::f64::consts::PI;
+                        Control { accel_mps2: 0.0, yaw_rate_radps: d / dt }
+                    }
+                    _ => Control::default(),
+                })
+                .collect();
+            agents.push(AgentTrajectory { id: a.id.clone(), role: a.role, states, controls });
+        }
+        let prior = Self {
+            fragment_id: scenario.fragment_id.clone(),
+            dt_s: dt,
+            agents,
+            conflicts: scenario.conflicts.clone(),
+            tau_s: scenario.tau_s,
+            style: scenario.style,
+        };
+        prior.validate()?;
+        Ok(prior)
+    }
+
     /// Duration covered, s.
     pub fn duration_s(&self) -> f64 {
         self.agents.iter().map(|a| a.controls.len()).max().unwrap_or(0) as f64 * self.dt_s

@@ -24,6 +24,8 @@ pub use iceoryx2_bb_container::vector::{StaticVec, Vector};
 
 mod codes;
 pub mod link;
+#[cfg(feature = "mqtt")]
+pub mod mqtt;
 mod payloads;
 pub mod services;
 

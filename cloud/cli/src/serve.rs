@@ -1,0 +1,550 @@
+//! `video2track serve`: the cloud supervisor of a test session. It runs an embedded MQTT broker
+//! (`rumqttd`, for a single machine) or joins an external one, follows every BV of the fleet from
+//! its telemetry, heartbeats and events, takes operator commands on its console (upload a prior,
+//! arm, start, abort, re-target), logs everything it receives as JSON lines, and aborts every BV on
+//! Ctrl-C or `quit`. The BVs decide on their own: nothing here sits inside their control loop.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::net::{SocketAddr, TcpStream};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use v2t_model::Style;
+use v2t_wire::link::{self, ALL_BVS, CloudBody, Command, EdgeReport, Telemetry, topics};
+use v2t_wire::mqtt::{LinkEvent, MqttLink};
+use v2t_wire::{Code, GateReason, GateState, PlanStatus};
+
+use crate::link::{BvEvent, Connection, LinkError, Signer, command, parse_style, prior_from_file, unix_ms};
+
+/// A BV whose last heartbeat is older than this is shown as offline.
+pub const OFFLINE_AFTER: Duration = Duration::from_secs(1);
+
+/// Starts the embedded broker on `listen` and returns once it accepts connections.
+pub fn start_embedded_broker(listen: SocketAddr) -> Result<(), LinkError> {
+    let server = serde_json::json!({
+        "name": "v2t",
+        "listen": listen.to_string(),
+        "next_connection_delay_ms": 1,
+        "connections": {
+            "connection_timeout_ms": 5000,
+            "max_payload_size": link::MAX_FRAME_LEN + 1024,
+            "max_inflight_count": 200,
+            "dynamic_filters": true
+        }
+    });
+    let config = serde_json::json!({
+        "id": 0,
+        "router": {
+            "max_connections": 1000,
+            "max_outgoing_packet_count": 200,
+            "max_segment_size": 104_857_600,
+            "max_segment_count": 10
+        },
+        "v4": { "1": server }
+    });
+    let config: rumqttd::Config =
+        serde_json::from_value(config).map_err(|e| LinkError::Broker(format!("embedded broker settings: {e}")))?;
+    let (tx, rx) = mpsc::channel();
+    std::thread::Builder::new()
+        .name("broker".into())
+        .spawn(move || {
+            let mut broker = rumqttd::Broker::new(config);
+            let result = broker.start();
+            let _ = tx.send(result.map_err(|e| e.to_string()));
+        })
+        .map_err(|e| LinkError::Broker(format!("cannot start the embedded broker: {e}")))?;
+    let deadline = Instant::now() + Duration::from_secs(5);
+    loop {
+        match rx.try_recv() {
+            Ok(Err(e)) => return Err(LinkError::Broker(format!("embedded broker on {listen}: {e}"))),
+            Ok(Ok(())) => return Err(LinkError::Broker(format!("embedded broker on {listen} stopped"))),
+            Err(_) => {}
+        }
+        if TcpStream::connect_timeout(&listen, Duration::from_millis(100)).is_ok() {
+            return Ok(());
+        }
+        if Instant::now() > deadline {
+            return Err(LinkError::Broker(format!("embedded broker on {listen}: not listening after 5 s")));
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// What the supervisor knows of one BV.
+#[derive(Debug, Clone, Default)]
+pub struct BvStatus {
+    /// Last telemetry.
+    pub telemetry: Option<Telemetry>,
+    /// When the last heartbeat arrived.
+    pub heartbeat_at: Option<Instant>,
+    /// Whether every onboard node was alive at the last heartbeat.
+    pub healthy: bool,
+    /// The last accepted or refused frame.
+    pub event: Option<BvEvent>,
+}
+
+/// The fleet as seen from the supervisor. Pure: messages and the time come in from outside.
+#[derive(Debug, Default)]
+pub struct Fleet {
+    /// By BV id.
+    pub bvs: BTreeMap<String, BvStatus>,
+}
+
+/// What a message changed, for the console.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Change {
+    /// A BV was heard from for the first time, or again after being offline.
+    Online(String),
+    /// A BV said what it did with a frame.
+    Event(BvEvent),
+    /// Nothing worth a line.
+    Quiet,
+}
+
+impl Fleet {
+    /// One message on `topic` received at `now`. A message that does not decode is an error the
+    /// caller reports; it changes nothing.
+    pub fn on_message(&mut self, topic: &str, payload: &[u8], now: Instant) -> Result<Change, String> {
+        let mut parts = topic.split('/');
+        let (Some("v2t"), Some(_fleet), Some("bv"), Some(bv), Some(leaf), None) =
+            (parts.next(), parts.next(), parts.next(), parts.next(), parts.next(), parts.next())
+        else {
+            return Err(format!("unexpected topic {topic}"));
+        };
+        let was_online = self.bvs.get(bv).is_some_and(|s| s.online(now));
+        match leaf {
+            topics::TELEMETRY | topics::HEARTBEAT => {
+                let report = link::read_report(payload).map_err(|e| format!("{topic}: {e}"))?;
+                let status = self.bvs.entry(bv.to_owned()).or_default();
+                match report {
+                    EdgeReport::Telemetry(t) if t.bv_id == bv => status.telemetry = Some(t),
+                    EdgeReport::Heartbeat(h) if h.bv_id == bv => {
+                        status.heartbeat_at = Some(now);
+                        status.healthy = h.healthy;
+                    }
+                    _ => return Err(format!("{topic}: the report names another BV")),
+                }
+                if !was_online && status.online(now) {
+                    return Ok(Change::Online(bv.to_owned()));
+                }
+                Ok(Change::Quiet)
+            }
+            topics::EVENT => {
+                let ev: BvEvent = serde_json::from_slice(payload).map_err(|e| format!("{topic}: {e}"))?;
+                self.bvs.entry(bv.to_owned()).or_default().event = Some(ev.clone());
+                Ok(Change::Event(ev))
+            }
+            _ => Err(format!("unexpected topic {topic}")),
+        }
+    }
+
+    /// A table of every BV at `now`.
+    pub fn table(&self, now: Instant) -> String {
+        let mut s = String::from("BV        link     health   prior  speed   plan              PET pred  gate\n");
+        for (id, b) in &self.bvs {
+            let link = if b.online(now) { "online" } else { "OFFLINE" };
+            let health = if b.healthy { "ok" } else { "DEGRADED" };
+            let (prior, speed, plan, pet, gate) = match &b.telemetry {
+                Some(t) => (
+                    if t.prior_id == 0 { "-".to_owned() } else { t.prior_id.to_string() },
+                    format!("{:.1}", t.speed_mps),
+                    PlanStatus::from_code(t.plan_status)
+                        .map_or_else(|_| format!("?{}", t.plan_status), |p| format!("{p:?}")),
+                    t.predicted_pet_s.map_or_else(|| "-".to_owned(), |p| format!("{p:.2} s")),
+                    gate_text(t.gate_state, t.gate_reason),
+                ),
+                None => ("-".into(), "-".into(), "-".into(), "-".into(), "-".into()),
+            };
+            let _ = writeln!(s, "{id:<9} {link:<8} {health:<8} {prior:<6} {speed:<7} {plan:<17} {pet:<9} {gate}");
+        }
+        s
+    }
+}
+
+fn gate_text(state: u8, reason: u8) -> String {
+    let state = GateState::from_code(state).map_or_else(|_| format!("?{state}"), |g| format!("{g:?}"));
+    match GateReason::from_code(reason) {
+        Ok(GateReason::Init) => state,
+        Ok(r) => format!("{state} ({r:?})"),
+        Err(_) => format!("{state} (?{reason})"),
+    }
+}
+
+impl BvStatus {
+    /// Whether a heartbeat came within [`OFFLINE_AFTER`].
+    pub fn online(&self, now: Instant) -> bool {
+        self.heartbeat_at.is_some_and(|t| now.saturating_duration_since(t) < OFFLINE_AFTER)
+    }
+}
+
+/// An operator command typed on the console.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ConsoleCommand {
+    /// `upload FILE BV [tau S] [style rush|yield] [agent A]`.
+    Upload {
+        /// Priors file.
+        file: PathBuf,
+        /// The BV.
+        bv: String,
+        /// Target override.
+        tau_s: Option<f64>,
+        /// Style override.
+        style: Option<Style>,
+        /// The prior's agent the BV drives.
+        agent: Option<String>,
+    },
+    /// `arm|start|abort [BV|all]`, `target BV|all TAU rush|yield`.
+    Send {
+        /// BV id or [`ALL_BVS`].
+        bv: String,
+        /// What.
+        command: Command,
+    },
+    /// `status`.
+    Status,
+    /// `quit`: abort every BV, then stop.
+    Quit,
+    /// `help`.
+    Help,
+}
+
+/// The console's help text.
+pub const HELP: &str = "commands:
+  upload FILE BV [tau S] [style rush|yield] [agent ID]   sign and send a prior (TrajectoryPrior or GroundedScenario JSON)
+  arm [BV|all]                                           reset the BV's gate, ready to start
+  start [BV|all]                                         engage
+  abort [BV|all]                                         minimal-risk stop
+  target BV|all TAU rush|yield                           re-target the running interaction
+  status                                                 the fleet table
+  quit                                                   abort every BV and stop (Ctrl-C does the same)";
+
+/// Parses one console line.
+pub fn parse_console(line: &str) -> Result<Option<ConsoleCommand>, String> {
+    let words: Vec<&str> = line.split_whitespace().collect();
+    let bv = |w: Option<&&str>| match w {
+        None | Some(&"all") => ALL_BVS.to_owned(),
+        Some(b) => (*b).to_owned(),
+    };
+    match words.as_slice() {
+        [] => Ok(None),
+        ["status"] => Ok(Some(ConsoleCommand::Status)),
+        ["quit" | "exit"] => Ok(Some(ConsoleCommand::Quit)),
+        ["help" | "?"] => Ok(Some(ConsoleCommand::Help)),
+        [action @ ("arm" | "start" | "abort"), rest @ ..] if rest.len() <= 1 => Ok(Some(ConsoleCommand::Send {
+            bv: bv(rest.first()),
+            command: command(action, None, None).map_err(|e| e.to_string())?,
+        })),
+        ["target", who, tau, style] => {
+            let tau: f64 = tau.parse().map_err(|_| format!("τ `{tau}` is not a number"))?;
+            let style = parse_style(style).map_err(|e| e.to_string())?;
+            let command = command("target", Some(tau), Some(style)).map_err(|e| e.to_string())?;
+            Ok(Some(ConsoleCommand::Send { bv: bv(Some(who)), command }))
+        }
+        ["upload", file, who, rest @ ..] => {
+            if *who == "all" {
+                return Err("a prior goes to one BV".into());
+            }
+            let (mut tau_s, mut style, mut agent) = (None, None, None);
+            for pair in rest.chunks(2) {
+                match pair {
+                    ["tau", v] => tau_s = Some(v.parse().map_err(|_| format!("τ `{v}` is not a number"))?),
+                    ["style", v] => style = Some(parse_style(v).map_err(|e| e.to_string())?),
+                    ["agent", v] => agent = Some((*v).to_owned()),
+                    other => return Err(format!("upload: unexpected `{}`", other.join(" "))),
+                }
+            }
+            Ok(Some(ConsoleCommand::Upload { file: PathBuf::from(file), bv: (*who).to_owned(), tau_s, style, agent }))
+        }
+        _ => Err(format!("cannot read `{line}`; `help` lists the commands")),
+    }
+}
+
+/// How `serve` runs.
+#[derive(Debug)]
+pub struct ServeOptions {
+    /// Where to connect.
+    pub connection: Connection,
+    /// Start the embedded broker on this address first.
+    pub embedded: Option<SocketAddr>,
+    /// Signs every frame.
+    pub signer: Signer,
+    /// JSON-lines log of everything received and sent.
+    pub log: Option<PathBuf>,
+    /// Print the fleet table this often (zero: only on `status`).
+    pub status_period: Duration,
+    /// How long a prior stays valid after its upload.
+    pub prior_valid_s: f64,
+}
+
+/// Runs the supervisor until `quit`, Ctrl-C (`stop` set) or an error.
+pub fn serve(mut opts: ServeOptions, stop: &Arc<AtomicBool>) -> Result<(), LinkError> {
+    if let Some(addr) = opts.embedded {
+        start_embedded_broker(addr)?;
+        println!("serve: embedded broker listening on mqtt://{addr}");
+    }
+    let fleet_id = opts.signer.fleet().to_owned();
+    let subscribe = [topics::TELEMETRY, topics::HEARTBEAT, topics::EVENT]
+        .iter()
+        .map(|leaf| format!("v2t/{fleet_id}/bv/+/{leaf}"))
+        .collect();
+    let client_id = format!("v2t-{fleet_id}-supervisor");
+    let mqtt = MqttLink::start(&opts.connection.settings(&client_id, true), subscribe).map_err(LinkError::Broker)?;
+    let mut log = match &opts.log {
+        Some(p) => Some(std::io::BufWriter::new(
+            std::fs::File::create(p).map_err(|e| LinkError::Usage(format!("{}: {e}", p.display())))?,
+        )),
+        None => None,
+    };
+    let console = spawn_console();
+    let mut fleet = Fleet::default();
+    let mut next_table = Instant::now() + opts.status_period;
+    let mut next_prior_id = (unix_ms() % 1_000_000_000).max(1);
+    let mut connected = false;
+    println!(
+        "serve: fleet `{fleet_id}`, broker {}:{}; `help` lists the commands",
+        opts.connection.broker.host, opts.connection.broker.port
+    );
+    loop {
+        if stop.load(Ordering::SeqCst) {
+            println!("serve: interrupted: aborting every BV");
+            return abort_all_and_wait(&mqtt, &mut opts.signer, &mut fleet, &mut log);
+        }
+        if let Some(ev) = mqtt.wait(Duration::from_millis(20)) {
+            let now = Instant::now();
+            match ev {
+                LinkEvent::Connected => {
+                    connected = true;
+                    println!("serve: connected to the broker");
+                }
+                LinkEvent::Down(why) => {
+                    if connected {
+                        println!("serve: broker lost: {why}; reconnecting");
+                    }
+                    connected = false;
+                }
+                LinkEvent::Frame { topic, payload } => {
+                    match fleet.on_message(&topic, &payload, now) {
+                        Ok(Change::Online(bv)) => println!("serve: {bv} online"),
+                        Ok(Change::Event(e)) => println!("serve: {} {} {}", e.bv_id, e.verdict, e.detail),
+                        Ok(Change::Quiet) => {}
+                        Err(why) => println!("serve: ignored a message: {why}"),
+                    }
+                    if let Some(w) = log.as_mut() {
+                        let _ = writeln!(w, "{}", log_line(&topic, &payload));
+                    }
+                }
+            }
+        }
+        while let Ok(line) = console.try_recv() {
+            match parse_console(&line) {
+                Ok(None) => {}
+                Ok(Some(ConsoleCommand::Quit)) => {
+                    println!("serve: quit: aborting every BV");
+                    return abort_all_and_wait(&mqtt, &mut opts.signer, &mut fleet, &mut log);
+                }
+                Ok(Some(ConsoleCommand::Help)) => println!("{HELP}"),
+                Ok(Some(ConsoleCommand::Status)) => print!("{}", fleet.table(Instant::now())),
+                Ok(Some(ConsoleCommand::Send { bv, command })) => {
+                    match send(&mqtt, &mut opts.signer, &bv, CloudBody::Command(command)) {
+                        Ok(seq) => println!("serve: sent {command:?} to {bv} (seq {seq})"),
+                        Err(e) => println!("serve: {e}"),
+                    }
+                }
+                Ok(Some(ConsoleCommand::Upload { file, bv, tau_s, style, agent })) => {
+                    let id = next_prior_id;
+                    next_prior_id += 1;
+                    let sent = prior_from_file(&file, agent.as_deref(), (tau_s, style), opts.prior_valid_s, id)
+                        .and_then(|up| {
+                            let text = format!(
+                                "prior {id} ({}, τ {} s, {:?})",
+                                file.display(),
+                                up.prior.tau_s,
+                                up.prior.style
+                            );
+                            send(&mqtt, &mut opts.signer, &bv, CloudBody::Prior(up)).map(|seq| (text, seq))
+                        });
+                    match sent {
+                        Ok((text, seq)) => println!("serve: sent {text} to {bv} (seq {seq})"),
+                        Err(e) => println!("serve: upload refused here: {e}"),
+                    }
+                }
+                Err(why) => println!("serve: {why}"),
+            }
+        }
+        if !opts.status_period.is_zero() && Instant::now() >= next_table {
+            next_table += opts.status_period;
+            if !fleet.bvs.is_empty() {
+                print!("{}", fleet.table(Instant::now()));
+            }
+        }
+        let _ = std::io::stdout().flush();
+    }
+}
+
+fn send(mqtt: &MqttLink, signer: &mut Signer, bv: &str, body: CloudBody) -> Result<u64, LinkError> {
+    let (topic, frame, seq) = signer.seal(bv, body)?;
+    mqtt.publish(&topic, frame, true).map_err(LinkError::Broker)?;
+    Ok(seq)
+}
+
+/// Sends abort to every BV and waits up to 2 s for each BV known to be online to confirm it.
+fn abort_all_and_wait(
+    mqtt: &MqttLink,
+    signer: &mut Signer,
+    fleet: &mut Fleet,
+    log: &mut Option<std::io::BufWriter<std::fs::File>>,
+) -> Result<(), LinkError> {
+    let seq = send(mqtt, signer, ALL_BVS, CloudBody::Command(Command::Abort))?;
+    let mut waiting: Vec<String> =
+        fleet.bvs.iter().filter(|(_, s)| s.online(Instant::now())).map(|(id, _)| id.clone()).collect();
+    let deadline = Instant::now() + Duration::from_secs(2);
+    while !waiting.is_empty() && Instant::now() < deadline {
+        let Some(LinkEvent::Frame { topic, payload }) = mqtt.wait(Duration::from_millis(20)) else { continue };
+        if let Some(w) = log.as_mut() {
+            let _ = writeln!(w, "{}", log_line(&topic, &payload));
+        }
+        if let Ok(Change::Event(e)) = fleet.on_message(&topic, &payload, Instant::now())
+            && e.seq == Some(seq)
+        {
+            println!("serve: {} {} {}", e.bv_id, e.verdict, e.detail);
+            waiting.retain(|b| *b != e.bv_id);
+        }
+    }
+    if let Some(w) = log.as_mut() {
+        let _ = w.flush();
+    }
+    mqtt.disconnect();
+    std::thread::sleep(Duration::from_millis(50));
+    if waiting.is_empty() {
+        println!("serve: every BV confirmed the abort");
+        Ok(())
+    } else {
+        Err(LinkError::Refused(format!("no abort confirmation from {} within 2 s", waiting.join(", "))))
+    }
+}
+
+fn log_line(topic: &str, payload: &[u8]) -> String {
+    let body = match link::read_report(payload) {
+        Ok(EdgeReport::Telemetry(t)) => serde_json::to_value(t).unwrap_or_default(),
+        Ok(EdgeReport::Heartbeat(h)) => serde_json::to_value(h).unwrap_or_default(),
+        Err(_) => serde_json::from_slice(payload).unwrap_or(serde_json::Value::Null),
+    };
+    serde_json::json!({"received_ms": unix_ms(), "topic": topic, "message": body}).to_string()
+}
+
+/// Console lines on a channel; the reader ends with stdin.
+fn spawn_console() -> mpsc::Receiver<String> {
+    let (tx, rx) = mpsc::channel();
+    let _ = std::thread::Builder::new().name("console".into()).spawn(move || {
+        for line in std::io::stdin().lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                return;
+            }
+        }
+    });
+    rx
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+    use super::*;
+    use v2t_wire::link::{Heartbeat, heartbeat_frame, telemetry_frame};
+
+    fn telemetry(bv: &str, prior_id: u64) -> Telemetry {
+        Telemetry {
+            bv_id: bv.into(),
+            seq: 1,
+            stamp_ms: 1,
+            prior_id,
+            px_m: 0.0,
+            py_m: 0.0,
+            theta_rad: 0.0,
+            speed_mps: 8.25,
+            plan_status: PlanStatus::Regulating.code(),
+            predicted_pet_s: Some(2.5),
+            gate_state: GateState::Engaged.code(),
+            gate_reason: GateReason::EngageRequest.code(),
+        }
+    }
+
+    #[test]
+    fn the_fleet_follows_heartbeats_telemetry_and_events() {
+        let mut f = Fleet::default();
+        let t0 = Instant::now();
+        let beat = heartbeat_frame(&Heartbeat { bv_id: "bv1".into(), seq: 1, stamp_ms: 1, healthy: true }).unwrap();
+        assert_eq!(f.on_message("v2t/pg/bv/bv1/heartbeat", &beat, t0).unwrap(), Change::Online("bv1".into()));
+        assert_eq!(f.on_message("v2t/pg/bv/bv1/heartbeat", &beat, t0).unwrap(), Change::Quiet);
+        let tel = telemetry_frame(&telemetry("bv1", 42)).unwrap();
+        f.on_message("v2t/pg/bv/bv1/telemetry", &tel, t0).unwrap();
+        let table = f.table(t0);
+        assert!(
+            table.contains("bv1") && table.contains("online") && table.contains("42") && table.contains("2.50 s"),
+            "{table}"
+        );
+        assert!(f.table(t0 + OFFLINE_AFTER).contains("OFFLINE"));
+        assert_eq!(
+            f.on_message("v2t/pg/bv/bv1/heartbeat", &beat, t0 + 2 * OFFLINE_AFTER).unwrap(),
+            Change::Online("bv1".into()),
+            "back online after a silence"
+        );
+        let ev = br#"{"bv_id":"bv1","stamp_ms":5,"seq":7,"verdict":"refused","detail":"off the drivable area"}"#;
+        match f.on_message("v2t/pg/bv/bv1/event", ev, t0).unwrap() {
+            Change::Event(e) => assert_eq!((e.seq, e.verdict.as_str()), (Some(7), "refused")),
+            other => panic!("{other:?}"),
+        }
+        // Garbage, a report naming another BV and unknown topics are errors that change nothing.
+        assert!(f.on_message("v2t/pg/bv/bv1/telemetry", b"garbage", t0).is_err());
+        let other = telemetry_frame(&telemetry("bv2", 1)).unwrap();
+        assert!(f.on_message("v2t/pg/bv/bv1/telemetry", &other, t0).is_err());
+        assert!(f.on_message("v2t/pg/bv/bv1/secret", &beat, t0).is_err());
+        assert!(f.on_message("v2t/pg/bv1/heartbeat", &beat, t0).is_err());
+        assert_eq!(f.bvs.len(), 1);
+    }
+
+    #[test]
+    fn console_lines_parse_or_say_why_not() {
+        assert_eq!(parse_console("  ").unwrap(), None);
+        assert_eq!(
+            parse_console("abort").unwrap(),
+            Some(ConsoleCommand::Send { bv: ALL_BVS.into(), command: Command::Abort })
+        );
+        assert_eq!(
+            parse_console("start bv2").unwrap(),
+            Some(ConsoleCommand::Send { bv: "bv2".into(), command: Command::Start })
+        );
+        assert_eq!(
+            parse_console("target bv1 3.5 yield").unwrap(),
+            Some(ConsoleCommand::Send {
+                bv: "bv1".into(),
+                command: Command::SetTarget { tau_s: 3.5, style: Style::Yield }
+            })
+        );
+        assert_eq!(
+            parse_console("upload p.json bv1 tau 2 style rush").unwrap(),
+            Some(ConsoleCommand::Upload {
+                file: "p.json".into(),
+                bv: "bv1".into(),
+                tau_s: Some(2.0),
+                style: Some(Style::Rush),
+                agent: None
+            })
+        );
+        for bad in [
+            "target bv1 x rush",
+            "target bv1 3 fast",
+            "target bv1 -1 rush",
+            "upload p.json all",
+            "upload p.json bv1 tau",
+            "launch",
+            "abort bv1 bv2",
+        ] {
+            assert!(parse_console(bad).is_err(), "{bad}");
+        }
+    }
+}

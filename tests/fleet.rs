@@ -1,0 +1,175 @@
+//! Two simulated BVs in one session, supervised by one `video2track serve` with its embedded
+//! broker: each BV's uplink node runs as its own process with its own iceoryx2 namespace; each gets
+//! its own prior and τ (one from the console, one from `video2track upload`), one is re-targeted,
+//! a prior signed with the wrong key is refused, and Ctrl-C on `serve` brings both to the
+//! minimal-risk stop.
+
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
+
+use std::time::{Duration, Instant};
+
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::ipc;
+use v2t_edge::ports::Bus;
+use v2t_tests::harness::{Proc, bin, edge_config, free_port, left_turn_grounded, signal, tempdir, write_keys};
+use v2t_tests::repo_root;
+use v2t_wire::{ActivePrior, Code, SafetyAction, SafetyCommand, StyleCode, services};
+
+struct Bv {
+    _node: Proc,
+    bus: Bus<ipc::Service>,
+    priors: Subscriber<ipc::Service, ActivePrior, ()>,
+    safety: Subscriber<ipc::Service, SafetyCommand, ()>,
+}
+
+impl Bv {
+    fn start(dir: &std::path::Path, port: u16, public: &std::path::Path, id: &str) -> Self {
+        let cfg = edge_config(dir, port, public, id);
+        let ns = format!("v2t/test/fleet{}/{id}", std::process::id());
+        let node = Proc::start(
+            &bin("v2t-edge"),
+            &["node", "uplink", "--config", cfg.to_str().unwrap(), "--namespace", &ns],
+            id,
+        );
+        let bus = Bus::<ipc::Service>::new("test-fleet", &ns).unwrap();
+        let priors = bus.subscriber::<ActivePrior>(services::PRIOR).unwrap();
+        let safety = bus.subscriber::<SafetyCommand>(services::SAFETY).unwrap();
+        Self { _node: node, bus, priors, safety }
+    }
+
+    fn prior(&self) -> ActivePrior {
+        let deadline = Instant::now() + Duration::from_secs(5);
+        loop {
+            if let Some(p) = self.priors.receive().unwrap() {
+                return p.clone();
+            }
+            assert!(Instant::now() < deadline, "no prior on iceoryx2");
+            self.bus.wait(Duration::from_millis(5));
+        }
+    }
+
+    fn safety(&self) -> SafetyCommand {
+        let deadline = Instant::now() + Duration::from_secs(5);
+        loop {
+            if let Some(c) = self.safety.receive().unwrap() {
+                return *c;
+            }
+            assert!(Instant::now() < deadline, "no safety command on iceoryx2");
+            self.bus.wait(Duration::from_millis(5));
+        }
+    }
+}
+
+#[test]
+fn one_serve_supervises_two_bvs_each_with_its_own_prior_and_target() {
+    let dir = tempdir("fleet");
+    let (_key, secret, public) = write_keys(&dir, 23);
+    let port = free_port();
+    let listen = format!("127.0.0.1:{port}");
+    let log = dir.join("session.jsonl");
+    let key_arg = secret.to_str().unwrap().to_owned();
+    let mut serve = Proc::start(
+        &bin("video2track"),
+        &[
+            "serve",
+            "--listen",
+            &listen,
+            "--fleet",
+            "pg",
+            "--key",
+            &key_arg,
+            "--log",
+            log.to_str().unwrap(),
+            "--status-period-s",
+            "0",
+        ],
+        "serve",
+    );
+    serve.expect_line("embedded broker listening", Duration::from_secs(10));
+    v2t_tests::harness::iceoryx2_config();
+    let bv1 = Bv::start(&dir, port, &public, "bv1");
+    let bv2 = Bv::start(&dir, port, &public, "bv2");
+    let mut online =
+        [serve.expect_line(" online", Duration::from_secs(10)), serve.expect_line(" online", Duration::from_secs(10))];
+    online.sort();
+    assert!(online[0].contains("bv1") && online[1].contains("bv2"), "{online:?}");
+
+    let grounded = dir.join("left_turn.grounded.json");
+    std::fs::write(&grounded, serde_json::to_string_pretty(&left_turn_grounded()).unwrap()).unwrap();
+    let file = grounded.to_str().unwrap();
+
+    // bv1: from the console, rush at 2.5 s.
+    serve.type_line(&format!("upload {file} bv1 tau 2.5 style rush"));
+    serve.expect_line("bv1 accepted prior", Duration::from_secs(5));
+    let p1 = bv1.prior();
+    assert_eq!((p1.tau_s, StyleCode::from_code(p1.style).unwrap()), (2.5, StyleCode::Rush));
+
+    // bv2: from another terminal with `video2track upload`, yield at 4 s.
+    let broker = format!("mqtt://{listen}");
+    let upload = |key: &str, tau: &str| {
+        std::process::Command::new(bin("video2track"))
+            .args([
+                "upload", file, "--bv", "bv2", "--tau", tau, "--style", "yield", "--fleet", "pg", "--key", key,
+                "--broker", &broker,
+            ])
+            .current_dir(repo_root())
+            .output()
+            .unwrap()
+    };
+    let out = upload(&key_arg, "4");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && stdout.contains("bv2: accepted"),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let p2 = bv2.prior();
+    assert_eq!((p2.tau_s, StyleCode::from_code(p2.style).unwrap()), (4.0, StyleCode::Yield));
+    assert_ne!(p1.prior_id, p2.prior_id);
+    assert!(bv1.priors.receive().unwrap().is_none(), "bv1 got bv2's prior");
+
+    // A prior signed with another key: bv2 refuses it and says why; `upload` fails with the reason.
+    let (_, wrong, _) = write_keys(&tempdir("fleet-wrong-key"), 24);
+    let out = upload(wrong.to_str().unwrap(), "3");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("refused") && stderr.contains("signature"), "{stderr}");
+    serve.expect_line("bv2 refused", Duration::from_secs(5));
+    assert!(bv2.priors.receive().unwrap().is_none(), "a refused prior reached bv2's regulator");
+
+    // Re-target bv2 live; the status table shows both BVs with their priors.
+    serve.type_line("target bv2 3 rush");
+    serve.expect_line("bv2 accepted set target", Duration::from_secs(5));
+    let p2b = bv2.prior();
+    assert_eq!(
+        (p2b.prior_id, p2b.tau_s, StyleCode::from_code(p2b.style).unwrap()),
+        (p2.prior_id, 3.0, StyleCode::Rush)
+    );
+    std::thread::sleep(Duration::from_millis(300));
+    serve.type_line("status");
+    let r1 = serve.expect_line("bv1 ", Duration::from_secs(5));
+    let r2 = serve.expect_line("bv2 ", Duration::from_secs(5));
+    assert!(r1.contains("online") && r1.contains(&p1.prior_id.to_string()), "{r1}");
+    assert!(r2.contains("online") && r2.contains(&p2.prior_id.to_string()), "{r2}");
+
+    // Ctrl-C: serve aborts every BV, waits for both confirmations and exits cleanly.
+    while bv1.safety.receive().unwrap().is_some() {}
+    while bv2.safety.receive().unwrap().is_some() {}
+    signal(&serve.child, "INT");
+    assert_eq!(bv1.safety().action, SafetyAction::MinimalRiskStop.code());
+    assert_eq!(bv2.safety().action, SafetyAction::MinimalRiskStop.code());
+    serve.expect_line("every BV confirmed the abort", Duration::from_secs(5));
+    assert!(serve.wait_exit(Duration::from_secs(5)).success());
+
+    // The session log holds both BVs' telemetry and events as JSON lines.
+    let text = std::fs::read_to_string(&log).unwrap();
+    let lines: Vec<serde_json::Value> = text.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    for bv in ["bv1", "bv2"] {
+        let tele = lines.iter().filter(|l| l["topic"] == format!("v2t/pg/bv/{bv}/telemetry")).count();
+        assert!(tele >= 5, "{bv}: {tele} telemetry lines");
+        assert!(
+            lines
+                .iter()
+                .any(|l| l["topic"] == format!("v2t/pg/bv/{bv}/event") && l["message"]["verdict"] == "accepted")
+        );
+    }
+}

@@ -1,0 +1,363 @@
+//! The harness of the cloud–edge link tests: brokers (Mosquitto from the Debian package, or the
+//! embedded broker of `video2track serve`), child processes of the workspace's binaries with their
+//! output on a channel, edge configurations with an `[uplink]` section, and a test cloud client.
+
+#![allow(
+    clippy::panic,
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::indexing_slicing,
+    missing_debug_implementations
+)] // test code
+
+use std::io::{BufRead, BufReader, Write as _};
+use std::net::{TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::mpsc::{Receiver, channel};
+use std::time::{Duration, Instant};
+
+use v2t_wire::link::{self, SigningKey, topics};
+
+use crate::repo_root;
+
+/// A binary of the workspace, built by `cargo test --workspace` next to the test executables.
+pub fn bin(name: &str) -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    let dir = exe.parent().and_then(Path::parent).unwrap();
+    let p = dir.join(name);
+    assert!(
+        p.exists(),
+        "{} is not built: run the workspace's tests (`cargo test --workspace`) or `cargo build --workspace` first",
+        p.display()
+    );
+    p
+}
+
+/// Loads the project's iceoryx2 settings once per test process (every test of a file may ask).
+pub fn iceoryx2_config() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| v2t_edge::ports::use_iceoryx2_config(&repo_root().join("config/iceoryx2.toml")).unwrap());
+}
+
+/// A fresh directory for one test.
+pub fn tempdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("v2t-link-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A free loopback port.
+pub fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+}
+
+/// Sends a signal by name (`INT`, `TERM`, `KILL`) to a child.
+pub fn signal(child: &Child, name: &str) {
+    let ok = Command::new("kill").arg(format!("-{name}")).arg(child.id().to_string()).status().unwrap().success();
+    assert!(ok, "kill -{name} {}", child.id());
+}
+
+/// A child whose stdout and stderr lines arrive on one channel (echoed to the test's stderr),
+/// killed when dropped.
+pub struct Proc {
+    /// The process.
+    pub child: Child,
+    stdin: Option<ChildStdin>,
+    lines: Receiver<String>,
+    tag: String,
+}
+
+impl Proc {
+    /// Starts `exe args` in the repository root.
+    pub fn start(exe: &Path, args: &[&str], tag: &str) -> Self {
+        let mut child = Command::new(exe)
+            .args(args)
+            .current_dir(repo_root())
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap_or_else(|e| panic!("{}: {e}", exe.display()));
+        let (tx, lines) = channel();
+        let out = child.stdout.take().unwrap();
+        let err = child.stderr.take().unwrap();
+        for (stream, tx) in [(Box::new(out) as Box<dyn std::io::Read + Send>, tx.clone()), (Box::new(err), tx)] {
+            let tag = tag.to_owned();
+            std::thread::spawn(move || {
+                for line in BufReader::new(stream).lines().map_while(Result::ok) {
+                    eprintln!("  {tag} | {line}");
+                    if tx.send(line).is_err() {
+                        break;
+                    }
+                }
+            });
+        }
+        let stdin = child.stdin.take();
+        Self { child, stdin, lines, tag: tag.to_owned() }
+    }
+
+    /// The next line containing `needle`, within `timeout`.
+    pub fn expect_line(&self, needle: &str, timeout: Duration) -> String {
+        let deadline = Instant::now() + timeout;
+        while let Some(left) = deadline.checked_duration_since(Instant::now()) {
+            match self.lines.recv_timeout(left) {
+                Ok(line) if line.contains(needle) => return line,
+                Ok(_) => {}
+                Err(_) => break,
+            }
+        }
+        panic!("{}: no line containing {needle:?} within {timeout:?}", self.tag);
+    }
+
+    /// Types a console line.
+    pub fn type_line(&mut self, line: &str) {
+        let stdin = self.stdin.as_mut().unwrap();
+        writeln!(stdin, "{line}").unwrap();
+        stdin.flush().unwrap();
+    }
+
+    /// Waits for the process to end, up to `timeout`; its exit status.
+    pub fn wait_exit(&mut self, timeout: Duration) -> std::process::ExitStatus {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(s) = self.child.try_wait().unwrap() {
+                return s;
+            }
+            assert!(Instant::now() < deadline, "{} did not exit within {timeout:?}", self.tag);
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Which broker a test runs against.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BrokerKind {
+    /// Mosquitto, the Debian package (`.ci/run` installs it), with persistence.
+    Mosquitto,
+    /// The embedded broker of `video2track serve`.
+    Embedded,
+}
+
+/// A broker on a loopback port, stopped when dropped.
+pub struct Broker {
+    /// Which.
+    pub kind: BrokerKind,
+    /// Its port.
+    pub port: u16,
+    dir: PathBuf,
+    key: PathBuf,
+    proc: Option<Proc>,
+}
+
+impl Broker {
+    /// Starts a broker of `kind` keeping its files in `dir`; the embedded one signs with `key`.
+    pub fn start(kind: BrokerKind, dir: &Path, key: &Path) -> Self {
+        let mut b = Self { kind, port: free_port(), dir: dir.to_owned(), key: key.to_owned(), proc: None };
+        b.restart();
+        b
+    }
+
+    /// (Re)starts it on the same port.
+    pub fn restart(&mut self) {
+        let port = self.port;
+        let proc = match self.kind {
+            BrokerKind::Mosquitto => {
+                let conf = self.dir.join("mosquitto.conf");
+                std::fs::write(
+                    &conf,
+                    format!(
+                        "listener {port} 127.0.0.1\nallow_anonymous true\nset_tcp_nodelay true\npersistence true\npersistence_location {}/\n",
+                        self.dir.display()
+                    ),
+                )
+                .unwrap();
+                let exe = ["/usr/sbin/mosquitto", "/usr/bin/mosquitto"]
+                    .into_iter()
+                    .map(Path::new)
+                    .find(|p| p.exists())
+                    .expect("mosquitto is not installed: `apt-get install mosquitto` (.ci/run does)");
+                Proc::start(exe, &["-c", conf.to_str().unwrap()], "mosquitto")
+            }
+            BrokerKind::Embedded => {
+                let listen = format!("127.0.0.1:{port}");
+                let args = [
+                    "serve",
+                    "--listen",
+                    &listen,
+                    "--fleet",
+                    "pg",
+                    "--key",
+                    self.key.to_str().unwrap(),
+                    "--status-period-s",
+                    "0",
+                ];
+                Proc::start(&bin("video2track"), &args, "serve")
+            }
+        };
+        self.proc = Some(proc);
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while TcpStream::connect(("127.0.0.1", port)).is_err() {
+            assert!(Instant::now() < deadline, "{:?} did not listen on {port}", self.kind);
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// Stops it: Mosquitto with SIGTERM (it saves its sessions), the embedded one killed (a crash).
+    pub fn stop(&mut self) {
+        if let Some(mut p) = self.proc.take() {
+            match self.kind {
+                BrokerKind::Mosquitto => signal(&p.child, "TERM"),
+                BrokerKind::Embedded => signal(&p.child, "KILL"),
+            }
+            p.wait_exit(Duration::from_secs(10));
+        }
+    }
+}
+
+/// Writes the supervisor's key pair into `dir` (`cloud.key`, `cloud.pub`) for `seed`.
+pub fn write_keys(dir: &Path, seed: u8) -> (SigningKey, PathBuf, PathBuf) {
+    let key = SigningKey::from_bytes(&[seed; 32]);
+    let (secret, public) = (dir.join("cloud.key"), dir.join("cloud.pub"));
+    std::fs::write(&secret, link::key_to_hex(&[seed; 32]) + "\n").unwrap();
+    std::fs::write(&public, link::key_to_hex(&key.verifying_key().to_bytes()) + "\n").unwrap();
+    (key, secret, public)
+}
+
+/// An edge configuration in `dir` for BV `bv_id` of fleet `pg` on the broker at `port`, trusting
+/// the public key in `public`, with the proving ground as its geofence.
+pub fn edge_config(dir: &Path, port: u16, public: &Path, bv_id: &str) -> PathBuf {
+    let base = std::fs::read_to_string(repo_root().join("config/edge/bv1.toml")).unwrap();
+    let edge_dir = repo_root().join("config/edge");
+    let text = base.replace("\"../", &format!("\"{}/../", edge_dir.display()))
+        + &format!(
+            "\n[uplink]\nbroker = \"mqtt://127.0.0.1:{port}\"\nfleet = \"pg\"\nbv_id = \"{bv_id}\"\ncloud_key = \"{}\"\n\
+             map = \"{}\"\ngeofence_margin_m = 0.5\nmax_age_s = 30.0\nmax_skew_s = 2.0\ntelemetry_period_s = 0.1\n\
+             heartbeat_period_s = 0.2\non_link_loss = \"continue\"\nlink_loss_timeout_s = 2.0\n",
+            public.display(),
+            repo_root().join("config/maps/proving_ground.xodr").display()
+        );
+    let path = dir.join(format!("{bv_id}-uplink.toml"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// The grounded left turn on the proving ground, and a constant-speed prior along its routes.
+pub fn left_turn_upload(prior_id: u64) -> link::PriorUpload {
+    let scenario = left_turn_grounded();
+    let now = v2t_edge::uplink::unix_ms();
+    v2t_edge::prior::upload_along_routes(&scenario, prior_id, 12.0, (now, now + 600_000)).unwrap()
+}
+
+/// The example left-turn semantics grounded on the proving ground.
+pub fn left_turn_grounded() -> v2t_model::grounded::GroundedScenario {
+    let map = v2t_map::Map::load(&repo_root().join("config/maps/proving_ground.xodr")).unwrap();
+    let lib = v2t_map::library::TopologyLibrary::build(&map);
+    let text = std::fs::read_to_string(repo_root().join("config/examples/semantics_left_turn.json")).unwrap();
+    let sem = v2t_model::semantics::parse_semantics_json(&text).unwrap();
+    v2t_ground::ground(&map, &lib, &sem).unwrap().scenario
+}
+
+/// The cloud's side for a test: a client that publishes signed frames and collects what the BVs send.
+pub struct Cloud {
+    client: rumqttc::Client,
+    inbox: Receiver<(String, Vec<u8>)>,
+    key: SigningKey,
+    seq: u64,
+}
+
+impl Cloud {
+    /// Connects to the broker on `port` and follows every BV of fleet `pg`.
+    pub fn connect(port: u16, key: SigningKey) -> Self {
+        let mut opts = rumqttc::MqttOptions::new(format!("v2t-test-cloud-{}", std::process::id()), "127.0.0.1", port);
+        opts.set_keep_alive(Duration::from_secs(5));
+        opts.set_max_packet_size(2 << 20, 2 << 20);
+        let (client, mut connection) = rumqttc::Client::new(opts, 64);
+        let mut net = rumqttc::NetworkOptions::new();
+        net.set_tcp_nodelay(true);
+        connection.eventloop.set_network_options(net);
+        let (tx, inbox) = channel();
+        let sub = client.clone();
+        std::thread::spawn(move || {
+            for n in connection.iter() {
+                match n {
+                    Ok(rumqttc::Event::Incoming(rumqttc::Packet::ConnAck(_))) => {
+                        // Telemetry and heartbeats are latest-wins (QoS 0); events are kept (QoS 1).
+                        for (leaf, qos) in [
+                            (topics::TELEMETRY, rumqttc::QoS::AtMostOnce),
+                            (topics::HEARTBEAT, rumqttc::QoS::AtMostOnce),
+                            (topics::EVENT, rumqttc::QoS::AtLeastOnce),
+                        ] {
+                            sub.try_subscribe(topics::bv("pg", "+", leaf), qos).unwrap();
+                        }
+                    }
+                    Ok(rumqttc::Event::Incoming(rumqttc::Packet::Publish(p))) => {
+                        if tx.send((p.topic.clone(), p.payload.to_vec())).is_err() {
+                            return;
+                        }
+                    }
+                    Ok(_) => {}
+                    Err(_) => std::thread::sleep(Duration::from_millis(100)),
+                }
+            }
+        });
+        Self { client, inbox, key, seq: 0 }
+    }
+
+    /// A frame for `bv` signed with the test's key and the next sequence number.
+    pub fn frame(&mut self, bv: &str, body: link::CloudBody) -> Vec<u8> {
+        self.seq += 1;
+        let m = link::CloudMessage {
+            fleet: "pg".into(),
+            bv_id: bv.into(),
+            seq: self.seq,
+            issued_ms: v2t_edge::uplink::unix_ms(),
+            body,
+        };
+        link::seal(&m, &self.key).unwrap()
+    }
+
+    /// Publishes `frame` on BV `bv`'s `leaf` topic (QoS 1).
+    pub fn send(&self, bv: &str, leaf: &str, frame: Vec<u8>) {
+        self.client.publish(topics::bv("pg", bv, leaf), rumqttc::QoS::AtLeastOnce, false, frame).unwrap();
+    }
+
+    /// The next event BV `bv` reports (JSON), skipping everything else.
+    pub fn event(&self, bv: &str, timeout: Duration) -> serde_json::Value {
+        let topic = topics::bv("pg", bv, topics::EVENT);
+        let deadline = Instant::now() + timeout;
+        while let Some(left) = deadline.checked_duration_since(Instant::now()) {
+            match self.inbox.recv_timeout(left) {
+                Ok((t, payload)) if t == topic => return serde_json::from_slice(&payload).unwrap(),
+                Ok(_) => {}
+                Err(_) => break,
+            }
+        }
+        panic!("no event from {bv} within {timeout:?}");
+    }
+
+    /// The next telemetry report of BV `bv`.
+    pub fn telemetry(&self, bv: &str, timeout: Duration) -> link::Telemetry {
+        let topic = topics::bv("pg", bv, topics::TELEMETRY);
+        let deadline = Instant::now() + timeout;
+        while let Some(left) = deadline.checked_duration_since(Instant::now()) {
+            match self.inbox.recv_timeout(left) {
+                Ok((t, payload)) if t == topic => match link::read_report(&payload).unwrap() {
+                    link::EdgeReport::Telemetry(t) => return t,
+                    other => panic!("{other:?} on the telemetry topic"),
+                },
+                Ok(_) => {}
+                Err(_) => break,
+            }
+        }
+        panic!("no telemetry from {bv} within {timeout:?}");
+    }
+}
