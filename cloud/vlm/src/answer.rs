@@ -87,7 +87,7 @@ pub enum AnswerProblem {
 }
 
 /// The JSON text in an answer: the whole text if it is JSON, else the last ```json (or plain ```)
-/// fence, else the span from the first `{` to the last `}`.
+/// fence, else the span from the first `{` to the last `}` (or to the end).
 pub fn extract_json(content: &str) -> Option<&str> {
     let trimmed = content.trim();
     if serde_json::from_str::<Value>(trimmed).is_ok() {
@@ -96,9 +96,10 @@ pub fn extract_json(content: &str) -> Option<&str> {
     if let Some(fenced) = last_fence(trimmed) {
         return Some(fenced);
     }
+    // An object cut short still goes to the parser, whose error says where it ends.
     let start = trimmed.find('{')?;
-    let end = trimmed.rfind('}')?;
-    trimmed.get(start..=end).filter(|_| start < end)
+    let end = trimmed.rfind('}').filter(|&e| e > start).map_or(trimmed.len(), |e| e + 1);
+    trimmed.get(start..end)
 }
 
 /// The body of the last fenced block whose info string is empty or `json`.
@@ -190,6 +191,7 @@ mod tests {
         assert_eq!(extract_json("```\n{\"a\": 0}\n```\nthen\n```JSON\n{\"a\": 2}\n```"), Some("{\"a\": 2}"));
         assert_eq!(extract_json("```python\nx = 1\n```\nresult {\"a\": 3} done"), Some("{\"a\": 3}"));
         assert_eq!(extract_json("no json here"), None);
+        assert_eq!(extract_json("so: {\"a\": "), Some("{\"a\":"));
     }
 
     #[test]
