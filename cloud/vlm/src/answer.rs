@@ -217,7 +217,8 @@ mod tests {
 
     #[test]
     fn replies_are_read_from_the_envelope() {
-        let ok = r#"{"model":"m-2024","choices":[{"message":{"role":"assistant","content":"{}"},"finish_reason":"stop"}]}"#;
+        let ok =
+            r#"{"model":"m-2024","choices":[{"message":{"role":"assistant","content":"{}"},"finish_reason":"stop"}]}"#;
         assert_eq!(parse_reply(ok).unwrap().model.as_deref(), Some("m-2024"));
         let refused = r#"{"choices":[{"message":{"content":null,"refusal":"no"}}]}"#;
         assert_eq!(parse_reply(refused), Err(ReplyError::Refused("no".into())));

@@ -228,8 +228,7 @@ fn write_json<T: Serialize>(dir: &Path, name: &str, value: &T) -> Result<(), Vlm
 }
 
 fn read_json<T: for<'de> Deserialize<'de>>(dir: &Path, name: &str) -> Result<T, VlmError> {
-    let text =
-        std::fs::read_to_string(dir.join(name)).map_err(|e| cassette_error(dir, format!("read {name}: {e}")))?;
+    let text = std::fs::read_to_string(dir.join(name)).map_err(|e| cassette_error(dir, format!("read {name}: {e}")))?;
     serde_json::from_str(&text).map_err(|e| cassette_error(dir, format!("{name}: {e}")))
 }
 
@@ -269,7 +268,11 @@ impl Cassette {
         if images.len() != self.manifest.frames.len() {
             return Err(cassette_error(
                 &self.dir,
-                format!("lists {} frames but its first request carries {} images", self.manifest.frames.len(), images.len()),
+                format!(
+                    "lists {} frames but its first request carries {} images",
+                    self.manifest.frames.len(),
+                    images.len()
+                ),
             ));
         }
         let engine = base64::engine::general_purpose::STANDARD;

@@ -74,8 +74,12 @@ pub fn converse(transport: &mut dyn Transport, c: &Conversation<'_>) -> Result<O
     messages.extend(repair_messages(c.prompt, &reply.content, &first.to_string()));
     let repaired = chat(transport, c, &messages, schema_in_prompt, &mut requests)?;
     match check_answer(&repaired.content, c.pet_label_s, &source(&repaired)) {
-        Ok(semantics) => Ok(Outcome { semantics, requests, repairs: 1, schema_in_prompt, repaired_problem: Some(first) }),
-        Err(second) => Err(VlmError::InvalidAnswer { first, second, answer: excerpt(&repaired.content, EXCERPT_CHARS) }),
+        Ok(semantics) => {
+            Ok(Outcome { semantics, requests, repairs: 1, schema_in_prompt, repaired_problem: Some(first) })
+        }
+        Err(second) => {
+            Err(VlmError::InvalidAnswer { first, second, answer: excerpt(&repaired.content, EXCERPT_CHARS) })
+        }
     }
 }
 
@@ -88,7 +92,8 @@ fn chat(
     schema_in_prompt: bool,
     requests: &mut u32,
 ) -> Result<ChatReply, VlmError> {
-    let request = HttpRequest { path: CHAT_COMPLETIONS_PATH.into(), body: chat_body(c.settings, messages, schema_in_prompt) };
+    let request =
+        HttpRequest { path: CHAT_COMPLETIONS_PATH.into(), body: chat_body(c.settings, messages, schema_in_prompt) };
     let attempts = c.retry.max_attempts.max(1);
     let mut last = String::new();
     for attempt in 1..=attempts {

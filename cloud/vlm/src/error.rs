@@ -36,7 +36,9 @@ pub enum VlmError {
     },
     /// The server rejected `response_format: json_schema` and the configuration forbids the
     /// fallback to the schema in the prompt (`structured_output = json_schema`).
-    #[error("the VLM server does not accept response_format json_schema (HTTP {status}: {body}); use structured output `auto` or `in_prompt`")]
+    #[error(
+        "the VLM server does not accept response_format json_schema (HTTP {status}: {body}); use structured output `auto` or `in_prompt`"
+    )]
     ResponseFormatRejected {
         /// Status code.
         status: u16,

@@ -216,7 +216,8 @@ pub fn extract_frames(video: &Path, settings: &FrameSettings) -> Result<(VideoIn
     settings.validate()?;
     std::fs::metadata(video).map_err(|source| FrameError::Video { path: video.to_owned(), source })?;
     let info = probe(video, &settings.tools)?;
-    if !(info.duration_s <= settings.max_duration_s) {
+    // The probe only gives finite, positive durations.
+    if info.duration_s > settings.max_duration_s {
         return Err(FrameError::TooLong {
             video: video.to_owned(),
             duration_s: info.duration_s,
@@ -243,10 +244,8 @@ pub fn probe(video: &Path, tools: &Tools) -> Result<VideoInfo, FrameError> {
         .args(["-of", "json"])
         .arg(video);
     let out = run(&mut cmd, &tools.ffprobe, video)?;
-    parse_probe(&String::from_utf8_lossy(&out.stdout)).map_err(|problem| FrameError::Probe {
-        video: video.to_owned(),
-        problem,
-    })
+    parse_probe(&String::from_utf8_lossy(&out.stdout))
+        .map_err(|problem| FrameError::Probe { video: video.to_owned(), problem })
 }
 
 #[derive(Deserialize)]

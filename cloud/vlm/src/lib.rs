@@ -136,7 +136,10 @@ pub fn abstract_video(video: &Path, pet_label_s: f64, cfg: &VlmConfig, mode: &Mo
                 video: info,
                 settings: cfg.request.clone(),
                 pet_label_s,
-                frames: frames.iter().map(|f| RecordedFrame { timestamp_ms: f.timestamp_ms, width: f.width, height: f.height }).collect(),
+                frames: frames
+                    .iter()
+                    .map(|f| RecordedFrame { timestamp_ms: f.timestamp_ms, width: f.width, height: f.height })
+                    .collect(),
                 exchanges: Vec::new(),
             };
             let semantics = result.as_ref().ok().map(|a| &a.semantics);
@@ -224,13 +227,19 @@ fn run(
         pet_label_s,
         source: &source,
     };
-    let Outcome { semantics, requests, repairs, schema_in_prompt, repaired_problem } = converse(transport, &conversation)?;
+    let Outcome { semantics, requests, repairs, schema_in_prompt, repaired_problem } =
+        converse(transport, &conversation)?;
     Ok(Abstraction {
         semantics,
         video: *info,
         frames: frames
             .iter()
-            .map(|f| FrameUsed { timestamp_ms: f.timestamp_ms, width: f.width, height: f.height, jpeg_bytes: f.jpeg.len() })
+            .map(|f| FrameUsed {
+                timestamp_ms: f.timestamp_ms,
+                width: f.width,
+                height: f.height,
+                jpeg_bytes: f.jpeg.len(),
+            })
             .collect(),
         requests,
         repairs,

@@ -95,10 +95,8 @@ impl Prompt {
             }
         }
         let mut take = |name: &str, allowed: &[&str]| -> Result<String, PromptError> {
-            let i = parts
-                .iter()
-                .position(|(n, _)| n == name)
-                .ok_or_else(|| malformed(format!("no `# {name}` part")))?;
+            let i =
+                parts.iter().position(|(n, _)| n == name).ok_or_else(|| malformed(format!("no `# {name}` part")))?;
             let (_, body) = parts.remove(i);
             let body = body.trim().to_owned();
             for used in placeholders(&body) {
@@ -147,7 +145,10 @@ impl Prompt {
     /// The label before frame `index` (1-based).
     pub fn frame_label(&self, index: usize, count: usize, timestamp_ms: u64) -> String {
         let t = format!("{}.{:03}", timestamp_ms / 1000, timestamp_ms % 1000);
-        fill(&self.frame, &[("frame_index", &index.to_string()), ("frame_count", &count.to_string()), ("timestamp_s", &t)])
+        fill(
+            &self.frame,
+            &[("frame_index", &index.to_string()), ("frame_count", &count.to_string()), ("timestamp_s", &t)],
+        )
     }
 
     /// The repair message that sends `errors` back.
@@ -222,7 +223,8 @@ mod tests {
         let p = Prompt::builtin().unwrap();
         assert_eq!(p.version(), "semantics-v1");
         let user = p.user_text(16, 10.0, false);
-        let order = ["Road topology", "Ego vehicle", "Interacting background vehicles", "type and style", "Event description"];
+        let order =
+            ["Road topology", "Ego vehicle", "Interacting background vehicles", "type and style", "Event description"];
         let at: Vec<usize> = order.iter().map(|s| user.find(s).unwrap_or_else(|| panic!("no {s}"))).collect();
         assert!(at.windows(2).all(|w| w[0] < w[1]), "{at:?}");
         assert!(user.contains("16 images") && user.contains("10.00 s") && user.contains(SCHEMA_NAME));

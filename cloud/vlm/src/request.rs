@@ -72,7 +72,9 @@ mod tests {
     use super::*;
 
     fn frames() -> Vec<Frame> {
-        (0..3).map(|i| Frame { timestamp_ms: 500 + 1000 * i, width: 4, height: 2, jpeg: vec![0xFF, 0xD8, i as u8] }).collect()
+        (0..3)
+            .map(|i| Frame { timestamp_ms: 500 + 1000 * i, width: 4, height: 2, jpeg: vec![0xFF, 0xD8, i as u8] })
+            .collect()
     }
 
     #[test]

@@ -126,7 +126,10 @@ fn invalid_json_twice_is_a_clear_error() {
     let (result, received) = run(vec![Reply::chat("{\"road_topology\": "), Reply::chat("I am not sure.")]);
     let e = result.unwrap_err();
     assert!(
-        matches!(&e, VlmError::InvalidAnswer { first: AnswerProblem::Syntax { .. }, second: AnswerProblem::NoJson, .. }),
+        matches!(
+            &e,
+            VlmError::InvalidAnswer { first: AnswerProblem::Syntax { .. }, second: AnswerProblem::NoJson, .. }
+        ),
         "{e:?}"
     );
     assert!(e.to_string().contains("repaired answer"), "{e}");
@@ -146,7 +149,8 @@ fn a_schema_violation_is_sent_back_and_fixed() {
 
 #[test]
 fn schema_violations_twice_are_a_clear_error() {
-    let unknown_field = cut_in().replace("\"maneuver\": \"straight\"", "\"maneuver\": \"straight\", \"confidence\": 0.9");
+    let unknown_field =
+        cut_in().replace("\"maneuver\": \"straight\"", "\"maneuver\": \"straight\", \"confidence\": 0.9");
     let three_bvs = {
         let mut v: serde_json::Value = serde_json::from_str(&cut_in()).unwrap();
         let bv = v["interacting_bvs"][0].clone();
@@ -159,7 +163,11 @@ fn schema_violations_twice_are_a_clear_error() {
     };
     let (result, received) = run(vec![Reply::chat(&unknown_field), Reply::chat(&three_bvs)]);
     let e = result.unwrap_err();
-    let VlmError::InvalidAnswer { first: AnswerProblem::Semantics(first), second: AnswerProblem::Semantics(second), .. } = &e
+    let VlmError::InvalidAnswer {
+        first: AnswerProblem::Semantics(first),
+        second: AnswerProblem::Semantics(second),
+        ..
+    } = &e
     else {
         panic!("{e:?}")
     };
@@ -171,8 +179,10 @@ fn schema_violations_twice_are_a_clear_error() {
 #[test]
 fn rate_limits_are_retried_after_the_servers_wait() {
     let started = Instant::now();
-    let (result, received) =
-        run(vec![Reply::status(429, "{\"error\":\"slow down\"}").with_header("Retry-After", "0.15"), Reply::chat(&cut_in())]);
+    let (result, received) = run(vec![
+        Reply::status(429, "{\"error\":\"slow down\"}").with_header("Retry-After", "0.15"),
+        Reply::chat(&cut_in()),
+    ]);
     let a = result.unwrap();
     assert_eq!(a.requests, 2);
     assert_eq!(received.len(), 2);
@@ -208,7 +218,8 @@ fn a_hanging_server_times_out() {
 
 #[test]
 fn without_response_format_support_the_schema_goes_into_the_prompt() {
-    let unsupported = Reply::status(400, "{\"error\":{\"message\":\"Unknown parameter: 'response_format.json_schema'\"}}");
+    let unsupported =
+        Reply::status(400, "{\"error\":{\"message\":\"Unknown parameter: 'response_format.json_schema'\"}}");
     let (result, received) = run(vec![unsupported.clone(), Reply::chat(&cut_in())]);
     let a = result.unwrap();
     assert!(a.schema_in_prompt);
@@ -218,7 +229,8 @@ fn without_response_format_support_the_schema_goes_into_the_prompt() {
     assert!(user.contains("conforms to this JSON Schema") && user.contains("\"interaction_type\""), "{user}");
 
     // Where json_schema is required, the same answer is an error.
-    let (result, received) = run_with(vec![unsupported], |cfg| cfg.request.structured_output = StructuredOutput::JsonSchema);
+    let (result, received) =
+        run_with(vec![unsupported], |cfg| cfg.request.structured_output = StructuredOutput::JsonSchema);
     assert!(matches!(result, Err(VlmError::ResponseFormatRejected { status: 400, .. })), "{result:?}");
     assert_eq!(received.len(), 1);
 }
