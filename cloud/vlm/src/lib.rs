@@ -37,6 +37,7 @@ pub mod cassette;
 pub mod client;
 pub mod config;
 mod error;
+mod files;
 pub mod frames;
 pub mod prompt;
 pub mod request;
@@ -49,6 +50,7 @@ use v2t_model::semantics::{MAX_PET_LABEL_S, ScenarioSemantics, SourceMetadata};
 pub use crate::answer::AnswerProblem;
 pub use crate::config::{ApiKey, ConfigError, RequestSettings, RetryPolicy, StructuredOutput, Timeouts, VlmConfig};
 pub use crate::error::VlmError;
+pub use crate::files::check_config_file;
 pub use crate::frames::{Frame, FrameError, FrameSettings, VideoInfo};
 
 use crate::cassette::{Cassette, Manifest, RecordedFrame, Recorder, Replayer};

@@ -58,3 +58,22 @@ fn a_missing_cassette_is_a_clear_error() {
     let e = abstract_video(Path::new("x.mp4"), 1.0, &VlmConfig::default(), &Mode::Replay(dir)).unwrap_err();
     assert!(e.to_string().contains("no_such_scenario") && e.to_string().contains("cassette.json"), "{e}");
 }
+
+#[test]
+fn every_file_under_config_vlm_checks() {
+    fn walk(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() { walk(&path, out) } else { out.push(path) }
+        }
+    }
+    let mut files = Vec::new();
+    walk(&repo_root().join("config/vlm"), &mut files);
+    assert!(files.len() >= 7, "{files:?}");
+    for path in &files {
+        v2t_vlm::check_config_file(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    }
+    let stray = repo_root().join("config/vlm/cassettes/cut_in/notes.txt");
+    let e = v2t_vlm::check_config_file(&stray).unwrap_err();
+    assert!(e.to_string().contains("not part of the cassette"), "{e}");
+}
