@@ -226,6 +226,9 @@ pub fn extract_frames(video: &Path, settings: &FrameSettings) -> Result<(VideoIn
     }
     let motion = if settings.motion_frames > 0 { motion_scores(video, &info, &settings.tools)? } else { Vec::new() };
     let times = select_timestamps(info.duration_s, settings.count, settings.motion_frames, &motion);
+    if times.is_empty() {
+        return Err(FrameError::Probe { video: video.to_owned(), problem: "no frame to take".into() });
+    }
     let (width, height) = fit_long_side(info.width, info.height, settings.max_long_side_px);
     let mut frames = Vec::with_capacity(times.len());
     for t in times {
@@ -318,7 +321,8 @@ pub fn fit_long_side(width: u32, height: u32, max_long: u32) -> (u32, u32) {
 
 /// Picks `count` timestamps in `[0, duration)`: `count − motion` on a uniform grid (the middle of
 /// equal slices), then up to `motion` where `motion_scores` (timestamp, score) is largest, each at
-/// least half a slice of `count` away from every one already taken. Sorted, in s.
+/// least half a slice of `count` away from every one already taken; if fewer are found, points of
+/// the uniform grid of `count` that keep that distance. Sorted, in s.
 pub fn select_timestamps(duration_s: f64, count: u32, motion: u32, motion_scores: &[(f64, f64)]) -> Vec<f64> {
     let motion = motion.min(count);
     let uniform = count - motion;
@@ -335,6 +339,16 @@ pub fn select_timestamps(duration_s: f64, count: u32, motion: u32, motion_scores
         if (0.0..duration_s).contains(&t) && times.iter().all(|&u| (u - t).abs() >= min_gap) {
             times.push(t);
             added += 1;
+        }
+    }
+    // Too few places of motion (a still or very short video): fill from the uniform grid of `count`.
+    let grid = (0..count).map(|i| (f64::from(i) + 0.5) * duration_s / f64::from(count.max(1)));
+    for t in grid {
+        if times.len() >= count as usize {
+            break;
+        }
+        if times.iter().all(|&u| (u - t).abs() >= min_gap) {
+            times.push(t);
         }
     }
     times.sort_by(f64::total_cmp);
@@ -428,10 +442,13 @@ mod tests {
         let scores = [(2.0, 1.0), (5.0, 90.0), (5.1, 80.0), (7.3, 50.0), (f64::NAN, 99.0)];
         let t = select_timestamps(10.0, 4, 2, &scores);
         // Uniform 2.5 and 7.5; 5.0 (largest), 5.1 too close to it, 7.3 too close to 7.5, then 2.0 is 0.5 s
-        // from 2.5: the gap is 10 / 8 = 1.25 s, so it is skipped too.
-        assert_eq!(t, vec![2.5, 5.0, 7.5]);
+        // from 2.5: the gap is 10 / 8 = 1.25 s, so it is skipped too; the grid of 4 fills in 1.25.
+        assert_eq!(t, vec![1.25, 2.5, 5.0, 7.5]);
         let t = select_timestamps(10.0, 4, 2, &[(5.0, 9.0), (0.2, 3.0)]);
         assert_eq!(t, vec![0.2, 2.5, 5.0, 7.5]);
+        // No motion found: the uniform grid of `count` fills in.
+        assert_eq!(select_timestamps(8.0, 2, 2, &[]), vec![2.0, 6.0]);
+        assert_eq!(select_timestamps(8.0, 2, 2, &[(2.5, 1.0)]), vec![2.5, 6.0]);
     }
 
     #[test]
