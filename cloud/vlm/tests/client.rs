@@ -316,3 +316,21 @@ fn a_recorded_run_replays_offline_byte_for_byte_and_keeps_the_key_out() {
     let e = abstract_video(std::path::Path::new("other.mp4"), 4.7, &VlmConfig::default(), &offline).unwrap_err();
     assert!(matches!(&e, VlmError::Replay(m) if m.contains("clip.mp4")), "{e:?}");
 }
+
+#[test]
+fn a_recorded_timeout_replays_as_a_timeout() {
+    let dir = temp_dir("record-timeout");
+    let server = Server::start(vec![Reply::chat(&cut_in()).after(Duration::from_secs(2)), Reply::chat(&cut_in())]);
+    let mut cfg = config(&server);
+    cfg.timeouts.request = Duration::from_millis(300);
+    let recorded = abstract_video(video(), 2.0, &cfg, &Mode::Record(dir.clone())).unwrap();
+    assert_eq!(recorded.requests, 2);
+    let first: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("exchange_01.json")).unwrap()).unwrap();
+    assert_eq!(first["error"]["kind"], "timeout");
+
+    let started = Instant::now();
+    let replayed = abstract_video(video(), 2.0, &VlmConfig::default(), &Mode::Replay(dir)).unwrap();
+    assert_eq!(replayed, recorded);
+    assert!(started.elapsed() < Duration::from_millis(300), "a replay does not wait");
+}
