@@ -122,14 +122,16 @@ pub fn abstract_video(video: &Path, pet_label_s: f64, cfg: &VlmConfig, mode: &Mo
             cfg.validate()?;
             let (info, frames) = frames::extract_frames(video, &cfg.frames)?;
             let mut transport = HttpTransport::new(&cfg.base_url, cfg.api_key.clone(), cfg.timeouts);
-            run(&mut transport, video, &info, &frames, pet_label_s, &cfg.request, cfg, &prompt)
+            let input = RunInput { video, info: &info, frames: &frames, pet_label_s, settings: &cfg.request };
+            run(&mut transport, input, cfg, &prompt)
         }
         Mode::Record(dir) => {
             cfg.validate()?;
             let (info, frames) = frames::extract_frames(video, &cfg.frames)?;
             let transport = HttpTransport::new(&cfg.base_url, cfg.api_key.clone(), cfg.timeouts);
             let mut recorder = Recorder::new(transport, cfg.api_key.is_some());
-            let result = run(&mut recorder, video, &info, &frames, pet_label_s, &cfg.request, cfg, &prompt);
+            let input = RunInput { video, info: &info, frames: &frames, pet_label_s, settings: &cfg.request };
+            let result = run(&mut recorder, input, cfg, &prompt);
             let manifest = Manifest {
                 format: cassette::FORMAT.into(),
                 provenance: "recorded".into(),
@@ -196,22 +198,28 @@ fn replay(
     }
     let frames = cassette.frames()?;
     let mut replayer = Replayer::new(&cassette, bless);
-    let abstraction = run(&mut replayer, video, &m.video, &frames, pet_label_s, &m.settings, cfg, prompt)?;
+    let input = RunInput { video, info: &m.video, frames: &frames, pet_label_s, settings: &m.settings };
+    let abstraction = run(&mut replayer, input, cfg, prompt)?;
     replayer.finish()?;
     Ok((abstraction, replayer))
 }
 
-#[allow(clippy::too_many_arguments)]
+/// What one run works on.
+struct RunInput<'a> {
+    video: &'a Path,
+    info: &'a VideoInfo,
+    frames: &'a [Frame],
+    pet_label_s: f64,
+    settings: &'a RequestSettings,
+}
+
 fn run(
     transport: &mut dyn Transport,
-    video: &Path,
-    info: &VideoInfo,
-    frames: &[Frame],
-    pet_label_s: f64,
-    settings: &RequestSettings,
+    input: RunInput<'_>,
     cfg: &VlmConfig,
     prompt: &Prompt,
 ) -> Result<Abstraction, VlmError> {
+    let RunInput { video, info, frames, pet_label_s, settings } = input;
     let source = SourceMetadata {
         video: file_name(video),
         dataset: None,
