@@ -81,6 +81,8 @@ fn every_configuration_file_loads_and_validates() {
                 assert!(path.with_extension("xodr").exists(), "{rel}: the map it generates is missing");
             }
             "maps" if rel.ends_with("README.md") => {}
+            // The VLM prompt and the recorded exchanges: a cassette replays to its semantics.json.
+            "vlm" => v2t_vlm::check_config_file(path).unwrap_or_else(|e| panic!("config/{rel}: {e}")),
             _ => panic!("config/{rel}: no validator knows this file; add one to tests/config_files.rs"),
         }
         checked += 1;
