@@ -173,3 +173,86 @@ fn one_serve_supervises_two_bvs_each_with_its_own_prior_and_target() {
         );
     }
 }
+
+/// The whole session in closed loop: two BVs, each its full onboard runtime (`v2t-edge launch` with
+/// the uplink node) and a simulated proving ground (`v2t-edge sim-ecu --from-uplink`) that builds
+/// the world from the prior the BV accepted; one `serve` uploads a different τ to each, arms and
+/// starts them, and each BV regulates its own interaction to its own target.
+#[test]
+fn two_simulated_bvs_regulate_their_own_priors_in_closed_loop_under_one_serve() {
+    let dir = tempdir("fleet-closed");
+    let (_key, secret, public) = write_keys(&dir, 31);
+    let port = free_port();
+    let listen = format!("127.0.0.1:{port}");
+    let key_arg = secret.to_str().unwrap().to_owned();
+    let mut serve = Proc::start(
+        &bin("video2track"),
+        &["serve", "--listen", &listen, "--fleet", "pg", "--key", &key_arg, "--status-period-s", "0"],
+        "serve",
+    );
+    serve.expect_line("embedded broker listening", Duration::from_secs(10));
+    let mut launchers = Vec::new();
+    let mut ecus = Vec::new();
+    for (i, bv) in ["bv1", "bv2"].into_iter().enumerate() {
+        let cfg = v2t_tests::harness::edge_config_from(&dir, port, &public, bv, &format!("config/edge/{bv}_link.toml"));
+        let ns = format!("v2t/test/closed{}/{bv}", std::process::id());
+        let cfg_arg = cfg.to_str().unwrap().to_owned();
+        launchers.push(Proc::start(&bin("v2t-edge"), &["launch", "--config", &cfg_arg, "--namespace", &ns], bv));
+        let out = dir.join(format!("{bv}.run.json"));
+        let seed = (i + 1).to_string();
+        let args = [
+            "sim-ecu",
+            "--config",
+            &cfg_arg,
+            "--namespace",
+            &ns,
+            "--from-uplink",
+            "--seed",
+            &seed,
+            "--engage-timeout-s",
+            "60",
+        ];
+        let mut cmd = std::process::Command::new(bin("v2t-edge"));
+        cmd.args(args).arg("--out").arg(&out).current_dir(repo_root());
+        ecus.push((bv, out, std::thread::spawn(move || cmd.output().unwrap())));
+    }
+    let mut online =
+        [serve.expect_line(" online", Duration::from_secs(15)), serve.expect_line(" online", Duration::from_secs(15))];
+    online.sort();
+    assert!(online[0].contains("bv1") && online[1].contains("bv2"), "{online:?}");
+
+    let grounded = dir.join("left_turn.grounded.json");
+    std::fs::write(&grounded, serde_json::to_string_pretty(&left_turn_grounded()).unwrap()).unwrap();
+    let file = grounded.to_str().unwrap();
+    let targets = [("bv1", 3.0, "yield"), ("bv2", 4.0, "yield")];
+    for (bv, tau, style) in targets {
+        serve.type_line(&format!("upload {file} {bv} tau {tau} style {style}"));
+        serve.expect_line(&format!("{bv} accepted prior"), Duration::from_secs(5));
+    }
+    // The simulated worlds start from the priors; then the supervisor arms and starts both.
+    std::thread::sleep(Duration::from_millis(500));
+    serve.type_line("arm");
+    serve.expect_all(&["bv1 accepted arm", "bv2 accepted arm"], Duration::from_secs(5));
+    std::thread::sleep(Duration::from_millis(300));
+    serve.type_line("start");
+    serve.expect_all(&["bv1 accepted start", "bv2 accepted start"], Duration::from_secs(5));
+    for ((bv, out, ecu), (_, tau, _)) in ecus.into_iter().zip(targets) {
+        let output = ecu.join().unwrap();
+        eprintln!(
+            "{bv} sim-ecu:\n{}{}",
+            String::from_utf8_lossy(&output.stdout),
+            String::from_utf8_lossy(&output.stderr)
+        );
+        assert!(output.status.success(), "{bv}: sim-ecu failed");
+        let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+        let r = &run["result"];
+        assert_eq!(r["tau_s"].as_f64(), Some(tau), "{bv} ran its own prior's target");
+        assert_eq!(r["collision"], serde_json::Value::Null, "{bv}");
+        assert_eq!(r["zone_overlap"], false, "{bv}");
+        assert_eq!(r["conflicts"][0]["order_matches_style"], true, "{bv}");
+        let pet = r["pet_min_s"].as_f64().unwrap();
+        println!("{bv}: τ {tau:.2} s (yield), PET {pet:.2} s, error {:.1} %", 100.0 * (pet - tau).abs() / tau);
+        assert!((pet - tau).abs() / tau <= 0.15, "{bv}: PET {pet:.2} s vs τ {tau:.2} s");
+    }
+    drop(launchers);
+}

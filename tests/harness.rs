@@ -111,6 +111,20 @@ impl Proc {
         panic!("{}: no line containing {needle:?} within {timeout:?}", self.tag);
     }
 
+    /// One line containing each of `needles`, in any order, within `timeout`.
+    pub fn expect_all(&self, needles: &[&str], timeout: Duration) {
+        let mut left: Vec<&str> = needles.to_vec();
+        let deadline = Instant::now() + timeout;
+        while !left.is_empty() {
+            let Some(wait) = deadline.checked_duration_since(Instant::now()) else { break };
+            match self.lines.recv_timeout(wait) {
+                Ok(line) => left.retain(|n| !line.contains(n)),
+                Err(_) => break,
+            }
+        }
+        assert!(left.is_empty(), "{}: no lines containing {left:?} within {timeout:?}", self.tag);
+    }
+
     /// Types a console line.
     pub fn type_line(&mut self, line: &str) {
         let stdin = self.stdin.as_mut().unwrap();
@@ -133,6 +147,14 @@ impl Proc {
 
 impl Drop for Proc {
     fn drop(&mut self) {
+        // SIGTERM first: a launcher stops its nodes on it.
+        if matches!(self.child.try_wait(), Ok(None)) {
+            let _ = Command::new("kill").arg("-TERM").arg(self.child.id().to_string()).status();
+            let deadline = Instant::now() + Duration::from_secs(3);
+            while Instant::now() < deadline && matches!(self.child.try_wait(), Ok(None)) {
+                std::thread::sleep(Duration::from_millis(20));
+            }
+        }
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
@@ -235,7 +257,14 @@ pub fn write_keys(dir: &Path, seed: u8) -> (SigningKey, PathBuf, PathBuf) {
 /// An edge configuration in `dir` for BV `bv_id` of fleet `pg` on the broker at `port`, trusting
 /// the public key in `public`, with the proving ground as its geofence.
 pub fn edge_config(dir: &Path, port: u16, public: &Path, bv_id: &str) -> PathBuf {
-    let base = std::fs::read_to_string(repo_root().join("config/edge/bv1.toml")).unwrap();
+    edge_config_from(dir, port, public, bv_id, "config/edge/bv1.toml")
+}
+
+/// [`edge_config`] from another base configuration of `config/edge/` (its `[uplink]` section, if
+/// any, replaced).
+pub fn edge_config_from(dir: &Path, port: u16, public: &Path, bv_id: &str, base: &str) -> PathBuf {
+    let base = std::fs::read_to_string(repo_root().join(base)).unwrap();
+    let base = base.split("\n[uplink]").next().unwrap().to_owned();
     let edge_dir = repo_root().join("config/edge");
     let text = base.replace("\"../", &format!("\"{}/../", edge_dir.display()))
         + &format!(

@@ -14,7 +14,7 @@ use v2t_can::transport::{CanTransport, SocketCanBus};
 use v2t_sim::plant::ActuationRequest;
 use v2t_sim::runner::{RunOutcome, Simulation};
 use v2t_sim::vut::VutModel;
-use v2t_wire::{ActivePrior, Code, DbwMode, Header, Localization, VutState, services};
+use v2t_wire::{ActivePrior, Code, DbwMode, Header, Localization, StyleCode, VutState, services};
 
 use crate::canbus::{End, IpcCanBus};
 use crate::clock::now_ns;
@@ -29,21 +29,79 @@ const ECU_TIMEOUT_DECEL_MPS2: f64 = 3.0;
 /// GNSS/INS fixes every this many plant steps.
 const FIX_EVERY: usize = 2;
 
+/// Where the simulated world comes from.
+#[derive(Debug, Clone)]
+pub enum EcuSource {
+    /// A scenario card; the ECU also publishes the card's prior (the stand-in for a cloud upload).
+    Card(PathBuf),
+    /// The prior the uplink node accepted from the cloud: the ECU waits for it on the prior service
+    /// and builds the world from its paths (the BV at the start of its reference, the VUT at the
+    /// start of its route with the prior's speed), with these simulation settings.
+    Uplink {
+        /// Simulation settings (TOML, `config/sim/default.toml`).
+        sim_settings: PathBuf,
+        /// Longest wait for the prior, s.
+        wait_s: f64,
+    },
+}
+
 /// What the simulated ECU runs.
 #[derive(Debug, Clone)]
 pub struct EcuOptions {
-    /// The scenario card.
-    pub card: PathBuf,
-    /// VUT driver model (the card's own if `None`).
+    /// The world.
+    pub source: EcuSource,
+    /// VUT driver model (the card's own if `None`; IDM normal for an uplinked prior).
     pub vut: Option<VutModel>,
     /// Seed of the noise.
     pub seed: u64,
     /// Longest wait for the gateway to engage before the scenario starts, s.
     pub engage_timeout_s: f64,
-    /// Target PET instead of the card's, s.
+    /// Target PET instead of the card's, s (a card only: an uplinked prior carries its own).
     pub tau_s: Option<f64>,
-    /// Style instead of the card's.
+    /// Style instead of the card's (a card only).
     pub style: Option<v2t_model::Style>,
+}
+
+/// Longest simulated run built from a prior, s.
+const MAX_PRIOR_RUN_S: f64 = 120.0;
+
+/// The world of an uplinked prior: its paths, the BV's reference timing, the VUT's start speed.
+fn scenario_from_prior(
+    prior: &ActivePrior,
+    cfg: &Loaded,
+    settings: v2t_sim::config::SimSettings,
+    vut_model: VutModel,
+) -> Result<v2t_sim::scenario::Scenario, EdgeError> {
+    use v2t_model::geometry::Point2;
+    use v2t_model::path::ReferencePath;
+    use v2t_wire::Vector as _;
+    prior.check().map_err(|e| EdgeError::Prior(format!("prior {}: {e}", prior.prior_id)))?;
+    let path = |pts: &[v2t_wire::Vec2], what: &str| {
+        let pts: Vec<Point2> = pts.iter().map(|q| Point2 { x: q.x_m, y: q.y_m }).collect();
+        ReferencePath::from_points(&pts).map_err(|e| EdgeError::Prior(format!("prior {}: {what}: {e}", prior.prior_id)))
+    };
+    let profile: Vec<[f64; 2]> = prior.bv_profile.as_slice().iter().map(|q| [q.t_s, q.v_mps]).collect();
+    let vut_route = path(prior.vut_path.as_slice(), "VUT route")?;
+    let bv_end_s = profile.last().map_or(0.0, |[t, _]| *t);
+    let vut_end_s = vut_route.length() / prior.vut_speed_mps.max(1.0);
+    let style = match StyleCode::from_code(prior.style).map_err(|e| EdgeError::Prior(e.to_string()))? {
+        StyleCode::Rush => v2t_model::Style::Rush,
+        StyleCode::Yield => v2t_model::Style::Yield,
+    };
+    let paths = v2t_sim::scenario::ScenarioPaths {
+        name: format!("prior {}", prior.prior_id),
+        tau_s: prior.tau_s,
+        style,
+        duration_s: (bv_end_s.max(vut_end_s) + 2.0).min(MAX_PRIOR_RUN_S),
+        vut_route,
+        vut_speed_mps: prior.vut_speed_mps,
+        vut_model,
+        bv_id: "bv".into(),
+        bv_route: path(prior.bv_path.as_slice(), "BV path")?,
+        bv_reference: v2t_sim::scenario::SpeedProfile::new(profile),
+    };
+    v2t_sim::scenario::Scenario::from_paths(paths, settings, cfg.vut_vehicle.clone(), cfg.vehicle.clone())
+        .map_err(|e| EdgeError::Prior(format!("prior {}: {e}", prior.prior_id)))
 }
 
 /// What the ECU saw of the commands.
@@ -171,20 +229,49 @@ impl<S: Service + 'static> Io<S> {
 /// Runs the scenario of `opts` against the onboard stack of `cfg` in real time; returns the
 /// measured run and the ECU's statistics. Ends early (with `Ok`) on SIGINT/SIGTERM.
 pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<(RunOutcome, EcuStats), EdgeError> {
-    let mut scenario = v2t_sim::files::load_scenario(&opts.card).map_err(|e| EdgeError::Prior(e.to_string()))?;
-    if let Some(tau) = opts.tau_s {
-        if !(tau.is_finite() && tau > 0.0) {
-            return Err(EdgeError::Prior(format!("target PET must be positive, got {tau}")));
+    let bus = Bus::<S>::new("sim-ecu", &cfg.edge.namespace)?;
+    let (scenario, card_prior) = match &opts.source {
+        EcuSource::Card(card) => {
+            let mut scenario = v2t_sim::files::load_scenario(card).map_err(|e| EdgeError::Prior(e.to_string()))?;
+            if let Some(tau) = opts.tau_s {
+                if !(tau.is_finite() && tau > 0.0) {
+                    return Err(EdgeError::Prior(format!("target PET must be positive, got {tau}")));
+                }
+                scenario.tau_s = tau;
+            }
+            if let Some(style) = opts.style {
+                scenario.style = style;
+            }
+            let prior = crate::prior::from_scenario(&scenario, 0, opts.seed.wrapping_add(1), now_ns())?;
+            (scenario, Some((prior, bus.publisher::<ActivePrior>(services::PRIOR)?)))
         }
-        scenario.tau_s = tau;
-    }
-    if let Some(style) = opts.style {
-        scenario.style = style;
-    }
+        EcuSource::Uplink { sim_settings, wait_s } => {
+            let settings: v2t_sim::config::SimSettings =
+                v2t_sim::files::load_toml(sim_settings).map_err(|e| EdgeError::Prior(e.to_string()))?;
+            let priors = bus.subscriber::<ActivePrior>(services::PRIOR)?;
+            let deadline = now_ns() + (wait_s * 1e9) as u64;
+            let prior = loop {
+                let mut newest = None;
+                while let Some(sample) = priors.receive().map_err(|e| EdgeError::ipc("receive", services::PRIOR, e))? {
+                    newest = Some(sample.clone());
+                }
+                if let Some(p) = newest {
+                    break p;
+                }
+                if now_ns() > deadline {
+                    return Err(EdgeError::Prior(format!("no prior from the uplink within {wait_s} s")));
+                }
+                if !bus.wait(Duration::from_millis(20)) {
+                    return Err(EdgeError::Prior("stopped while waiting for a prior".into()));
+                }
+            };
+            eprintln!("sim-ecu: prior {} from the uplink: τ {} s", prior.prior_id, prior.tau_s);
+            let model = opts.vut.unwrap_or(VutModel::IdmNormal);
+            (scenario_from_prior(&prior, cfg, settings, model)?, None)
+        }
+    };
     let model = opts.vut.unwrap_or(scenario.vut.default_model);
     let mut driver = model.driver();
-    let bus = Bus::<S>::new("sim-ecu", &cfg.edge.namespace)?;
-    let prior_out = bus.publisher::<ActivePrior>(services::PRIOR)?;
     let mut io = Io {
         fixes: bus.publisher(services::LOCALIZATION)?,
         fix_wake: bus.notifier(services::WAKE_STATE)?,
@@ -195,12 +282,15 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<(Run
         vut_header: Header::default(),
         bus,
     };
-    let prior = crate::prior::from_scenario(&scenario, 0, opts.seed.wrapping_add(1), now_ns())?;
-    // Sent again every second, as the cloud would: a node that (re)starts later gets it too.
-    let send_prior = |prior: &ActivePrior| {
-        prior_out.send_copy(prior.clone()).map_err(|e| EdgeError::ipc("send", services::PRIOR, e))
+    // A card's prior is sent again every second, as the cloud would: a node that (re)starts later
+    // gets it too. An uplinked prior stays with the uplink node.
+    let send_prior = || match &card_prior {
+        Some((prior, out)) => {
+            out.send_copy(prior.clone()).map(|_| ()).map_err(|e| EdgeError::ipc("send", services::PRIOR, e))
+        }
+        None => Ok(()),
     };
-    send_prior(&prior)?;
+    send_prior()?;
     let prior_every = (1.0 / scenario.settings.plant_dt_s).round().max(1.0) as u64;
     let mut sim = Simulation::new(&scenario, opts.seed);
     let dt = scenario.settings.plant_dt_s;
@@ -218,7 +308,7 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<(Run
         }
         io.drain(&mut cmds);
         if k.is_multiple_of(prior_every) {
-            send_prior(&prior)?;
+            send_prior()?;
         }
         if let (Some(st), Some((vut, _))) =
             (sim.bv_truth(0), sim.vut_seen_by_bvs().or_else(|| Some((scenario_start_vut(&scenario), 0.0))))
@@ -240,7 +330,7 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<(Run
     while !sim.is_done() {
         io.drain(&mut cmds);
         if (i as u64).is_multiple_of(prior_every) {
-            send_prior(&prior)?;
+            send_prior()?;
         }
         let now = now_ns();
         let (_, held_steer) = sim.bv_actuators(0).unwrap_or((0.0, 0.0));

@@ -19,7 +19,7 @@ use clap::{Parser, Subcommand};
 use iceoryx2::prelude::ipc;
 use v2t_edge::NodeRole;
 use v2t_edge::config::{Loaded, load};
-use v2t_edge::ecu::EcuOptions;
+use v2t_edge::ecu::{EcuOptions, EcuSource};
 use v2t_model::validate::Validate;
 use v2t_wire::SafetyAction;
 
@@ -88,9 +88,18 @@ enum Cmd {
     SimEcu {
         #[command(flatten)]
         common: Common,
-        /// The scenario card.
+        /// The scenario card (its prior is published as the stand-in for a cloud upload).
+        #[arg(long, required_unless_present = "from_uplink", conflicts_with = "from_uplink")]
+        scenario: Option<PathBuf>,
+        /// Build the world from the prior the uplink node accepts from the cloud instead of a card.
         #[arg(long)]
-        scenario: PathBuf,
+        from_uplink: bool,
+        /// Simulation settings for --from-uplink.
+        #[arg(long, default_value = "config/sim/default.toml")]
+        sim_settings: PathBuf,
+        /// Longest wait for the uplinked prior, s.
+        #[arg(long, default_value_t = 60.0)]
+        prior_wait_s: f64,
         /// VUT driver model (default: the card's).
         #[arg(long)]
         vut: Option<v2t_sim::vut::VutModel>,
@@ -182,9 +191,25 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 NodeRole::Uplink => v2t_edge::uplink::run::<ipc::Service>(&cfg)?,
             }
         }
-        Cmd::SimEcu { common, scenario, vut, seed, out, engage_timeout_s, tau, style } => {
+        Cmd::SimEcu {
+            common,
+            scenario,
+            from_uplink,
+            sim_settings,
+            prior_wait_s,
+            vut,
+            seed,
+            out,
+            engage_timeout_s,
+            tau,
+            style,
+        } => {
             let cfg = loaded(&common)?;
-            let opts = EcuOptions { card: scenario, vut, seed, engage_timeout_s, tau_s: tau, style };
+            let source = match scenario {
+                Some(card) if !from_uplink => EcuSource::Card(card),
+                _ => EcuSource::Uplink { sim_settings, wait_s: prior_wait_s },
+            };
+            let opts = EcuOptions { source, vut, seed, engage_timeout_s, tau_s: tau, style };
             let (outcome, stats) = v2t_edge::ecu::run::<ipc::Service>(&cfg, &opts)?;
             let r = &outcome.result;
             let pet = r.pet_min_s.map_or_else(|| "none".to_owned(), |p| format!("{p:.2} s"));

@@ -62,6 +62,7 @@ pub fn from_scenario(
         bv_zone_exit_s_m: conflict.zone.b.exit_s_m,
         vut_zone_enter_s_m: conflict.zone.a.enter_s_m,
         vut_zone_exit_s_m: conflict.zone.a.exit_s_m,
+        vut_speed_mps: scenario.vut.agent.initial_speed_mps,
         ..ActivePrior::default()
     };
     path_points(&bv.agent.route, &mut prior.bv_path)?;
@@ -196,6 +197,7 @@ pub fn from_upload(
         bv_zone_exit_s_m: zone.a.exit_s_m,
         vut_zone_enter_s_m: zone.b.enter_s_m,
         vut_zone_exit_s_m: zone.b.exit_s_m,
+        vut_speed_mps: vut.states.first().map_or(0.0, |x| x.speed_mps.max(0.0)),
         ..ActivePrior::default()
     };
     path_points(&bv_path, &mut prior.bv_path)?;

@@ -200,21 +200,7 @@ impl Scenario {
                 reference: SpeedProfile::new(bv.speed_profile.clone()),
             });
         }
-        let mut conflicts = Vec::with_capacity(bvs.len());
-        for (bv_index, bv) in bvs.iter().enumerate() {
-            let zones = conflict_zones(
-                &vut.agent.route,
-                vut.agent.dims(),
-                &bv.agent.route,
-                bv.agent.dims(),
-                &ConflictOptions::default(),
-            );
-            let zone = zones
-                .into_iter()
-                .next()
-                .ok_or_else(|| ScenarioError::NoConflict { index: bv_index, id: bv.agent.id.clone() })?;
-            conflicts.push(Conflict { bv_index, zone });
-        }
+        let conflicts = first_conflicts(&vut, &bvs)?;
         Ok(Self {
             name: card.name.clone(),
             description: card.description.clone(),
@@ -228,10 +214,94 @@ impl Scenario {
         })
     }
 
+    /// A scenario of one BV from paths already built — what the simulated ECU runs when the BV's
+    /// prior comes from the cloud: the VUT drives `vut_route` from its start at `vut_speed_mps`
+    /// (wishing to keep it) with driver `vut_model`; the BV's reference is `bv_route` with
+    /// `bv_reference`.
+    pub fn from_paths(
+        paths: ScenarioPaths,
+        settings: SimSettings,
+        vut_vehicle: VehicleConfig,
+        bv_vehicle: VehicleConfig,
+    ) -> Result<Self, ScenarioError> {
+        let bv_speed = paths.bv_reference.speed_at(0.0);
+        let vut = VutSetup {
+            agent: Agent {
+                id: "vut".into(),
+                vehicle: vut_vehicle,
+                route: paths.vut_route,
+                initial_speed_mps: paths.vut_speed_mps,
+            },
+            desired_speed_mps: paths.vut_speed_mps,
+            default_model: paths.vut_model,
+        };
+        let bvs = vec![BvSetup {
+            agent: Agent { id: paths.bv_id, vehicle: bv_vehicle, route: paths.bv_route, initial_speed_mps: bv_speed },
+            reference: paths.bv_reference,
+        }];
+        let conflicts = first_conflicts(&vut, &bvs)?;
+        Ok(Self {
+            name: paths.name,
+            description: "built from a prior's paths".into(),
+            tau_s: paths.tau_s,
+            style: paths.style,
+            duration_s: paths.duration_s,
+            settings,
+            vut,
+            bvs,
+            conflicts,
+        })
+    }
+
     /// The conflict of BV `bv_index`.
     pub fn conflict_of(&self, bv_index: usize) -> Option<&Conflict> {
         self.conflicts.iter().find(|c| c.bv_index == bv_index)
     }
+}
+
+/// What [`Scenario::from_paths`] builds from.
+#[derive(Debug, Clone)]
+pub struct ScenarioPaths {
+    /// Name of the run.
+    pub name: String,
+    /// Target PET τ, s.
+    pub tau_s: f64,
+    /// Intended passing order.
+    pub style: Style,
+    /// Simulated duration, s.
+    pub duration_s: f64,
+    /// The VUT's route.
+    pub vut_route: ReferencePath,
+    /// The VUT's start (and wished) speed, m/s.
+    pub vut_speed_mps: f64,
+    /// The VUT's driver.
+    pub vut_model: VutModel,
+    /// The BV's id.
+    pub bv_id: String,
+    /// The BV's reference path.
+    pub bv_route: ReferencePath,
+    /// The BV's reference speed over time.
+    pub bv_reference: SpeedProfile,
+}
+
+/// The first conflict of every BV with the VUT; a BV without one is an error.
+fn first_conflicts(vut: &VutSetup, bvs: &[BvSetup]) -> Result<Vec<Conflict>, ScenarioError> {
+    let mut conflicts = Vec::with_capacity(bvs.len());
+    for (bv_index, bv) in bvs.iter().enumerate() {
+        let zones = conflict_zones(
+            &vut.agent.route,
+            vut.agent.dims(),
+            &bv.agent.route,
+            bv.agent.dims(),
+            &ConflictOptions::default(),
+        );
+        let zone = zones
+            .into_iter()
+            .next()
+            .ok_or_else(|| ScenarioError::NoConflict { index: bv_index, id: bv.agent.id.clone() })?;
+        conflicts.push(Conflict { bv_index, zone });
+    }
+    Ok(conflicts)
 }
 
 #[cfg(test)]

@@ -158,6 +158,9 @@ pub struct ActivePrior {
     pub bv_path: StaticVec<Vec2, MAX_PATH_POINTS>,
     /// The VUT's expected route.
     pub vut_path: StaticVec<Vec2, MAX_PATH_POINTS>,
+    /// The VUT's speed at the start of `vut_path` in the prior, m/s (the simulated proving ground
+    /// starts its VUT with it).
+    pub vut_speed_mps: f64,
     /// The BV's reference timing along `bv_path`.
     pub bv_profile: StaticVec<ProfileSample, MAX_PROFILE_SAMPLES>,
 }
@@ -171,9 +174,13 @@ impl ActivePrior {
             self.bv_zone_exit_s_m,
             self.vut_zone_enter_s_m,
             self.vut_zone_exit_s_m,
+            self.vut_speed_mps,
         ];
         if !numbers.iter().all(|v| v.is_finite()) {
             return Err("non-finite target or zone interval");
+        }
+        if self.vut_speed_mps < 0.0 {
+            return Err("negative VUT speed");
         }
         let tau_ok = self.tau_s > 0.0;
         if !tau_ok {
