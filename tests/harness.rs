@@ -72,8 +72,14 @@ pub struct Proc {
 impl Proc {
     /// Starts `exe args` in the repository root.
     pub fn start(exe: &Path, args: &[&str], tag: &str) -> Self {
+        Self::start_env(exe, args, tag, &[])
+    }
+
+    /// [`Proc::start`] with extra environment variables.
+    pub fn start_env(exe: &Path, args: &[&str], tag: &str, env: &[(&str, &str)]) -> Self {
         let mut child = Command::new(exe)
             .args(args)
+            .envs(env.iter().copied())
             .current_dir(repo_root())
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
@@ -263,20 +269,85 @@ pub fn edge_config(dir: &Path, port: u16, public: &Path, bv_id: &str) -> PathBuf
 /// [`edge_config`] from another base configuration of `config/edge/` (its `[uplink]` section, if
 /// any, replaced).
 pub fn edge_config_from(dir: &Path, port: u16, public: &Path, bv_id: &str, base: &str) -> PathBuf {
+    edge_config_with(dir, &format!("mqtt://127.0.0.1:{port}"), public, bv_id, base, "")
+}
+
+/// The most general form: any broker URL, and `extra` lines for the `[uplink]` section
+/// (credentials, certificates).
+pub fn edge_config_with(dir: &Path, broker: &str, public: &Path, bv_id: &str, base: &str, extra: &str) -> PathBuf {
     let base = std::fs::read_to_string(repo_root().join(base)).unwrap();
     let base = base.split("\n[uplink]").next().unwrap().to_owned();
     let edge_dir = repo_root().join("config/edge");
     let text = base.replace("\"../", &format!("\"{}/../", edge_dir.display()))
         + &format!(
-            "\n[uplink]\nbroker = \"mqtt://127.0.0.1:{port}\"\nfleet = \"pg\"\nbv_id = \"{bv_id}\"\ncloud_key = \"{}\"\n\
+            "\n[uplink]\nbroker = \"{broker}\"\nfleet = \"pg\"\nbv_id = \"{bv_id}\"\ncloud_key = \"{}\"\n\
              map = \"{}\"\ngeofence_margin_m = 0.5\nmax_age_s = 30.0\nmax_skew_s = 2.0\ntelemetry_period_s = 0.1\n\
-             heartbeat_period_s = 0.2\non_link_loss = \"continue\"\nlink_loss_timeout_s = 2.0\n",
+             heartbeat_period_s = 0.2\non_link_loss = \"continue\"\nlink_loss_timeout_s = 2.0\n{extra}",
             public.display(),
             repo_root().join("config/maps/proving_ground.xodr").display()
         );
     let path = dir.join(format!("{bv_id}-uplink.toml"));
     std::fs::write(&path, text).unwrap();
     path
+}
+
+/// A test PKI made with the `openssl` command: a CA, a server certificate for 127.0.0.1 and
+/// client certificates, every file PEM (keys PKCS#8) in `dir`.
+pub fn make_pki(dir: &Path, clients: &[&str]) {
+    let run = |args: &[&str]| {
+        let out = Command::new("openssl")
+            .args(args)
+            .current_dir(dir)
+            .output()
+            .expect("openssl is not installed (.ci/run installs it)");
+        assert!(out.status.success(), "openssl {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    };
+    let ec = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes"];
+    let mut ca = vec!["req", "-x509"];
+    ca.extend(ec);
+    ca.extend(["-keyout", "ca.key", "-out", "ca.pem", "-days", "2", "-subj", "/CN=v2t-test-ca"]);
+    ca.extend(["-addext", "basicConstraints=critical,CA:TRUE", "-addext", "keyUsage=critical,keyCertSign,cRLSign"]);
+    run(&ca);
+    let leaf = |name: &str, usage: &str, san: &str| {
+        let ext = format!("{name}.ext");
+        std::fs::write(
+            dir.join(&ext),
+            format!("basicConstraints=CA:FALSE\nkeyUsage=critical,digitalSignature\nextendedKeyUsage={usage}\n{san}"),
+        )
+        .unwrap();
+        let (key, csr, pem) = (format!("{name}.key"), format!("{name}.csr"), format!("{name}.pem"));
+        let mut req = vec!["req"];
+        req.extend(ec);
+        let subj = format!("/CN={name}");
+        req.extend(["-keyout", &key, "-out", &csr, "-subj", &subj]);
+        run(&req);
+        run(&[
+            "x509",
+            "-req",
+            "-in",
+            &csr,
+            "-CA",
+            "ca.pem",
+            "-CAkey",
+            "ca.key",
+            "-CAcreateserial",
+            "-out",
+            &pem,
+            "-days",
+            "2",
+            "-extfile",
+            &ext,
+        ]);
+    };
+    leaf("server", "serverAuth", "subjectAltName=IP:127.0.0.1\n");
+    for c in clients {
+        leaf(c, "clientAuth", "");
+    }
+    // The broker may drop root privileges before it reads its key: let any user read the test files.
+    for e in std::fs::read_dir(dir).unwrap().flatten() {
+        use std::os::unix::fs::PermissionsExt as _;
+        std::fs::set_permissions(e.path(), std::fs::Permissions::from_mode(0o644)).unwrap();
+    }
 }
 
 /// The grounded left turn on the proving ground, and a constant-speed prior along its routes.

@@ -11,6 +11,7 @@ use iceoryx2::prelude::ipc;
 use v2t_edge::clock::now_ns;
 use v2t_edge::ports::Bus;
 use v2t_tests::harness::{Broker, BrokerKind, Cloud, Proc, bin, edge_config, left_turn_upload, tempdir, write_keys};
+use v2t_tests::repo_root;
 use v2t_wire::link::{self, CloudBody, CloudMessage, Command as CloudCommand, SigningKey, topics};
 use v2t_wire::{ActivePrior, Code, SafetyAction, SafetyCommand, services};
 
@@ -150,4 +151,96 @@ fn priors_and_commands_cross_mosquitto_bad_ones_are_refused_and_a_broker_restart
 #[test]
 fn priors_and_commands_cross_the_embedded_broker_bad_ones_are_refused_and_a_broker_restart_loses_nothing() {
     priors_and_commands_cross_the_broker(BrokerKind::Embedded);
+}
+
+/// The uplink and the supervisor's tools log in to a Mosquitto that demands TLS, a client
+/// certificate and a password; a wrong password or a missing certificate keeps a client out.
+#[test]
+fn bvs_and_the_supervisor_log_in_with_tls_client_certificates_and_passwords() {
+    use v2t_tests::harness::{edge_config_with, free_port, make_pki};
+    let dir = tempdir("tls");
+    make_pki(&dir, &["bv1", "supervisor"]);
+    let (_key, secret, public) = write_keys(&dir, 12);
+    let passwd = dir.join("passwd");
+    for (i, (user, pw)) in [("bv1", "bv1-secret"), ("cloud", "cloud-secret")].into_iter().enumerate() {
+        let mut cmd = std::process::Command::new("mosquitto_passwd");
+        if i == 0 {
+            cmd.arg("-c");
+        }
+        let ok = cmd.arg("-b").arg(&passwd).args([user, pw]).status().unwrap().success();
+        assert!(ok, "mosquitto_passwd");
+    }
+    let port = free_port();
+    let d = dir.display();
+    let conf = dir.join("mosquitto.conf");
+    std::fs::write(
+        &conf,
+        format!(
+            "listener {port} 127.0.0.1\nallow_anonymous false\npassword_file {d}/passwd\ncafile {d}/ca.pem\n\
+             certfile {d}/server.pem\nkeyfile {d}/server.key\nrequire_certificate true\nset_tcp_nodelay true\n"
+        ),
+    )
+    .unwrap();
+    std::fs::set_permissions(&passwd, std::os::unix::fs::PermissionsExt::from_mode(0o644)).unwrap();
+    let mosquitto = ["/usr/sbin/mosquitto", "/usr/bin/mosquitto"]
+        .into_iter()
+        .map(std::path::Path::new)
+        .find(|p| p.exists())
+        .expect("mosquitto is not installed");
+    let _broker = Proc::start(mosquitto, &["-c", conf.to_str().unwrap()], "mosquitto");
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(Instant::now() < deadline, "mosquitto did not listen");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let broker = format!("mqtts://127.0.0.1:{port}");
+    let tls = format!(
+        "username = \"bv1\"\npassword_env = \"V2T_TEST_MQTT_PASSWORD\"\nca_file = \"{d}/ca.pem\"\nclient_cert = \"{d}/bv1.pem\"\nclient_key = \"{d}/bv1.key\"\n"
+    );
+    let cfg = edge_config_with(&dir, &broker, &public, "bv1", "config/edge/bv1.toml", &tls);
+    let ns = format!("v2t/test/tls{}", std::process::id());
+    let args = ["node", "uplink", "--config", cfg.to_str().unwrap(), "--namespace", &ns];
+    let node = Proc::start_env(&bin("v2t-edge"), &args, "uplink", &[("V2T_TEST_MQTT_PASSWORD", "bv1-secret")]);
+    node.expect_line("connected", Duration::from_secs(10));
+
+    // The supervisor's tool over the same broker: TLS, its own certificate and password.
+    let send = |extra: &[&str], pw: &str| {
+        std::process::Command::new(bin("video2track"))
+            .args([
+                "send",
+                "abort",
+                "--bv",
+                "bv1",
+                "--fleet",
+                "pg",
+                "--key",
+                secret.to_str().unwrap(),
+                "--broker",
+                &broker,
+            ])
+            .args(["--ca-file", &format!("{d}/ca.pem"), "--username", "cloud", "--password-env", "V2T_TEST_CLOUD_PW"])
+            .args(extra)
+            .env("V2T_TEST_CLOUD_PW", pw)
+            .current_dir(repo_root())
+            .output()
+            .unwrap()
+    };
+    let cert = [format!("--client-cert={d}/supervisor.pem"), format!("--client-key={d}/supervisor.key")];
+    let cert: Vec<&str> = cert.iter().map(String::as_str).collect();
+    let out = send(&cert, "cloud-secret");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && stdout.contains("bv1: accepted abort"),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = send(&cert, "wrong");
+    assert!(!out.status.success(), "a wrong password got in");
+    let out = send(&[], "cloud-secret");
+    assert!(!out.status.success(), "a client without a certificate got in");
+
+    // A BV with the wrong password stays out and says so; it keeps trying.
+    let node2 = Proc::start_env(&bin("v2t-edge"), &args, "uplink-wrong-pw", &[("V2T_TEST_MQTT_PASSWORD", "nope")]);
+    let line = node2.expect_line("cannot reach the broker", Duration::from_secs(10));
+    assert!(line.contains("NotAuthorized") || line.contains("BadUserNamePassword"), "{line}");
 }

@@ -223,15 +223,28 @@ pub struct Connection {
     pub credentials: Option<(String, String)>,
     /// CA certificate (PEM) for `mqtts://`.
     pub ca_pem: Option<Vec<u8>>,
+    /// Client certificate and key (PEM) for mutual TLS.
+    pub client_auth: Option<(Vec<u8>, Vec<u8>)>,
+}
+
+/// Where the supervisor's TLS files are: CA, and the client certificate and key for mutual TLS.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct TlsFiles<'a> {
+    /// CA certificate (PEM).
+    pub ca: Option<&'a Path>,
+    /// Client certificate (PEM).
+    pub client_cert: Option<&'a Path>,
+    /// Client key (PEM).
+    pub client_key: Option<&'a Path>,
 }
 
 impl Connection {
-    /// From the command line's `--broker`, `--username`, `--password-env`, `--ca-file`.
+    /// From the command line's `--broker`, `--username`, `--password-env` and TLS files.
     pub fn new(
         broker: &str,
         username: Option<&str>,
         password_env: Option<&str>,
-        ca_file: Option<&Path>,
+        tls: TlsFiles<'_>,
     ) -> Result<Self, LinkError> {
         let broker = BrokerUrl::parse(broker).map_err(LinkError::Usage)?;
         let credentials = match username {
@@ -245,13 +258,20 @@ impl Connection {
             }
             None => None,
         };
-        let ca_pem = ca_file
-            .map(|p| std::fs::read(p).map_err(|e| LinkError::Usage(format!("{}: {e}", p.display()))))
-            .transpose()?;
+        let read = |p: &Path| std::fs::read(p).map_err(|e| LinkError::Usage(format!("{}: {e}", p.display())));
+        let ca_pem = tls.ca.map(read).transpose()?;
+        let client_auth = match (tls.client_cert, tls.client_key) {
+            (Some(c), Some(k)) => Some((read(c)?, read(k)?)),
+            (None, None) => None,
+            _ => return Err(LinkError::Usage("--client-cert and --client-key go together".into())),
+        };
         if broker.tls && ca_pem.is_none() {
             return Err(LinkError::Usage("an mqtts:// broker needs --ca-file".into()));
         }
-        Ok(Self { broker, credentials, ca_pem })
+        if !broker.tls && (ca_pem.is_some() || client_auth.is_some()) {
+            return Err(LinkError::Usage("certificates need an mqtts:// broker".into()));
+        }
+        Ok(Self { broker, credentials, ca_pem, client_auth })
     }
 
     /// The client settings for `client_id`.
@@ -261,7 +281,7 @@ impl Connection {
             client_id: client_id.to_owned(),
             credentials: self.credentials.clone(),
             ca_pem: self.ca_pem.clone(),
-            client_auth: None,
+            client_auth: self.client_auth.clone(),
             persistent,
         }
     }

@@ -194,6 +194,12 @@ struct LinkArgs {
     /// CA certificate (PEM) of an mqtts:// broker.
     #[arg(long)]
     ca_file: Option<PathBuf>,
+    /// Client certificate (PEM) for brokers that require one.
+    #[arg(long, requires = "client_key")]
+    client_cert: Option<PathBuf>,
+    /// Its key (PEM).
+    #[arg(long, requires = "client_cert")]
+    client_key: Option<PathBuf>,
 }
 
 impl LinkArgs {
@@ -209,7 +215,12 @@ impl LinkArgs {
     }
 
     fn connection(&self, broker: &str) -> anyhow::Result<Connection> {
-        Ok(Connection::new(broker, self.username.as_deref(), self.password_env.as_deref(), self.ca_file.as_deref())?)
+        let tls = video2track::link::TlsFiles {
+            ca: self.ca_file.as_deref(),
+            client_cert: self.client_cert.as_deref(),
+            client_key: self.client_key.as_deref(),
+        };
+        Ok(Connection::new(broker, self.username.as_deref(), self.password_env.as_deref(), tls)?)
     }
 }
 

@@ -319,6 +319,7 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
     let start = now_ns();
     let mut connected_at: Option<u64> = None;
     let mut down_since = Some(start);
+    let mut last_failure: Option<String> = None;
     let mut loss_handled = false;
     let mut gate = GateReport::default();
     let mut plan = RegulatedPlan::default();
@@ -331,6 +332,7 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
             match ev {
                 LinkEvent::Connected => {
                     eprintln!("uplink: connected to {}", u.broker);
+                    last_failure = None;
                     if unsent > 0 {
                         eprintln!(
                             "uplink: {unsent} telemetry and heartbeat frames could not be queued while the broker was away"
@@ -345,7 +347,11 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
                     if down_since.is_none() {
                         eprintln!("uplink: broker lost: {why}");
                         down_since = Some(now);
+                    } else if last_failure.as_deref() != Some(why.as_str()) {
+                        // Each new reason once (a wrong password, a refused certificate), not every retry.
+                        eprintln!("uplink: cannot reach the broker: {why}; retrying");
                     }
+                    last_failure = Some(why);
                 }
                 LinkEvent::Frame { payload: bytes, .. } => {
                     let outcome = logic.on_frame(&bytes, unix_ms(), now_ns());
