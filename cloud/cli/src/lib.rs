@@ -4,6 +4,7 @@
 //! demo, the experiments) reuse it: [`files`] loads configuration files with errors that name the
 //! file, and [`sim`] runs and reports a scenario in the simulated proving ground.
 
+pub mod abstract_cmd;
 pub mod experiment;
 pub mod ground;
 pub mod link;

@@ -10,6 +10,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use v2t_game::regulator::RegulatorParams;
 use v2t_sim::vut::VutModel;
 use v2t_wire::link::{ALL_BVS, CloudBody, key_to_hex};
+use video2track::abstract_cmd::{AbstractArgs, AbstractError};
 use video2track::experiment;
 use video2track::files::{InputError, load_scenario, load_toml};
 use video2track::link::{BvEvent, Connection, Signer};
@@ -63,6 +64,30 @@ enum Command {
         /// Regulator settings (TOML).
         #[arg(long, default_value = "config/regulator/default.toml")]
         regulator: PathBuf,
+    },
+    /// Turn a driving video into scenario semantics with a vision-language model (endpoint from
+    /// V2T_VLM_BASE_URL, V2T_VLM_MODEL, V2T_VLM_API_KEY), or replay a recorded cassette offline.
+    Abstract {
+        /// The video. With --replay only its file name counts: the one the cassette recorded.
+        video: PathBuf,
+        /// The operator's post-encroachment time label for the video, s, in (0, 30].
+        #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+        pet_label: f64,
+        /// Write the scenario semantics (JSON) here.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Save every exchange with the model into this cassette directory.
+        #[arg(long, value_name = "DIR", conflicts_with = "replay")]
+        record: Option<PathBuf>,
+        /// Replay this cassette directory instead of asking a model (no endpoint, no video needed).
+        #[arg(long, value_name = "DIR")]
+        replay: Option<PathBuf>,
+        /// Frames shown to the model (default 16, at most 64).
+        #[arg(long)]
+        frames: Option<u32>,
+        /// Where the frames are taken: uniform, or half of them where the picture changes most.
+        #[arg(long, value_enum)]
+        sampling: Option<Sampling>,
     },
     /// Place a video's semantics on the proving ground: rank the map's fragments, ground the VUT,
     /// the BVs and their conflict on the best that fits, write the grounded scenario.
@@ -246,6 +271,14 @@ enum MapCommand {
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum Sampling {
+    /// In the middle of equal slices of the video.
+    Uniform,
+    /// Half uniform, half where the picture changes most.
+    Motion,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
 enum Experiment {
     /// RQ3: does the achieved PET land on the target τ, in both styles, against every VUT model?
     Steerability,
@@ -261,6 +294,7 @@ fn main() -> ExitCode {
                 e.is::<InputError>()
                     || e.is::<v2t_map::MapError>()
                     || e.is::<video2track::ground::SemanticsFileError>()
+                    || e.downcast_ref::<AbstractError>().is_some_and(AbstractError::is_input)
                     || matches!(
                         e.downcast_ref::<video2track::link::LinkError>(),
                         Some(video2track::link::LinkError::Prior { .. } | video2track::link::LinkError::Usage(_))
@@ -288,6 +322,29 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             if let Some(path) = json {
                 let text = serde_json::to_string_pretty(&outcome).context("serializing the run")?;
                 std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
+                println!("wrote {}", path.display());
+            }
+            Ok(())
+        }
+        Command::Abstract { video, pet_label, out, record, replay, frames, sampling } => {
+            let args = AbstractArgs {
+                video,
+                pet_label_s: pet_label,
+                record,
+                replay,
+                frames,
+                sampling: sampling.map(|s| match s {
+                    Sampling::Uniform => video2track::abstract_cmd::Sampling::Uniform,
+                    Sampling::Motion => video2track::abstract_cmd::Sampling::Motion,
+                }),
+            };
+            let result = video2track::abstract_cmd::abstract_video(&args, |name| std::env::var(name).ok())?;
+            print!("{}", video2track::abstract_cmd::report(&result));
+            if let Some(dir) = &args.record {
+                println!("recorded {}", dir.display());
+            }
+            if let Some(path) = out {
+                video2track::abstract_cmd::write_semantics(&path, &result.semantics)?;
                 println!("wrote {}", path.display());
             }
             Ok(())
