@@ -9,6 +9,7 @@ pub mod experiment;
 pub mod ground;
 pub mod link;
 pub mod map;
+pub mod render;
 /// Loading configuration files (lives in `v2t-sim`, shared with the onboard runtime).
 pub use v2t_sim::files;
 pub mod serve;

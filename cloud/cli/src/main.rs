@@ -14,6 +14,7 @@ use video2track::abstract_cmd::{AbstractArgs, AbstractError};
 use video2track::experiment;
 use video2track::files::{InputError, load_scenario, load_toml};
 use video2track::link::{BvEvent, Connection, Signer};
+use video2track::render::{RenderError, RenderOptions};
 use video2track::serve::ServeOptions;
 use video2track::sim::{report, run_reference};
 
@@ -40,6 +41,26 @@ enum Command {
         /// Write the results and the full trace as JSON to this file.
         #[arg(long)]
         json: Option<PathBuf>,
+    },
+    /// Draw a simulated run (`sim --json`) as a bird's-eye video with ffmpeg.
+    Render {
+        /// The run (JSON written by `video2track sim --json`).
+        run: PathBuf,
+        /// The video to write, e.g. run.mp4.
+        #[arg(short, long)]
+        out: PathBuf,
+        /// Frames per second (poses between the run's 10 Hz samples are interpolated).
+        #[arg(long, default_value_t = 10)]
+        fps: u32,
+        /// Width, px (even); the height is 9/16 of it.
+        #[arg(long, default_value_t = 960)]
+        width: u32,
+        /// The run's scenario card: footprints and routes (default: 4.8 m × 1.85 m, driven paths).
+        #[arg(long)]
+        card: Option<PathBuf>,
+        /// A map (.xodr) whose lanes are drawn underneath.
+        #[arg(long)]
+        map: Option<PathBuf>,
     },
     /// Reproduce a research question of the paper in the simulated proving ground.
     Experiment {
@@ -295,6 +316,7 @@ fn main() -> ExitCode {
                     || e.is::<v2t_map::MapError>()
                     || e.is::<video2track::ground::SemanticsFileError>()
                     || e.downcast_ref::<AbstractError>().is_some_and(AbstractError::is_input)
+                    || e.downcast_ref::<RenderError>().is_some_and(RenderError::is_input)
                     || matches!(
                         e.downcast_ref::<video2track::link::LinkError>(),
                         Some(video2track::link::LinkError::Prior { .. } | video2track::link::LinkError::Usage(_))
@@ -347,6 +369,26 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
                 video2track::abstract_cmd::write_semantics(&path, &result.semantics)?;
                 println!("wrote {}", path.display());
             }
+            Ok(())
+        }
+        Command::Render { run, out, fps, width, card, map } => {
+            let opts = RenderOptions { fps, width };
+            opts.validate()?;
+            let scene = video2track::render::load_scene(&run, card.as_deref(), map.as_deref())?;
+            let done = video2track::render::encode(&scene, &opts, &out, std::path::Path::new("ffmpeg"))?;
+            let (t0, t1) = scene.time_span();
+            println!(
+                "{}: {} vehicles, {:.1} s  |  {} frames at {} fps, {}x{}, {}",
+                scene.name,
+                scene.vehicles.len(),
+                t1 - t0,
+                done.frames,
+                fps,
+                done.width,
+                done.height,
+                done.encoder
+            );
+            println!("wrote {}", out.display());
             Ok(())
         }
         Command::Experiment { which: Experiment::Steerability, json, repeats, cards, vut, tau, regulator } => {
