@@ -3,20 +3,23 @@
 //! OpenAI-compatible vision-language model (endpoint from the `V2T_VLM_*` variables), or a recorded
 //! cassette offline.
 //!
-//! ```no_run
-//! use std::path::PathBuf;
+//! ```
+//! use std::path::{Path, PathBuf};
 //! use video2track::abstract_cmd::{AbstractArgs, abstract_video, report};
 //!
+//! let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
 //! let args = AbstractArgs {
 //!     video: PathBuf::from("cut_in_4.70.mp4"),
 //!     pet_label_s: 4.70,
 //!     record: None,
-//!     replay: Some(PathBuf::from("config/vlm/cassettes/cut_in")),
+//!     // Offline: the shipped cassette answers, no endpoint is read.
+//!     replay: Some(root.join("config/vlm/cassettes/cut_in")),
 //!     frames: None,
 //!     sampling: None,
 //! };
 //! let result = abstract_video(&args, |name| std::env::var(name).ok())?;
-//! print!("{}", report(&result));
+//! assert!(report(&result).contains("1 request(s), 0 repair(s)"));
+//! assert_eq!(result.semantics.pet_label_s, 4.70);
 //! # Ok::<(), video2track::abstract_cmd::AbstractError>(())
 //! ```
 
@@ -62,18 +65,21 @@ pub enum AbstractError {
     #[error("{0}")]
     Usage(String),
     /// The video cannot be read (live and record mode).
-    #[error("video {path}: {source}")]
+    #[error("video {path}: {error}")]
     Video {
         /// The path given.
         path: PathBuf,
         /// What the file system said.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// No usable endpoint in the environment.
     #[error(
-        "no VLM endpoint configured: {0}. Set {ENV_BASE_URL} (e.g. https://api.openai.com/v1) and {ENV_MODEL}, and {ENV_API_KEY} if the server needs a key; or replay a cassette with --replay DIR"
+        "no VLM endpoint configured ({problem}): set {ENV_BASE_URL} (e.g. https://api.openai.com/v1) and {ENV_MODEL}, and {ENV_API_KEY} if the server needs a key; or replay a cassette with --replay DIR"
     )]
-    Endpoint(#[source] ConfigError),
+    Endpoint {
+        /// What is missing or wrong.
+        problem: String,
+    },
     /// Scenario abstraction failed.
     #[error(transparent)]
     Vlm(#[from] VlmError),
@@ -92,7 +98,7 @@ impl AbstractError {
     /// as opposed to the tools, the network or the model.
     pub fn is_input(&self) -> bool {
         match self {
-            Self::Usage(_) | Self::Video { .. } | Self::Endpoint(_) => true,
+            Self::Usage(_) | Self::Video { .. } | Self::Endpoint { .. } => true,
             Self::Write { .. } => false,
             Self::Vlm(e) => match e {
                 VlmError::Config(_)
@@ -143,8 +149,13 @@ pub fn abstract_video(args: &AbstractArgs, env: impl Fn(&str) -> Option<String>)
         (Some(dir), None) => Mode::Record(dir.clone()),
         (None, None) => Mode::Live,
     };
-    std::fs::File::open(&args.video).map_err(|source| AbstractError::Video { path: args.video.clone(), source })?;
-    let mut cfg = VlmConfig::from_lookup(env).map_err(AbstractError::Endpoint)?;
+    std::fs::File::open(&args.video).map_err(|error| AbstractError::Video { path: args.video.clone(), error })?;
+    let mut cfg = VlmConfig::from_lookup(env).map_err(|e| AbstractError::Endpoint {
+        problem: match e {
+            ConfigError::MissingEnv(name) => format!("{name} is not set"),
+            other => other.to_string(),
+        },
+    })?;
     if let Some(n) = args.frames {
         cfg.frames.count = n;
     }

@@ -49,20 +49,20 @@ pub enum RenderError {
     #[error("{0}")]
     Options(String),
     /// The run file could not be read.
-    #[error("{path}: cannot read: {source}")]
+    #[error("{path}: cannot read: {error}")]
     Read {
         /// The file.
         path: PathBuf,
         /// Why.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// The run file is not the JSON `video2track sim --json` writes.
-    #[error("{path}: not a run (`video2track sim --json`): {source}")]
+    #[error("{path}: not a run (`video2track sim --json`): {error}")]
     Parse {
         /// The file.
         path: PathBuf,
         /// Why.
-        source: serde_json::Error,
+        error: serde_json::Error,
     },
     /// The run file is JSON of the right form with wrong values.
     #[error("{path}: {problem}")]
@@ -93,12 +93,12 @@ pub enum RenderError {
         tool: PathBuf,
     },
     /// `ffmpeg` could not be run, or could not be fed.
-    #[error("running `{tool}`: {source}")]
+    #[error("running `{tool}`: {error}")]
     Io {
         /// The program.
         tool: PathBuf,
         /// What the OS said.
-        source: std::io::Error,
+        error: std::io::Error,
     },
     /// `ffmpeg` failed.
     #[error("`{tool}` failed ({status}) writing {out}: {stderr}")]
@@ -151,7 +151,7 @@ impl RenderOptions {
         if !(1..=60).contains(&self.fps) {
             return Err(RenderError::Options(format!("--fps must lie in 1..=60, got {}", self.fps)));
         }
-        if !(160..=3840).contains(&self.width) || self.width % 2 != 0 {
+        if !(160..=3840).contains(&self.width) || !self.width.is_multiple_of(2) {
             return Err(RenderError::Options(format!(
                 "--width must be even and lie in 160..=3840, got {}",
                 self.width
@@ -225,7 +225,7 @@ impl Scene {
     /// Reads a run from the text of its JSON file (`path` names it in errors).
     pub fn from_run_json(text: &str, path: &Path) -> Result<Self, RenderError> {
         let run: RunFile =
-            serde_json::from_str(text).map_err(|source| RenderError::Parse { path: path.to_owned(), source })?;
+            serde_json::from_str(text).map_err(|error| RenderError::Parse { path: path.to_owned(), error })?;
         let invalid = |problem: String| RenderError::Invalid { path: path.to_owned(), problem };
         if run.trace.is_empty() {
             return Err(invalid("the trace is empty".into()));
@@ -440,7 +440,7 @@ impl View {
 
 /// Loads a run, and optionally its card and a map, into a scene.
 pub fn load_scene(run: &Path, card: Option<&Path>, map: Option<&Path>) -> Result<Scene, RenderError> {
-    let text = std::fs::read_to_string(run).map_err(|source| RenderError::Read { path: run.to_owned(), source })?;
+    let text = std::fs::read_to_string(run).map_err(|error| RenderError::Read { path: run.to_owned(), error })?;
     let mut scene = Scene::from_run_json(&text, run)?;
     if let Some(card) = card {
         let scenario = v2t_sim::files::load_scenario(card)?;
@@ -481,7 +481,7 @@ pub fn encode(scene: &Scene, opts: &RenderOptions, out: &Path, ffmpeg: &Path) ->
         cmd.args(["-q:v", "3"]);
     }
     cmd.arg(out).stdin(Stdio::piped()).stdout(Stdio::null()).stderr(Stdio::piped());
-    let io = |source: std::io::Error| RenderError::Io { tool: ffmpeg.to_owned(), source };
+    let io = |error: std::io::Error| RenderError::Io { tool: ffmpeg.to_owned(), error };
     let mut child = cmd.spawn().map_err(|e| spawn_error(ffmpeg, e))?;
     // Read stderr on the side, so that a chatty ffmpeg cannot block on a full pipe.
     let stderr = child.stderr.take().map(|mut s| {
@@ -527,7 +527,7 @@ fn spawn_error(ffmpeg: &Path, source: std::io::Error) -> RenderError {
     if source.kind() == std::io::ErrorKind::NotFound {
         RenderError::FfmpegMissing { tool: ffmpeg.to_owned() }
     } else {
-        RenderError::Io { tool: ffmpeg.to_owned(), source }
+        RenderError::Io { tool: ffmpeg.to_owned(), error: source }
     }
 }
 

@@ -127,7 +127,7 @@ impl Canvas {
         let (dx, dy) = (b.0 - a.0, b.1 - a.1);
         let len = dx.hypot(dy);
         let half = width.max(1.0) / 2.0;
-        if !(len > 1e-9) {
+        if !len.is_finite() || len <= 1e-9 {
             self.fill_polygon(
                 &[
                     (a.0 - half, a.1 - half),
