@@ -2,7 +2,9 @@
 //!
 //! The library half holds what the commands do, so that workspace tests and later commands (the
 //! demo, the experiments) reuse it: [`files`] loads configuration files with errors that name the
-//! file, and [`sim`] runs and reports a scenario in the simulated proving ground.
+//! file, [`sim`] runs and reports a scenario in the simulated proving ground, [`render`] draws such a
+//! run as a bird's-eye video, and [`abstract_cmd`] turns a driving video into scenario semantics
+//! with `v2t-vlm`.
 
 pub mod abstract_cmd;
 pub mod experiment;
