@@ -2,12 +2,16 @@
 //!
 //! The library half holds what the commands do, so that workspace tests and later commands (the
 //! demo, the experiments) reuse it: [`files`] loads configuration files with errors that name the
-//! file, and [`sim`] runs and reports a scenario in the simulated proving ground.
+//! file, [`sim`] runs and reports a scenario in the simulated proving ground, [`render`] draws such a
+//! run as a bird's-eye video, and [`abstract_cmd`] turns a driving video into scenario semantics
+//! with `v2t-vlm`.
 
+pub mod abstract_cmd;
 pub mod experiment;
 pub mod ground;
 pub mod link;
 pub mod map;
+pub mod render;
 /// Loading configuration files (lives in `v2t-sim`, shared with the onboard runtime).
 pub use v2t_sim::files;
 pub mod serve;

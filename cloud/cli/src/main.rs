@@ -10,9 +10,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use v2t_game::regulator::RegulatorParams;
 use v2t_sim::vut::VutModel;
 use v2t_wire::link::{ALL_BVS, CloudBody, key_to_hex};
+use video2track::abstract_cmd::{AbstractArgs, AbstractError};
 use video2track::experiment;
 use video2track::files::{InputError, load_scenario, load_toml};
 use video2track::link::{BvEvent, Connection, Signer};
+use video2track::render::{RenderError, RenderOptions};
 use video2track::serve::ServeOptions;
 use video2track::sim::{report, run_reference};
 
@@ -40,6 +42,26 @@ enum Command {
         #[arg(long)]
         json: Option<PathBuf>,
     },
+    /// Draw a simulated run (`sim --json`) as a bird's-eye video with ffmpeg.
+    Render {
+        /// The run (JSON written by `video2track sim --json`).
+        run: PathBuf,
+        /// The video to write, e.g. run.mp4.
+        #[arg(short, long)]
+        out: PathBuf,
+        /// Frames per second (poses between the run's 10 Hz samples are interpolated).
+        #[arg(long, default_value_t = 10)]
+        fps: u32,
+        /// Width, px (even); the height is 9/16 of it.
+        #[arg(long, default_value_t = 960)]
+        width: u32,
+        /// The run's scenario card: footprints and routes (default: 4.8 m × 1.85 m, driven paths).
+        #[arg(long)]
+        card: Option<PathBuf>,
+        /// A map (.xodr) whose lanes are drawn underneath.
+        #[arg(long)]
+        map: Option<PathBuf>,
+    },
     /// Reproduce a research question of the paper in the simulated proving ground.
     Experiment {
         /// Which experiment.
@@ -63,6 +85,30 @@ enum Command {
         /// Regulator settings (TOML).
         #[arg(long, default_value = "config/regulator/default.toml")]
         regulator: PathBuf,
+    },
+    /// Turn a driving video into scenario semantics with a vision-language model (endpoint from
+    /// V2T_VLM_BASE_URL, V2T_VLM_MODEL, V2T_VLM_API_KEY), or replay a recorded cassette offline.
+    Abstract {
+        /// The video. With --replay only its file name counts: the one the cassette recorded.
+        video: PathBuf,
+        /// The operator's post-encroachment time label for the video, s, in (0, 30].
+        #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+        pet_label: f64,
+        /// Write the scenario semantics (JSON) here.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Save every exchange with the model into this cassette directory.
+        #[arg(long, value_name = "DIR", conflicts_with = "replay")]
+        record: Option<PathBuf>,
+        /// Replay this cassette directory instead of asking a model (no endpoint, no video needed).
+        #[arg(long, value_name = "DIR")]
+        replay: Option<PathBuf>,
+        /// Frames shown to the model (default 16, at most 64).
+        #[arg(long)]
+        frames: Option<u32>,
+        /// Where the frames are taken: uniform, or half of them where the picture changes most.
+        #[arg(long, value_enum)]
+        sampling: Option<Sampling>,
     },
     /// Place a video's semantics on the proving ground: rank the map's fragments, ground the VUT,
     /// the BVs and their conflict on the best that fits, write the grounded scenario.
@@ -257,6 +303,14 @@ enum MapCommand {
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum Sampling {
+    /// In the middle of equal slices of the video.
+    Uniform,
+    /// Half uniform, half where the picture changes most.
+    Motion,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
 enum Experiment {
     /// RQ3: does the achieved PET land on the target τ, in both styles, against every VUT model?
     Steerability,
@@ -272,6 +326,8 @@ fn main() -> ExitCode {
                 e.is::<InputError>()
                     || e.is::<v2t_map::MapError>()
                     || e.is::<video2track::ground::SemanticsFileError>()
+                    || e.downcast_ref::<AbstractError>().is_some_and(AbstractError::is_input)
+                    || e.downcast_ref::<RenderError>().is_some_and(RenderError::is_input)
                     || matches!(
                         e.downcast_ref::<video2track::link::LinkError>(),
                         Some(video2track::link::LinkError::Prior { .. } | video2track::link::LinkError::Usage(_))
@@ -301,6 +357,49 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
                 std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
                 println!("wrote {}", path.display());
             }
+            Ok(())
+        }
+        Command::Abstract { video, pet_label, out, record, replay, frames, sampling } => {
+            let args = AbstractArgs {
+                video,
+                pet_label_s: pet_label,
+                record,
+                replay,
+                frames,
+                sampling: sampling.map(|s| match s {
+                    Sampling::Uniform => video2track::abstract_cmd::Sampling::Uniform,
+                    Sampling::Motion => video2track::abstract_cmd::Sampling::Motion,
+                }),
+            };
+            let result = video2track::abstract_cmd::abstract_video(&args, |name| std::env::var(name).ok())?;
+            print!("{}", video2track::abstract_cmd::report(&result));
+            if let Some(dir) = &args.record {
+                println!("recorded {}", dir.display());
+            }
+            if let Some(path) = out {
+                video2track::abstract_cmd::write_semantics(&path, &result.semantics)?;
+                println!("wrote {}", path.display());
+            }
+            Ok(())
+        }
+        Command::Render { run, out, fps, width, card, map } => {
+            let opts = RenderOptions { fps, width };
+            opts.validate()?;
+            let scene = video2track::render::load_scene(&run, card.as_deref(), map.as_deref())?;
+            let done = video2track::render::encode(&scene, &opts, &out, std::path::Path::new("ffmpeg"))?;
+            let (t0, t1) = scene.time_span();
+            println!(
+                "{}: {} vehicles, {:.1} s  |  {} frames at {} fps, {}x{}, {}",
+                scene.name,
+                scene.vehicles.len(),
+                t1 - t0,
+                done.frames,
+                fps,
+                done.width,
+                done.height,
+                done.encoder
+            );
+            println!("wrote {}", out.display());
             Ok(())
         }
         Command::Experiment { which: Experiment::Steerability, json, repeats, cards, vut, tau, regulator } => {

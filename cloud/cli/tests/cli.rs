@@ -135,7 +135,11 @@ fn help_lists_only_real_commands() {
         .take_while(|l| !l.trim().is_empty())
         .filter_map(|l| l.split_whitespace().next())
         .collect();
-    assert_eq!(commands, ["sim", "experiment", "ground", "map", "help"], "{out}");
+    assert_eq!(
+        commands,
+        ["sim", "render", "experiment", "abstract", "ground", "map", "keygen", "serve", "upload", "send", "help"],
+        "{out}"
+    );
 }
 
 #[test]

@@ -1,0 +1,223 @@
+//! `video2track abstract`: a driving video and the operator's PET label in, checked scenario
+//! semantics out, through [`v2t_vlm`]: frames with `ffmpeg`, the versioned prompt, an
+//! OpenAI-compatible vision-language model (endpoint from the `V2T_VLM_*` variables), or a recorded
+//! cassette offline.
+//!
+//! ```
+//! use std::path::{Path, PathBuf};
+//! use video2track::abstract_cmd::{AbstractArgs, abstract_video, report};
+//!
+//! let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+//! let args = AbstractArgs {
+//!     video: PathBuf::from("cut_in_4.70.mp4"),
+//!     pet_label_s: 4.70,
+//!     record: None,
+//!     // Offline: the shipped cassette answers, no endpoint is read.
+//!     replay: Some(root.join("config/vlm/cassettes/cut_in")),
+//!     frames: None,
+//!     sampling: None,
+//! };
+//! let result = abstract_video(&args, |name| std::env::var(name).ok())?;
+//! assert!(report(&result).contains("1 request(s), 0 repair(s)"));
+//! assert_eq!(result.semantics.pet_label_s, 4.70);
+//! # Ok::<(), video2track::abstract_cmd::AbstractError>(())
+//! ```
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use v2t_model::semantics::{MAX_PET_LABEL_S, ScenarioSemantics};
+use v2t_vlm::config::{ENV_API_KEY, ENV_BASE_URL, ENV_MODEL};
+use v2t_vlm::frames::MAX_FRAMES;
+use v2t_vlm::{Abstraction, ConfigError, FrameError, Mode, VlmConfig, VlmError};
+
+/// Where the frames shown to the model are taken.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Sampling {
+    /// In the middle of equal slices of the video.
+    #[default]
+    Uniform,
+    /// Half of them uniformly, half where the picture changes most.
+    Motion,
+}
+
+/// What `abstract` is asked to do.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AbstractArgs {
+    /// The video. In a replay only its file name is used: it must be the one the cassette recorded.
+    pub video: PathBuf,
+    /// The operator's PET label, s, in (0, 30].
+    pub pet_label_s: f64,
+    /// Save every exchange of the live run into this cassette directory.
+    pub record: Option<PathBuf>,
+    /// Replay this cassette directory instead of asking a model.
+    pub replay: Option<PathBuf>,
+    /// Frames shown to the model (default 16, at most 64); not with a replay.
+    pub frames: Option<u32>,
+    /// Where the frames are taken (default uniform); not with a replay.
+    pub sampling: Option<Sampling>,
+}
+
+/// Why `abstract` failed.
+#[derive(Debug, thiserror::Error)]
+pub enum AbstractError {
+    /// The options contradict each other or are out of range.
+    #[error("{0}")]
+    Usage(String),
+    /// The video cannot be read (live and record mode).
+    #[error("video {path}: {error}")]
+    Video {
+        /// The path given.
+        path: PathBuf,
+        /// What the file system said.
+        error: std::io::Error,
+    },
+    /// No usable endpoint in the environment.
+    #[error(
+        "no VLM endpoint configured ({problem}): set {ENV_BASE_URL} (e.g. https://api.openai.com/v1) and {ENV_MODEL}, and {ENV_API_KEY} if the server needs a key; or replay a cassette with --replay DIR"
+    )]
+    Endpoint {
+        /// What is missing or wrong.
+        problem: String,
+    },
+    /// Scenario abstraction failed.
+    #[error(transparent)]
+    Vlm(#[from] VlmError),
+    /// The semantics could not be written.
+    #[error("writing {path}: {problem}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        problem: String,
+    },
+}
+
+impl AbstractError {
+    /// Whether the user's input is at fault (options, video, label, endpoint settings, cassette),
+    /// as opposed to the tools, the network or the model.
+    pub fn is_input(&self) -> bool {
+        match self {
+            Self::Usage(_) | Self::Video { .. } | Self::Endpoint { .. } => true,
+            Self::Write { .. } => false,
+            Self::Vlm(e) => match e {
+                VlmError::Config(_)
+                | VlmError::PetLabel { .. }
+                | VlmError::Prompt(_)
+                | VlmError::Replay(_)
+                | VlmError::Cassette { .. } => true,
+                VlmError::Frames(f) => matches!(
+                    f,
+                    FrameError::Video { .. }
+                        | FrameError::Probe { .. }
+                        | FrameError::TooLong { .. }
+                        | FrameError::Settings(_)
+                ),
+                VlmError::Http { .. }
+                | VlmError::ResponseFormatRejected { .. }
+                | VlmError::RetriesExhausted { .. }
+                | VlmError::Transport(_)
+                | VlmError::Reply(_)
+                | VlmError::InvalidAnswer { .. } => false,
+            },
+        }
+    }
+}
+
+/// Runs scenario abstraction as `args` asks. `env` looks up the `V2T_VLM_*` variables (live and
+/// record mode only). The label, the options and the video are checked before the endpoint.
+pub fn abstract_video(args: &AbstractArgs, env: impl Fn(&str) -> Option<String>) -> Result<Abstraction, AbstractError> {
+    let pet = args.pet_label_s;
+    if !(pet > 0.0 && pet <= MAX_PET_LABEL_S) {
+        return Err(VlmError::PetLabel { value: pet, max: MAX_PET_LABEL_S }.into());
+    }
+    if let Some(n) = args.frames
+        && !(1..=MAX_FRAMES).contains(&n)
+    {
+        return Err(AbstractError::Usage(format!("--frames must lie in 1..={MAX_FRAMES}, got {n}")));
+    }
+    let mode = match (&args.record, &args.replay) {
+        (Some(_), Some(_)) => return Err(AbstractError::Usage("--record and --replay exclude each other".into())),
+        (None, Some(dir)) => {
+            if args.frames.is_some() || args.sampling.is_some() {
+                return Err(AbstractError::Usage(
+                    "--frames and --sampling do not apply to --replay: the frames come from the cassette".into(),
+                ));
+            }
+            return Ok(v2t_vlm::abstract_video(&args.video, pet, &VlmConfig::default(), &Mode::Replay(dir.clone()))?);
+        }
+        (Some(dir), None) => Mode::Record(dir.clone()),
+        (None, None) => Mode::Live,
+    };
+    std::fs::File::open(&args.video).map_err(|error| AbstractError::Video { path: args.video.clone(), error })?;
+    let mut cfg = VlmConfig::from_lookup(env).map_err(|e| AbstractError::Endpoint {
+        problem: match e {
+            ConfigError::MissingEnv(name) => format!("{name} is not set"),
+            other => other.to_string(),
+        },
+    })?;
+    if let Some(n) = args.frames {
+        cfg.frames.count = n;
+    }
+    cfg.frames.motion_frames = match args.sampling.unwrap_or_default() {
+        Sampling::Uniform => 0,
+        Sampling::Motion => cfg.frames.count / 2,
+    };
+    Ok(v2t_vlm::abstract_video(&args.video, pet, &cfg, &mode)?)
+}
+
+/// Writes the semantics as `semantics.json` of a cassette holds them (pretty JSON, one final
+/// newline), so that a replay's output equals the recorded document byte for byte.
+pub fn write_semantics(path: &Path, semantics: &ScenarioSemantics) -> Result<(), AbstractError> {
+    let write_error = |problem: String| AbstractError::Write { path: path.to_owned(), problem };
+    let text = v2t_vlm::cassette::semantics_text(semantics).map_err(|e| write_error(e.to_string()))?;
+    std::fs::write(path, text).map_err(|e| write_error(e.to_string()))
+}
+
+/// A short report: the frames used with their timestamps, the model, the prompt version, requests
+/// and repairs, and what the semantics say.
+pub fn report(a: &Abstraction) -> String {
+    let mut out = String::new();
+    let v = &a.video;
+    let _ = writeln!(
+        out,
+        "video {}  |  {:.1} s, {}x{}, {:.0} fps",
+        a.semantics.source.video, v.duration_s, v.width, v.height, v.fps
+    );
+    let times: Vec<String> = a.frames.iter().map(|f| format!("{:.2}", f.timestamp_ms as f64 / 1000.0)).collect();
+    let size = a.frames.first().map_or_else(String::new, |f| format!(", {}x{}", f.width, f.height));
+    let _ = writeln!(out, "frames {}{size} at {} s", a.frames.len(), times.join(" "));
+    let _ = writeln!(
+        out,
+        "model {}  |  prompt {}  |  {} request(s), {} repair(s){}",
+        a.model,
+        a.prompt_version,
+        a.requests,
+        a.repairs,
+        if a.schema_in_prompt { "  |  schema in the prompt" } else { "" }
+    );
+    if let Some(problem) = &a.repaired_problem {
+        let _ = writeln!(out, "  first answer repaired: {problem}");
+    }
+    let s = &a.semantics;
+    let r = &s.road_topology;
+    let _ = writeln!(
+        out,
+        "road {}, {} lane(s) per direction, {}  |  ego {} at {:.1} m/s  |  PET label {:.2} s",
+        r.road_type, r.lanes_per_direction, r.signal_control, s.ego.maneuver, s.ego.speed_estimate_mps, s.pet_label_s
+    );
+    for bv in &s.interacting_bvs {
+        let _ = writeln!(
+            out,
+            "  {}: {} from {}, {} at {:.1} m/s, {}",
+            bv.id,
+            bv.interaction_type,
+            bv.relative_start,
+            bv.behavior.maneuver,
+            bv.behavior.speed_estimate_mps,
+            bv.style
+        );
+    }
+    let _ = writeln!(out, "  {}", s.event_description);
+    out
+}
