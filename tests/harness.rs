@@ -199,6 +199,9 @@ impl Broker {
         let port = self.port;
         let proc = match self.kind {
             BrokerKind::Mosquitto => {
+                // Run as root, Mosquitto drops to its own user: let it save its sessions here.
+                use std::os::unix::fs::PermissionsExt as _;
+                std::fs::set_permissions(&self.dir, std::fs::Permissions::from_mode(0o777)).unwrap();
                 let conf = self.dir.join("mosquitto.conf");
                 std::fs::write(
                     &conf,

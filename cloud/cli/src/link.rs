@@ -326,9 +326,7 @@ pub fn send_once(
             None => return Err(LinkError::Broker("no connection within 5 s".into())),
         }
     }
-    // The subscription is requested on the connection acknowledgement; give it a moment to land
-    // before the BV can answer.
-    std::thread::sleep(Duration::from_millis(50));
+    // `Connected` comes once the event subscription is acknowledged: the BV's answer cannot miss it.
     let (topic, frame, seq) = signer.seal(bv_id, body)?;
     mqtt.publish(&topic, frame, true).map_err(LinkError::Broker)?;
     let answer = if awaits {

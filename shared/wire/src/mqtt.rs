@@ -74,7 +74,7 @@ impl std::fmt::Debug for MqttSettings {
 /// What the MQTT thread reports.
 #[derive(Debug)]
 pub enum LinkEvent {
-    /// Connected (again) and subscribed.
+    /// Connected (again) and every subscription acknowledged.
     Connected,
     /// The connection failed or dropped; the thread retries after a backoff.
     Down(String),
@@ -135,20 +135,31 @@ impl MqttLink {
             .name("mqtt".into())
             .spawn(move || {
                 let mut backoff = BACKOFF_MIN;
+                // Subscriptions still to be requested after the last connection, and the
+                // acknowledgements still awaited: `Connected` is reported once every one is
+                // acknowledged, so a frame sent after it cannot miss this client. A request that
+                // does not fit the queue (full of publications from before the drop) is retried
+                // after the next event.
+                let mut to_request: Vec<String> = Vec::new();
+                let mut awaiting = 0usize;
                 for notification in connection.iter() {
                     let event = match notification {
                         Ok(rumqttc::Event::Incoming(rumqttc::Packet::ConnAck(_))) => {
                             backoff = BACKOFF_MIN;
-                            for t in &subscribe {
-                                let _ = sub_client.try_subscribe(t.as_str(), rumqttc::QoS::AtLeastOnce);
-                            }
-                            LinkEvent::Connected
+                            to_request.clone_from(&subscribe);
+                            awaiting = subscribe.len();
+                            (awaiting == 0).then_some(LinkEvent::Connected)
+                        }
+                        Ok(rumqttc::Event::Incoming(rumqttc::Packet::SubAck(_))) => {
+                            awaiting = awaiting.saturating_sub(1);
+                            (awaiting == 0 && to_request.is_empty()).then_some(LinkEvent::Connected)
                         }
                         Ok(rumqttc::Event::Incoming(rumqttc::Packet::Publish(p))) => {
-                            LinkEvent::Frame { topic: p.topic, payload: p.payload.to_vec() }
+                            Some(LinkEvent::Frame { topic: p.topic, payload: p.payload.to_vec() })
                         }
-                        Ok(_) => continue,
+                        Ok(_) => None,
                         Err(e) => {
+                            to_request.clear();
                             if tx.send(LinkEvent::Down(e.to_string())).is_err() {
                                 return;
                             }
@@ -157,7 +168,10 @@ impl MqttLink {
                             continue;
                         }
                     };
-                    if tx.send(event).is_err() {
+                    to_request.retain(|t| sub_client.try_subscribe(t.as_str(), rumqttc::QoS::AtLeastOnce).is_err());
+                    if let Some(event) = event
+                        && tx.send(event).is_err()
+                    {
                         return;
                     }
                 }
