@@ -281,11 +281,13 @@ pub fn edge_config_with(dir: &Path, broker: &str, public: &Path, bv_id: &str, ba
     let base = std::fs::read_to_string(repo_root().join(base)).unwrap();
     let base = base.split("\n[uplink]").next().unwrap().to_owned();
     let edge_dir = repo_root().join("config/edge");
+    let loss =
+        if extra.contains("on_link_loss") { "" } else { "on_link_loss = \"continue\"\nlink_loss_timeout_s = 2.0\n" };
     let text = base.replace("\"../", &format!("\"{}/../", edge_dir.display()))
         + &format!(
             "\n[uplink]\nbroker = \"{broker}\"\nfleet = \"pg\"\nbv_id = \"{bv_id}\"\ncloud_key = \"{}\"\n\
              map = \"{}\"\ngeofence_margin_m = 0.5\nmax_age_s = 30.0\nmax_skew_s = 2.0\ntelemetry_period_s = 0.1\n\
-             heartbeat_period_s = 0.2\non_link_loss = \"continue\"\nlink_loss_timeout_s = 2.0\n{extra}",
+             heartbeat_period_s = 0.2\n{loss}{extra}",
             public.display(),
             repo_root().join("config/maps/proving_ground.xodr").display()
         );

@@ -244,3 +244,47 @@ fn bvs_and_the_supervisor_log_in_with_tls_client_certificates_and_passwords() {
     let line = node2.expect_line("cannot reach the broker", Duration::from_secs(10));
     assert!(line.contains("NotAuthorized") || line.contains("BadUserNamePassword"), "{line}");
 }
+
+/// `on_link_loss = "minimal_risk_stop"`: when the broker stays away for the timeout, the uplink asks
+/// the gateway for the minimal-risk stop; with `"continue"` (the other tests) it does not.
+#[test]
+fn a_lost_broker_brings_the_minimal_risk_stop_when_the_policy_says_so() {
+    use v2t_tests::harness::edge_config_with;
+    let dir = tempdir("linkloss");
+    let (_key, secret, public) = write_keys(&dir, 13);
+    let mut broker = Broker::start(BrokerKind::Mosquitto, &dir, &secret);
+    let extra = "on_link_loss = \"minimal_risk_stop\"\nlink_loss_timeout_s = 0.5\n";
+    let cfg = edge_config_with(
+        &dir,
+        &format!("mqtt://127.0.0.1:{}", broker.port),
+        &public,
+        "bv1",
+        "config/edge/bv1.toml",
+        extra,
+    );
+    let ns = format!("v2t/test/linkloss{}", std::process::id());
+    let node = Proc::start(
+        &bin("v2t-edge"),
+        &["node", "uplink", "--config", cfg.to_str().unwrap(), "--namespace", &ns],
+        "uplink",
+    );
+    v2t_tests::harness::iceoryx2_config();
+    let bus = Bus::<ipc::Service>::new("test-linkloss", &ns).unwrap();
+    let safety = bus.subscriber::<SafetyCommand>(services::SAFETY).unwrap();
+    node.expect_line("connected", Duration::from_secs(10));
+    std::thread::sleep(Duration::from_millis(800));
+    assert!(safety.receive().unwrap().is_none(), "no stop while the broker is there");
+    let lost = Instant::now();
+    broker.stop();
+    node.expect_line("broker unreachable", Duration::from_secs(5));
+    let deadline = Instant::now() + Duration::from_secs(2);
+    let cmd = loop {
+        if let Some(c) = safety.receive().unwrap() {
+            break *c;
+        }
+        assert!(Instant::now() < deadline, "no minimal-risk stop after the link loss");
+        bus.wait(Duration::from_millis(5));
+    };
+    assert_eq!(cmd.action, SafetyAction::MinimalRiskStop.code());
+    assert!(lost.elapsed() >= Duration::from_millis(500), "stopped before the timeout");
+}
