@@ -124,6 +124,42 @@ impl AbstractError {
     }
 }
 
+/// The operator's annotation beside a video (`<video stem>.labels.toml`): what the model is never
+/// asked for.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Labels {
+    /// Post-encroachment time of the interaction in the video, s, as measured by the operator.
+    pub pet_label_s: f64,
+    /// Free text: how and by whom it was measured.
+    #[serde(default)]
+    pub note: Option<String>,
+}
+
+/// The annotation file `abstract` reads when no `--pet-label` is given: the video's name with
+/// `.labels.toml` for its extension (`cut_in.mp4` → `cut_in.labels.toml`).
+pub fn default_labels_path(video: &Path) -> PathBuf {
+    video.with_extension("labels.toml")
+}
+
+/// The PET label: `--pet-label` when given, else the annotation file (`labels`, or the default one
+/// beside the video). Neither is an error that says how to give one.
+pub fn pet_label(video: &Path, pet_label_s: Option<f64>, labels: Option<&Path>) -> Result<f64, AbstractError> {
+    if let Some(p) = pet_label_s {
+        return Ok(p);
+    }
+    let path = labels.map_or_else(|| default_labels_path(video), Path::to_owned);
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        AbstractError::Usage(format!(
+            "no PET label: give --pet-label SECONDS, or write `pet_label_s = …` into {} ({e})",
+            path.display()
+        ))
+    })?;
+    let l: Labels =
+        toml::from_str(&text).map_err(|e| AbstractError::Usage(format!("{}: {}", path.display(), e.message())))?;
+    Ok(l.pet_label_s)
+}
+
 /// Runs scenario abstraction as `args` asks. `env` looks up the `V2T_VLM_*` variables (live and
 /// record mode only). The label, the options and the video are checked before the endpoint.
 pub fn abstract_video(args: &AbstractArgs, env: impl Fn(&str) -> Option<String>) -> Result<Abstraction, AbstractError> {

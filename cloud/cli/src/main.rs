@@ -91,9 +91,13 @@ enum Command {
     Abstract {
         /// The video. With --replay only its file name counts: the one the cassette recorded.
         video: PathBuf,
-        /// The operator's post-encroachment time label for the video, s, in (0, 30].
+        /// The operator's post-encroachment time label for the video, s, in (0, 30] (default: from
+        /// the annotation file).
         #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
-        pet_label: f64,
+        pet_label: Option<f64>,
+        /// Annotation file with `pet_label_s` (TOML; default: the video's name with `.labels.toml`).
+        #[arg(long, value_name = "FILE", conflicts_with = "pet_label")]
+        labels: Option<PathBuf>,
         /// Write the scenario semantics (JSON) here.
         #[arg(long)]
         out: Option<PathBuf>,
@@ -359,7 +363,8 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Command::Abstract { video, pet_label, out, record, replay, frames, sampling } => {
+        Command::Abstract { video, pet_label, labels, out, record, replay, frames, sampling } => {
+            let pet_label = video2track::abstract_cmd::pet_label(&video, pet_label, labels.as_deref())?;
             let args = AbstractArgs {
                 video,
                 pet_label_s: pet_label,

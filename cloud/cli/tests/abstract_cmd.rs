@@ -176,3 +176,32 @@ fn replay_options_are_checked() {
     expect_input_error(&["abstract", "a.mp4", "--pet-label", "4.7", "--frames", "65"], &["--frames", "64"]);
     expect_input_error(&["abstract", "a.mp4", "--pet-label", "4.7", "--sampling", "random"], &["random"]);
 }
+
+#[test]
+fn the_label_comes_from_the_annotation_file_beside_the_video_when_not_given() {
+    let dir = tempdir("abstract-labels");
+    // The cassette recorded `cut_in_4.70.mp4`: an annotation beside a video of that name.
+    let video = dir.join("cut_in_4.70.mp4");
+    std::fs::write(dir.join("cut_in_4.70.labels.toml"), "pet_label_s = 4.70\nnote = \"measured by hand\"\n").unwrap();
+    let out = dir.join("cut_in.json");
+    let cassette = "config/vlm/cassettes/cut_in";
+    let o = video2track(&["abstract", video.to_str().unwrap(), "--replay", cassette, "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o).1);
+    let recorded = std::fs::read(repo().join(cassette).join("semantics.json")).unwrap();
+    assert_eq!(std::fs::read(&out).unwrap(), recorded);
+
+    // An explicit --labels file; a bad one and none at all are input errors that say what to do.
+    let other = dir.join("other.toml");
+    std::fs::write(&other, "pet_label_s = 4.70\n").unwrap();
+    let o =
+        video2track(&["abstract", video.to_str().unwrap(), "--replay", cassette, "--labels", other.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o).1);
+    std::fs::write(&other, "pet = 4.70\n").unwrap();
+    let o =
+        video2track(&["abstract", video.to_str().unwrap(), "--replay", cassette, "--labels", other.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o).1);
+    assert!(text(&o).1.contains("pet"), "{}", text(&o).1);
+    let o = video2track(&["abstract", "elsewhere/cut_in_4.70.mp4", "--replay", cassette]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o).1.contains("--pet-label"), "{}", text(&o).1);
+}
