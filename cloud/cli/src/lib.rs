@@ -14,5 +14,6 @@ pub mod map;
 pub mod render;
 /// Loading configuration files (lives in `v2t-sim`, shared with the onboard runtime).
 pub use v2t_sim::files;
+pub mod recording;
 pub mod serve;
 pub mod sim;

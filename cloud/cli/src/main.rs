@@ -41,6 +41,18 @@ enum Command {
         /// Write the results and the full trace as JSON to this file.
         #[arg(long)]
         json: Option<PathBuf>,
+        /// Record the run as MCAP (truth, scene, commands, predicted PET) to this file.
+        #[arg(long)]
+        mcap: Option<PathBuf>,
+    },
+    /// Measure a recorded run (`sim --mcap`) again from its recorded truth and compare with what
+    /// the run reported; exit 1 when they differ.
+    Replay {
+        /// The recording (.mcap).
+        recording: PathBuf,
+        /// Write the recomputed result as JSON here.
+        #[arg(long)]
+        json: Option<PathBuf>,
     },
     /// Draw a simulated run (`sim --json`) as a bird's-eye video with ffmpeg.
     Render {
@@ -336,6 +348,13 @@ fn main() -> ExitCode {
                         e.downcast_ref::<video2track::link::LinkError>(),
                         Some(video2track::link::LinkError::Prior { .. } | video2track::link::LinkError::Usage(_))
                     )
+                    || matches!(
+                        e.downcast_ref::<video2track::recording::RecordingError>(),
+                        Some(
+                            video2track::recording::RecordingError::Mcap { .. }
+                                | video2track::recording::RecordingError::Content { .. }
+                        )
+                    )
             });
             if bad_input { ExitCode::from(2) } else { ExitCode::FAILURE }
         }
@@ -351,11 +370,25 @@ fn wait_duration(s: f64) -> anyhow::Result<std::time::Duration> {
 
 fn execute(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        Command::Sim { card, seed, vut, json } => {
+        Command::Replay { recording, json } => {
+            let r = video2track::recording::replay(&recording)?;
+            print!("{}", video2track::recording::report(&recording, &r));
+            if let Some(path) = json {
+                let text = serde_json::to_string_pretty(&r.recomputed).context("serializing the result")?;
+                std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
+                println!("wrote {}", path.display());
+            }
+            if r.matches() { Ok(()) } else { anyhow::bail!("the recomputed metrics differ from the recorded ones") }
+        }
+        Command::Sim { card, seed, vut, json, mcap } => {
             let scenario = load_scenario(&card)?;
             let model = vut.map(|v| v.parse::<VutModel>()).transpose().map_err(anyhow::Error::msg)?;
             let outcome = run_reference(&scenario, model, seed)?;
             print!("{}", report(&outcome));
+            if let Some(path) = mcap {
+                video2track::recording::write(&outcome, &path)?;
+                println!("wrote {}", path.display());
+            }
             if let Some(path) = json {
                 let text = serde_json::to_string_pretty(&outcome).context("serializing the run")?;
                 std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()))?;

@@ -10,12 +10,11 @@ use serde::Serialize;
 use v2t_model::Style;
 use v2t_model::geometry::OrientedBox;
 use v2t_model::kinematics::State;
-use v2t_model::metrics::{
-    ConflictKind, Motion, MotionSnapshot, Passage, PetOutcome, Side, passage, pet, predicted_pet_series, ttc_2d,
-};
+use v2t_model::metrics::{ConflictKind, Passage, PetOutcome, predicted_pet_series};
 use v2t_model::path::ReferencePath;
 
 use crate::bv::BvController;
+use crate::measure::{AgentTruth, ConflictSetup, MeasureSetup, TruthLog, measure};
 use crate::observation::{BvObservation, Perceived, VutObservation};
 use crate::plant::{ActuationRequest, Plant};
 use crate::scenario::{Agent, Scenario};
@@ -132,6 +131,12 @@ pub struct RunOutcome {
     pub agent_ids: Vec<String>,
     /// The recorded trace.
     pub trace: Vec<TraceSample>,
+    /// What the measurements are taken against (not in the JSON: a recording keeps it).
+    #[serde(skip)]
+    pub setup: MeasureSetup,
+    /// The truth at the plant rate (not in the JSON: a recording keeps it).
+    #[serde(skip)]
+    pub truth: TruthLog,
 }
 
 /// Why a run could not start.
@@ -188,12 +193,9 @@ pub struct Simulation<'s> {
     l_true: Vec<f64>,
     s_perceived: Vec<f64>,
     requests: Vec<ActuationRequest>,
-    times: Vec<f64>,
-    s_series: Vec<Vec<f64>>,
+    truth: TruthLog,
     trace: Vec<TraceSample>,
-    min_distance: (f64, f64),
     collision: Option<CollisionEvent>,
-    min_ttc: Option<f64>,
     n_steps: usize,
     control_every: usize,
     record_every: usize,
@@ -222,6 +224,17 @@ impl<'s> Simulation<'s> {
             .collect();
         let n = agents.len();
         let nb = scenario.bvs.len();
+        let truth_agents = agents
+            .iter()
+            .map(|a| AgentTruth {
+                id: a.id.clone(),
+                dims: a.dims(),
+                route_length_m: a.route.length(),
+                states: Vec::new(),
+                s_m: Vec::new(),
+                accel_mps2: Vec::new(),
+            })
+            .collect();
         Self {
             scenario,
             agents,
@@ -231,12 +244,9 @@ impl<'s> Simulation<'s> {
             l_true: vec![0.0; n],
             s_perceived: vec![0.0; n],
             requests: vec![ActuationRequest::default(); n],
-            times: Vec::new(),
-            s_series: vec![Vec::new(); n],
+            truth: TruthLog { times: Vec::new(), agents: truth_agents },
             trace: Vec::new(),
-            min_distance: (f64::INFINITY, 0.0),
             collision: None,
-            min_ttc: None,
             n_steps: (scenario.duration_s / settings.plant_dt_s).ceil() as usize,
             control_every: settings.control_every(),
             record_every: settings.record_every(),
@@ -335,27 +345,28 @@ impl<'s> Simulation<'s> {
             let st = plant.state();
             let hint = self.s_true.get(i).copied().unwrap_or(0.0);
             let (s, l) = track(&agent.route, st.position(), hint, st.speed_mps, dt);
-            if let (Some(sv), Some(lv), Some(series)) =
-                (self.s_true.get_mut(i), self.l_true.get_mut(i), self.s_series.get_mut(i))
+            if let (Some(sv), Some(lv), Some(truth)) =
+                (self.s_true.get_mut(i), self.l_true.get_mut(i), self.truth.agents.get_mut(i))
             {
                 *sv = s;
                 *lv = l;
-                series.push(s);
+                truth.states.push(st);
+                truth.s_m.push(s);
+                truth.accel_mps2.push(plant.accel_mps2());
             }
             loc.record_truth(t, st);
             boxes.push(agent.vehicle.footprint(&st));
         }
-        self.times.push(t);
-        for i in 0..n {
-            for j in i + 1..n {
-                let (Some(a), Some(b)) = (boxes.get(i), boxes.get(j)) else { continue };
-                let d = a.distance(b);
-                if d < self.min_distance.0 {
-                    self.min_distance = (d, t);
-                }
-                if d <= 0.0 && self.collision.is_none() {
-                    let id = |x: usize| self.agents.get(x).map(|a| a.id.clone()).unwrap_or_default();
-                    self.collision = Some(CollisionEvent { t_s: t, agents: [id(i), id(j)] });
+        self.truth.times.push(t);
+        // A touch ends the run; the measurements come from the truth log at the end.
+        if self.collision.is_none() {
+            for i in 0..n {
+                for j in i + 1..n {
+                    let (Some(a), Some(b)) = (boxes.get(i), boxes.get(j)) else { continue };
+                    if a.distance(b) <= 0.0 && self.collision.is_none() {
+                        let id = |x: usize| self.agents.get(x).map(|a| a.id.clone()).unwrap_or_default();
+                        self.collision = Some(CollisionEvent { t_s: t, agents: [id(i), id(j)] });
+                    }
                 }
             }
         }
@@ -432,81 +443,36 @@ impl<'s> Simulation<'s> {
                 })
             })
             .collect();
-        let snapshot = |i: usize| -> Option<MotionSnapshot> {
-            let p = self.plants.get(i)?;
-            let st = p.state();
-            Some(MotionSnapshot {
-                position: st.position(),
-                heading_rad: st.theta_rad,
-                speed_mps: st.speed_mps,
-                accel_mps2: p.accel_mps2(),
-                dims: self.agents.get(i)?.dims(),
-            })
-        };
-        for b in 1..n {
-            if let (Some(v), Some(x)) = (snapshot(0), snapshot(b))
-                && let Some(ttc) = ttc_2d(&v, &x, Motion::ConstantVelocity, 10.0)
-            {
-                self.min_ttc = Some(self.min_ttc.map_or(ttc, |m: f64| m.min(ttc)));
-            }
-        }
         self.trace.push(TraceSample { t_s: t, agents: samples, predicted_pet_s: Vec::new() });
     }
 
     /// Measures the interaction on the true states and returns the run's outcome.
     pub fn finish(self, vut_model: &str, bv_controller: &str) -> RunOutcome {
         let scenario = self.scenario;
-        let t_end = self.times.last().copied().unwrap_or(0.0);
-        let mut conflicts = Vec::with_capacity(scenario.conflicts.len());
-        for c in &scenario.conflicts {
-            let (Some(vut_s), Some(bv_s), Some(bv)) =
-                (self.s_series.first(), self.s_series.get(c.bv_index + 1), scenario.bvs.get(c.bv_index))
-            else {
-                continue;
-            };
-            let vut_passage = passage(&self.times, vut_s, &c.zone.a);
-            let bv_passage = passage(&self.times, bv_s, &c.zone.b);
-            let outcome = pet(vut_passage, bv_passage, t_end);
-            let first = outcome.first().map(|s| match s {
-                Side::A => FirstThrough::Vut,
-                Side::B => FirstThrough::Bv,
-            });
-            let wanted = match scenario.style {
-                Style::Rush => FirstThrough::Bv,
-                Style::Yield => FirstThrough::Vut,
-            };
-            conflicts.push(ConflictResult {
-                bv_id: bv.agent.id.clone(),
-                kind: c.zone.kind,
-                pet: outcome,
-                first,
-                order_matches_style: first.map(|f| f == wanted),
-                vut_passage,
-                bv_passage,
-            });
-        }
-        let mut trace = self.trace;
-        fill_predicted_pet(scenario, &mut trace);
-        let pet_min_s = conflicts.iter().filter_map(|c| c.pet.pet_s()).reduce(f64::min);
-        let zone_overlap = conflicts.iter().any(|c| matches!(c.pet, PetOutcome::Measured { overlap: true, .. }));
-        let result = RunResult {
+        let setup = MeasureSetup {
             scenario: scenario.name.clone(),
             vut_model: vut_model.to_owned(),
             bv_controller: bv_controller.to_owned(),
             seed: self.seed,
             style: scenario.style,
             tau_s: scenario.tau_s,
-            duration_s: t_end,
-            completed: self.completed,
-            conflicts,
-            pet_min_s,
-            min_distance_m: self.min_distance.0,
-            min_distance_t_s: self.min_distance.1,
-            min_ttc_s: self.min_ttc,
-            collision: self.collision,
-            zone_overlap,
+            conflicts: scenario
+                .conflicts
+                .iter()
+                .map(|c| ConflictSetup { bv_index: c.bv_index, zone: c.zone })
+                .collect(),
+            ttc_every: self.record_every,
         };
-        RunOutcome { result, agent_ids: self.agents.iter().map(|a| a.id.clone()).collect(), trace }
+        let result = measure(&setup, &self.truth);
+        let mut trace = self.trace;
+        fill_predicted_pet(scenario, &mut trace);
+        RunOutcome {
+            result,
+            agent_ids: self.agents.iter().map(|a| a.id.clone()).collect(),
+            trace,
+            setup,
+            truth: self.truth,
+        }
     }
 }
 

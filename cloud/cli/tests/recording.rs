@@ -1,0 +1,76 @@
+//! `video2track sim --mcap` and `video2track replay`: a recorded run measures again to exactly what
+//! it reported; a recording whose truth differs does not; a file that is not a recording is an
+//! input error.
+
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn video2track(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_video2track")).args(args).current_dir(repo()).output().unwrap()
+}
+
+fn tempdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("v2t-cli-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn recorded_runs_replay_to_the_same_metrics_and_altered_ones_do_not() {
+    let dir = tempdir("mcap");
+    for (card, vut) in
+        [("config/scenarios/left_turn_basic.toml", "idm-normal"), ("config/scenarios/cut_in_basic.toml", "reactive")]
+    {
+        let mcap = dir.join("run.mcap");
+        let json = dir.join("run.json");
+        let o = video2track(&[
+            "sim",
+            card,
+            "--vut",
+            vut,
+            "--mcap",
+            mcap.to_str().unwrap(),
+            "--json",
+            json.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let replayed = dir.join("replayed.json");
+        let o = video2track(&["replay", mcap.to_str().unwrap(), "--json", replayed.to_str().unwrap()]);
+        let out = String::from_utf8_lossy(&o.stdout);
+        assert!(o.status.success() && out.contains("every metric identical"), "{card}: {out}");
+        for topic in ["/truth", "/scene", "/commands", "/pet"] {
+            assert!(out.contains(&format!("{topic}: ")), "{card}: no {topic}: {out}");
+        }
+        // The recomputed result is the result the run wrote in its JSON.
+        let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let again: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&replayed).unwrap()).unwrap();
+        assert_eq!(run["result"], again, "{card}");
+    }
+    // The replay measures the recorded truth, it does not echo the recorded result: a run whose
+    // truth is shifted (the VUT 2 m further along its route at every step) replays differently.
+    let scenario = video2track::files::load_scenario(&repo().join("config/scenarios/left_turn_basic.toml")).unwrap();
+    let mut run = video2track::sim::run_reference(&scenario, None, 1).unwrap();
+    for s in &mut run.truth.agents[0].s_m {
+        *s += 2.0;
+    }
+    let shifted = dir.join("shifted.mcap");
+    video2track::recording::write(&run, &shifted).unwrap();
+    let r = video2track::recording::replay(&shifted).unwrap();
+    assert!(!r.matches(), "a shifted truth replayed to the recorded result");
+    assert_ne!(r.recorded["pet_min_s"], r.recomputed["pet_min_s"]);
+    let o = video2track(&["replay", shifted.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stdout));
+
+    let not_mcap = dir.join("not.mcap");
+    std::fs::write(&not_mcap, b"hello").unwrap();
+    let o = video2track(&["replay", not_mcap.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = video2track(&["replay", dir.join("missing.mcap").to_str().unwrap()]);
+    assert_ne!(o.status.code(), Some(0));
+}
