@@ -497,7 +497,7 @@ fn init_actions(x: &mut Xml, agent: &ExportAgent) {
     x.open("Private", &[a("entityRef", agent.id.as_str())]);
     x.open("PrivateAction", &[]);
     x.open("TeleportAction", &[]);
-    world_position(x, first.position_point(), first.theta_rad);
+    world_position(x, first.position(), first.theta_rad);
     x.close("TeleportAction");
     x.close("PrivateAction");
     x.open("PrivateAction", &[]);
@@ -553,7 +553,7 @@ fn bv_story(x: &mut Xml, agent: &ExportAgent) {
     for k in vertex_indices(&agent.times_s, &headings, VERTEX_PERIOD_S, VERTEX_HEADING_STEP_RAD) {
         let (Some(t), Some(s)) = (agent.times_s.get(k), agent.states.get(k)) else { continue };
         x.open("Vertex", &[a("time", num(*t))]);
-        world_position(x, s.position_point(), s.theta_rad);
+        world_position(x, s.position(), s.theta_rad);
         x.close("Vertex");
     }
     x.close("Polyline");
@@ -575,16 +575,6 @@ fn bv_story(x: &mut Xml, agent: &ExportAgent) {
     time_trigger(x, "StartTrigger", &format!("{id}_act_start"), 0.0);
     x.close("Act");
     x.close("Story");
-}
-
-trait PositionPoint {
-    fn position_point(&self) -> Point2;
-}
-
-impl PositionPoint for State {
-    fn position_point(&self) -> Point2 {
-        Point2 { x: self.px, y: self.py }
-    }
 }
 
 /// The OpenSCENARIO 1.2 file for `scenario`.
