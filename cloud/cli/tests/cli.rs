@@ -137,7 +137,20 @@ fn help_lists_only_real_commands() {
         .collect();
     assert_eq!(
         commands,
-        ["sim", "render", "experiment", "abstract", "ground", "export", "map", "keygen", "serve", "upload", "send", "help"],
+        [
+            "sim",
+            "render",
+            "experiment",
+            "abstract",
+            "ground",
+            "export",
+            "map",
+            "keygen",
+            "serve",
+            "upload",
+            "send",
+            "help"
+        ],
         "{out}"
     );
 }
