@@ -4,10 +4,12 @@
 //! demo, the experiments) reuse it: [`files`] loads configuration files with errors that name the
 //! file, [`sim`] runs and reports a scenario in the simulated proving ground, [`render`] draws such a
 //! run as a bird's-eye video, and [`abstract_cmd`] turns a driving video into scenario semantics
-//! with `v2t-vlm`.
+//! with `v2t-vlm`; [`xosc`] writes a prior, a grounded scenario or a run as OpenSCENARIO 1.2, and
+//! [`export`] is its file shell.
 
 pub mod abstract_cmd;
 pub mod experiment;
+pub mod export;
 pub mod ground;
 pub mod link;
 pub mod map;
@@ -17,3 +19,4 @@ pub use v2t_sim::files;
 pub mod recording;
 pub mod serve;
 pub mod sim;
+pub mod xosc;

@@ -209,7 +209,7 @@ pub fn prior_from_file(
     Ok(PriorUpload { prior_id, bv_agent, valid_from_ms: now, valid_until_ms: now + (valid_s * 1e3) as u64, prior })
 }
 
-fn route_time_s(route: &[v2t_model::geometry::Point2], speed_mps: f64) -> f64 {
+pub(crate) fn route_time_s(route: &[v2t_model::geometry::Point2], speed_mps: f64) -> f64 {
     let length: f64 = route.windows(2).map(|w| w.first().zip(w.get(1)).map_or(0.0, |(a, b)| a.dist(*b))).sum();
     if speed_mps > 0.1 { length / speed_mps } else { 0.0 }
 }

@@ -147,6 +147,11 @@ enum Command {
         #[arg(long, default_value_t = 3)]
         top: usize,
     },
+    /// Export a scenario for other tools.
+    Export {
+        #[command(subcommand)]
+        command: ExportCommand,
+    },
     /// OpenDRIVE maps and their topology library.
     Map {
         #[command(subcommand)]
@@ -301,6 +306,29 @@ fn verdict(bv: &str, answer: Option<BvEvent>) -> anyhow::Result<()> {
 }
 
 #[derive(Debug, Subcommand)]
+enum ExportCommand {
+    /// Write a trajectory prior, a grounded scenario (constant speed along its routes) or a run
+    /// (`sim --json`) as an OpenSCENARIO 1.2 file: the BVs follow their trajectories, the VUT gets
+    /// its start and its route.
+    Xosc {
+        /// The input (JSON): TrajectoryPrior, GroundedScenario or `video2track sim --json` run.
+        input: PathBuf,
+        /// The .xosc to write.
+        #[arg(short, long)]
+        out: PathBuf,
+        /// The map (.xodr) the file names as its road network (relative to the output file).
+        #[arg(long, default_value = video2track::ground::DEFAULT_MAP)]
+        map: PathBuf,
+        /// The VUT's vehicle file (TOML).
+        #[arg(long, default_value = "config/vehicles/vut_sedan.toml")]
+        vut_vehicle: PathBuf,
+        /// Every BV's vehicle file (TOML).
+        #[arg(long, default_value = "config/vehicles/bv_sedan.toml")]
+        bv_vehicle: PathBuf,
+    },
+}
+
+#[derive(Debug, Subcommand)]
 enum MapCommand {
     /// Parse an OpenDRIVE map, build its topology library and report fragments, anchors and timings.
     Inspect {
@@ -344,6 +372,8 @@ fn main() -> ExitCode {
                     || e.is::<video2track::ground::SemanticsFileError>()
                     || e.downcast_ref::<AbstractError>().is_some_and(AbstractError::is_input)
                     || e.downcast_ref::<RenderError>().is_some_and(RenderError::is_input)
+                    || e.downcast_ref::<video2track::export::ExportError>()
+                        .is_some_and(video2track::export::ExportError::is_input)
                     || matches!(
                         e.downcast_ref::<video2track::link::LinkError>(),
                         Some(video2track::link::LinkError::Prior { .. } | video2track::link::LinkError::Usage(_))
@@ -558,6 +588,30 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
                 wait,
             )?;
             verdict(&bv, answer)
+        }
+        Command::Export { command: ExportCommand::Xosc { input, out, map, vut_vehicle, bv_vehicle } } => {
+            let args = video2track::export::XoscArgs {
+                input: &input,
+                out: &out,
+                map: &map,
+                vut_vehicle: &vut_vehicle,
+                bv_vehicle: &bv_vehicle,
+            };
+            let done = video2track::export::export_xosc(&args)?;
+            let s = &done.scenario;
+            let bvs = s.agents.iter().filter(|a| a.role == v2t_model::grounded::AgentRole::Bv).count();
+            println!(
+                "{} `{}`: {} agents ({bvs} following trajectories), {:.1} s, τ {} s, {}; map {}",
+                s.kind.describe(),
+                s.name,
+                s.agents.len(),
+                s.end_time_s(),
+                s.tau_s,
+                s.style,
+                done.map_path
+            );
+            println!("wrote {}", out.display());
+            Ok(())
         }
         Command::Map { command: MapCommand::Inspect { map, json, svg, annotations } } => {
             let inspection = video2track::map::inspect(&map, annotations.as_deref())?;

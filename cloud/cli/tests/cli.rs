@@ -137,7 +137,21 @@ fn help_lists_only_real_commands() {
         .collect();
     assert_eq!(
         commands,
-        ["sim", "replay", "render", "experiment", "abstract", "ground", "map", "keygen", "serve", "upload", "send", "help"],
+        [
+            "sim",
+            "replay",
+            "render",
+            "experiment",
+            "abstract",
+            "ground",
+            "export",
+            "map",
+            "keygen",
+            "serve",
+            "upload",
+            "send",
+            "help"
+        ],
         "{out}"
     );
 }
