@@ -359,7 +359,7 @@ pub fn make_pki(dir: &Path, clients: &[&str]) {
 pub fn left_turn_upload(prior_id: u64) -> link::PriorUpload {
     let scenario = left_turn_grounded();
     let now = v2t_edge::uplink::unix_ms();
-    v2t_edge::prior::upload_along_routes(&scenario, prior_id, 12.0, (now, now + 600_000)).unwrap()
+    v2t_edge::prior::upload_along_routes(&scenario, prior_id, 25.0, (now, now + 600_000)).unwrap()
 }
 
 /// The example left-turn semantics grounded on the proving ground.

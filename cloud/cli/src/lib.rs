@@ -8,6 +8,7 @@
 //! [`export`] is its file shell.
 
 pub mod abstract_cmd;
+pub mod demo;
 pub mod experiment;
 pub mod export;
 pub mod ground;
@@ -16,7 +17,8 @@ pub mod map;
 pub mod render;
 /// Loading configuration files (lives in `v2t-sim`, shared with the onboard runtime).
 pub use v2t_sim::files;
-pub mod recording;
+/// MCAP recordings of runs (lives in `v2t-sim`, shared with the simulated ECU).
+pub use v2t_sim::recording;
 pub mod serve;
 pub mod sim;
 pub mod xosc;

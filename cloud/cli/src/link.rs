@@ -172,7 +172,7 @@ pub fn prior_from_file(
         let g: GroundedScenario =
             serde_json::from_value(value).map_err(|e| bad(format!("not a grounded scenario: {e}")))?;
         g.validate().map_err(|e| bad(e.to_string()))?;
-        let horizon = g.agents.iter().map(|a| route_time_s(a.route.as_slice(), a.start.speed_mps)).fold(0.0, f64::max);
+        let horizon = grounded_horizon_s(&g);
         TrajectoryPrior::along_routes_at_start_speed(&g, horizon.clamp(1.0, 120.0)).map_err(|e| bad(e.to_string()))?
     } else {
         return Err(
@@ -207,6 +207,20 @@ pub fn prior_from_file(
     }
     let now = unix_ms();
     Ok(PriorUpload { prior_id, bv_agent, valid_from_ms: now, valid_until_ms: now + (valid_s * 1e3) as u64, prior })
+}
+
+/// How long the constant-speed prior of `g` must run for every agent to reach its route's end,
+/// counting the grounded start times (clamped to 1–120 s).
+pub fn grounded_horizon_s(g: &GroundedScenario) -> f64 {
+    let t_first = g.agents.iter().filter_map(|a| a.start.time_s).fold(f64::INFINITY, f64::min);
+    g.agents
+        .iter()
+        .map(|a| {
+            let lead = a.start.time_s.map_or(0.0, |t| if t > t_first { t - t_first } else { 0.0 });
+            route_time_s(&a.route, a.start.speed_mps) + lead
+        })
+        .fold(0.0, f64::max)
+        .clamp(1.0, 120.0)
 }
 
 pub(crate) fn route_time_s(route: &[v2t_model::geometry::Point2], speed_mps: f64) -> f64 {

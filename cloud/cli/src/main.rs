@@ -28,6 +28,20 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// The whole pipeline on embedded defaults: the paper's two scenarios from their recorded VLM
+    /// exchanges, grounded, a prior, a closed loop through the BV's onboard processes; writes
+    /// report.html, summary.json, and per scenario the .xosc, the .mcap and the intermediate files.
+    Demo {
+        /// Output folder.
+        #[arg(long, default_value = "demo-out")]
+        out: PathBuf,
+        /// VUT driver model.
+        #[arg(long, default_value = "idm-normal", value_parser = clap::builder::PossibleValuesParser::new(VutModel::names()))]
+        vut: String,
+        /// Noise seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
     /// Run one scenario card in the simulated proving ground with reference-following BVs.
     Sim {
         /// Scenario card (TOML), e.g. config/scenarios/left_turn_basic.toml.
@@ -400,6 +414,24 @@ fn wait_duration(s: f64) -> anyhow::Result<std::time::Duration> {
 
 fn execute(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Demo { out, vut, seed } => {
+            let opts = video2track::demo::DemoOptions {
+                out: out.clone(),
+                map: PathBuf::from(video2track::ground::DEFAULT_MAP),
+                edge_config: PathBuf::from("config/edge/bv1.toml"),
+                edge_bin: video2track::demo::edge_beside_me(),
+                vut,
+                seed,
+            };
+            let summary = video2track::demo::run(&opts)?;
+            println!(
+                "wrote {}/report.html and {}/summary.json in {:.1} s",
+                out.display(),
+                out.display(),
+                summary.wall_s
+            );
+            Ok(())
+        }
         Command::Replay { recording, json } => {
             let r = video2track::recording::replay(&recording)?;
             print!("{}", video2track::recording::report(&recording, &r));

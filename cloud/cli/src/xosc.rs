@@ -166,10 +166,8 @@ pub fn parse_input(text: &str) -> Result<ExportScenario, String> {
     } else if value.get("agents").is_some() && value.get("fragment_id").is_some() {
         let g: GroundedScenario = serde_json::from_value(value).map_err(|e| format!("not a grounded scenario: {e}"))?;
         g.validate().map_err(|e| e.to_string())?;
-        let horizon =
-            g.agents.iter().map(|a| crate::link::route_time_s(&a.route, a.start.speed_mps)).fold(0.0, f64::max);
-        let p =
-            TrajectoryPrior::along_routes_at_start_speed(&g, horizon.clamp(1.0, 120.0)).map_err(|e| e.to_string())?;
+        let horizon = crate::link::grounded_horizon_s(&g);
+        let p = TrajectoryPrior::along_routes_at_start_speed(&g, horizon).map_err(|e| e.to_string())?;
         from_prior(&p, SourceKind::Grounded, Some(&g))
     } else if value.get("trace").is_some() {
         let run: RunFile =

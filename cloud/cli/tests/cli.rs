@@ -138,6 +138,7 @@ fn help_lists_only_real_commands() {
     assert_eq!(
         commands,
         [
+            "demo",
             "sim",
             "replay",
             "render",

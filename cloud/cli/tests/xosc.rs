@@ -152,6 +152,15 @@ fn read(text: &str) -> Xosc {
 }
 
 /// Distance from `p` to the polyline `route`, m.
+/// The route with the straight lead-in the constant-speed prior puts before an agent that is due
+/// at its start anchor after the first one (`TrajectoryPrior::along_routes_at_start_speed`).
+fn with_lead_in(agent: &v2t_model::grounded::GroundedAgent) -> Vec<Point2> {
+    let back = Point2::from_heading(agent.start.heading_rad).scale(-500.0);
+    let mut r = vec![agent.route[0].add(back)];
+    r.extend_from_slice(&agent.route);
+    r
+}
+
 fn off_route(p: Point2, route: &[Point2]) -> f64 {
     route
         .windows(2)
@@ -270,7 +279,7 @@ fn grounded_scenarios_export_constant_speed_along_their_routes() {
             let agent = g.agents.iter().find(|a| &a.id == id).unwrap();
             assert_eq!(agent.role, AgentRole::Bv);
             for v in vertices {
-                assert!(off_route(Point2 { x: v.x, y: v.y }, &agent.route) < 0.01, "{which} {id}: {v:?}");
+                assert!(off_route(Point2 { x: v.x, y: v.y }, &with_lead_in(agent)) < 0.01, "{which} {id}: {v:?}");
             }
             // Constant speed: the distance between vertices is the speed times the time between them.
             for w in vertices.windows(2) {
@@ -280,12 +289,12 @@ fn grounded_scenarios_export_constant_speed_along_their_routes() {
         }
         let vut = g.vut().unwrap();
         for w in &x.waypoints {
-            assert!(off_route(Point2 { x: w.x, y: w.y }, &vut.route) < 0.01, "{which}: {w:?}");
+            assert!(off_route(Point2 { x: w.x, y: w.y }, &with_lead_in(vut)) < 0.01, "{which}: {w:?}");
         }
         let last = x.waypoints[x.waypoints.len() - 1];
         assert!(Point2 { x: last.x, y: last.y }.dist(vut.route[vut.route.len() - 1]) < 0.01);
         let (_, start, speed) = x.init.iter().find(|(id, _, _)| id == &vut.id).unwrap();
-        assert!(off_route(Point2 { x: start.x, y: start.y }, &vut.route) < 0.01);
+        assert!(off_route(Point2 { x: start.x, y: start.y }, &with_lead_in(vut)) < 0.01);
         assert!((speed - vut.start.speed_mps).abs() < 1e-6);
         assert!(x.description.contains("grounded scenario") && x.description.contains(&g.fragment_id));
         map_resolves(&out, &x.map);
@@ -347,7 +356,9 @@ fn bad_input_is_an_input_error_with_a_message() {
     value["agents"] = serde_json::json!([]);
     let empty = serde_json::to_string(&value).unwrap();
     // A NaN is not JSON: put one where the first state's x is.
-    let first_x = format!("{}", g.agents[0].route[0].x);
+    let first_x =
+        serde_json::to_string(&TrajectoryPrior::along_routes_at_start_speed(&g, 5.0).unwrap().agents[0].states[0].px)
+            .unwrap();
     let nan = prior.replacen(&first_x, "NaN", 1);
     assert_ne!(nan, prior);
     let cases: [(&str, String, &str); 5] = [

@@ -56,6 +56,9 @@ pub struct QpShape {
     pub event: EventKind,
 }
 
+/// Share of the largest deceleration a plan may use to come down to a speed cap ahead.
+pub const CAP_DECEL_SHARE: f64 = 0.8;
+
 /// Per-cycle data.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct QpInput {
@@ -119,6 +122,7 @@ pub struct LongitudinalQp {
     n_eq: usize,
     /// References over the horizon (filled by the caller), `k = 1..N`.
     v_ref: Vec<f64>,
+    v_cap: Vec<f64>,
     out_s: Vec<f64>,
     out_v: Vec<f64>,
     out_a: Vec<f64>,
@@ -251,6 +255,7 @@ impl LongitudinalQp {
             event_row,
             n_eq,
             v_ref: vec![0.0; n],
+            v_cap: vec![f64::INFINITY; n],
             out_s: vec![0.0; n + 1],
             out_v: vec![0.0; n + 1],
             out_a: vec![0.0; n],
@@ -263,6 +268,13 @@ impl LongitudinalQp {
     /// The fixed parameters.
     pub fn shape(&self) -> &QpShape {
         &self.shape
+    }
+
+    /// Speed caps for steps `1..=N` below `v_max` (curves ahead; `f64::INFINITY`: none). A plan
+    /// comes down to a cap no harder than [`CAP_DECEL_SHARE`] of the largest deceleration, so the
+    /// bound is always feasible (write before [`Self::solve`]).
+    pub fn v_cap_mut(&mut self) -> &mut [f64] {
+        &mut self.v_cap
     }
 
     /// Reference speeds for steps `1..=N` (write before [`Self::solve`]).
@@ -302,8 +314,10 @@ impl LongitudinalQp {
             set(&mut self.b, row + 1, input.d_max_mps2);
             row += 2;
         }
-        for _ in 0..n {
-            set(&mut self.b, row, input.v_max_mps);
+        for k in 0..n {
+            let ramp = input.v0_mps - CAP_DECEL_SHARE * input.d_max_mps2 * (k + 1) as f64 * dt;
+            let cap = self.v_cap.get(k).copied().unwrap_or(f64::INFINITY);
+            set(&mut self.b, row, input.v_max_mps.min(cap.max(ramp)));
             set(&mut self.b, row + 1, 0.0);
             row += 2;
         }

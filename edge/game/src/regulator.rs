@@ -176,6 +176,20 @@ pub struct RegulatorInput {
     pub reference_key_time_s: Option<f64>,
 }
 
+/// Share of the BV's lateral-acceleration limit its plans may use in curves (the rest is the
+/// tracker's margin).
+pub const CURVE_LAT_SHARE: f64 = 0.8;
+
+/// The curve speed `sqrt(a_lat / |κ(s)|)` of `path` at `s_m`, with `a_lat` = [`CURVE_LAT_SHARE`]
+/// of `lat_accel_mps2` (`f64::INFINITY` on a straight): what [`Regulator::decide_on_path`] takes.
+pub fn curve_speed_limit(path: &v2t_model::path::ReferencePath, s_m: f64, lat_accel_mps2: f64) -> f64 {
+    let k = path.curvature_at(s_m).abs();
+    if k > 1e-6 { (CURVE_LAT_SHARE * lat_accel_mps2 / k).sqrt() } else { f64::INFINITY }
+}
+
+/// Farthest a speed cap is looked for ahead, m.
+const CAP_SCAN_MAX_M: f64 = 400.0;
+
 /// What the regulator decided, and why.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -286,7 +300,8 @@ impl Regulator {
         }
     }
 
-    fn qp_input(&self, s: f64, v: f64, a_prev: f64, lim: &Limits, event: Option<(f64, f64)>) -> QpInput {
+    fn qp_input(&self, inp: &RegulatorInput, lim: &Limits, event: Option<(f64, f64)>) -> QpInput {
+        let (s, v, a_prev) = (inp.bv.s_m, inp.bv.v_mps, inp.bv_accel_mps2);
         QpInput {
             s0_m: s,
             v0_mps: v.clamp(0.0, lim.max_speed_mps),
@@ -335,8 +350,7 @@ impl Regulator {
     /// stop there, pushing the waiting past the horizon (the time inconsistency of the literal
     /// formulation). Without one it is the prior's reference speed.
     fn lead(&mut self, inp: &RegulatorInput, key_t: Option<f64>, station: f64) -> QpStatus {
-        let qin =
-            self.qp_input(inp.bv.s_m, inp.bv.v_mps, inp.bv_accel_mps2, &self.params.bv, key_t.map(|t| (t, station)));
+        let qin = self.qp_input(inp, &self.params.bv, key_t.map(|t| (t, station)));
         let v_max = self.params.bv.max_speed_mps;
         let (dt, v_ref) = (self.params.dt_s, inp.reference_speed_mps.clamp(0.0, v_max));
         match key_t {
@@ -365,7 +379,7 @@ impl Regulator {
     /// Plans the BV to stay behind the zone entry until `until_t` (relative).
     fn hold_back(&mut self, inp: &RegulatorInput, until_t: f64) -> QpStatus {
         let station = inp.zone_bv.enter_s_m - HOLD_BACK_M;
-        let qin = self.qp_input(inp.bv.s_m, inp.bv.v_mps, inp.bv_accel_mps2, &self.params.bv, Some((until_t, station)));
+        let qin = self.qp_input(inp, &self.params.bv, Some((until_t, station)));
         let v_ref = inp.reference_speed_mps.clamp(0.0, self.params.bv.max_speed_mps);
         self.leader_upper.v_ref_mut().iter_mut().for_each(|v| *v = v_ref);
         self.leader_upper.solve(&qin)
@@ -399,6 +413,46 @@ impl Regulator {
 
     /// One decision.
     pub fn decide(&mut self, inp: &RegulatorInput) -> Decision {
+        self.set_caps(inp, None);
+        self.decide_capped(inp)
+    }
+
+    /// [`Self::decide`] for a BV whose path limits its speed: `speed_limit_at(s)` is the highest
+    /// speed at arc length `s` (curves, [`curve_speed_limit`]). Step `k` of the plan is capped by
+    /// the lowest limit the BV could reach by then (from its speed at full acceleration):
+    /// conservative, and never infeasible (the cap is approached at a bounded deceleration).
+    pub fn decide_on_path(&mut self, inp: &RegulatorInput, speed_limit_at: &dyn Fn(f64) -> f64) -> Decision {
+        self.set_caps(inp, Some(speed_limit_at));
+        self.decide_capped(inp)
+    }
+
+    /// Writes the leader plans' per-step speed caps (no allocation).
+    fn set_caps(&mut self, inp: &RegulatorInput, speed_limit_at: Option<&dyn Fn(f64) -> f64>) {
+        let (dt, a_max) = (self.params.dt_s, self.params.bv.max_accel_mps2);
+        let (s0, v0) = (inp.bv.s_m, inp.bv.v_mps.max(0.0));
+        let mut cap = f64::INFINITY;
+        let mut scanned = 0.0;
+        let upper = self.leader_upper.v_cap_mut();
+        for (k, (c, u)) in self.leader_equal.v_cap_mut().iter_mut().zip(upper.iter_mut()).enumerate() {
+            if let Some(limit) = speed_limit_at
+                && s0.is_finite()
+            {
+                let t = (k + 1) as f64 * dt;
+                let reach = (v0 * t + 0.5 * a_max * t * t).min(CAP_SCAN_MAX_M);
+                while scanned <= reach {
+                    let v = limit(s0 + scanned);
+                    if v >= 0.0 && v < cap {
+                        cap = v;
+                    }
+                    scanned += 1.0;
+                }
+            }
+            *c = cap;
+            *u = cap;
+        }
+    }
+
+    fn decide_capped(&mut self, inp: &RegulatorInput) -> Decision {
         let finite = [
             inp.t_s,
             inp.bv.s_m,

@@ -8,7 +8,7 @@ use v2t_sim::observation::BvObservation;
 use v2t_sim::plant::ActuationRequest;
 
 use crate::qp::QpError;
-use crate::regulator::{Decision, Limits, PathState, Regulator, RegulatorInput, RegulatorParams};
+use crate::regulator::{Decision, Limits, PathState, Regulator, RegulatorInput, RegulatorParams, curve_speed_limit};
 
 /// A regulated BV.
 #[derive(Debug)]
@@ -69,7 +69,8 @@ impl BvController for RegulatedBv {
             reference_speed_mps: bv.reference.speed_at(obs.t_s),
             reference_key_time_s: None,
         };
-        let d = self.regulator.decide(&input);
+        let lat = vehicle.limits.max_lat_accel_mps2;
+        let d = self.regulator.decide_on_path(&input, &|s| curve_speed_limit(&bv.agent.route, s, lat));
         self.last_accel = d.accel_mps2;
         self.last = Some(d);
         ActuationRequest {

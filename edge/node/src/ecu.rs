@@ -43,6 +43,17 @@ pub enum EcuSource {
         /// Longest wait for the prior, s.
         wait_s: f64,
     },
+    /// A trajectory prior file (`TrajectoryPrior` JSON) checked against the BV's limits like an
+    /// upload, published on the prior service (the stand-in for the cloud upload), and the world
+    /// built from it as for [`EcuSource::Uplink`].
+    Prior {
+        /// The prior.
+        path: PathBuf,
+        /// The prior's BV agent this BV drives (default: the first BV).
+        agent: Option<String>,
+        /// Simulation settings (TOML).
+        sim_settings: PathBuf,
+    },
 }
 
 /// What the simulated ECU runs.
@@ -64,6 +75,44 @@ pub struct EcuOptions {
 
 /// Longest simulated run built from a prior, s.
 const MAX_PRIOR_RUN_S: f64 = 120.0;
+
+/// A prior file made into the prior the BV would have accepted from the cloud (limits checked; the
+/// geofence is the uplink's business).
+fn prior_from_file(
+    cfg: &Loaded,
+    path: &std::path::Path,
+    agent: Option<&str>,
+    prior_id: u64,
+) -> Result<ActivePrior, EdgeError> {
+    use v2t_model::grounded::AgentRole;
+    let bad = |m: String| EdgeError::Prior(format!("{}: {m}", path.display()));
+    let text = std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))?;
+    let prior: v2t_model::prior::TrajectoryPrior = serde_json::from_str(&text).map_err(|e| bad(e.to_string()))?;
+    let bv_agent = match agent {
+        Some(a) => a.to_owned(),
+        None => prior
+            .agents
+            .iter()
+            .find(|a| a.role == AgentRole::Bv)
+            .map(|a| a.id.clone())
+            .ok_or_else(|| bad("has no BV agent".into()))?,
+    };
+    let now = crate::uplink::unix_ms();
+    let up =
+        v2t_wire::link::PriorUpload { prior_id, bv_agent, valid_from_ms: now, valid_until_ms: now + 3_600_000, prior };
+    let dims = |v: &v2t_model::vehicle::VehicleConfig| v2t_model::metrics::Dimensions {
+        length_m: v.geometry.length_m,
+        width_m: v.geometry.width_m,
+    };
+    let checks = crate::prior::PriorChecks {
+        limits: cfg.vehicle.limits,
+        bv: dims(&cfg.vehicle),
+        vut: dims(&cfg.vut_vehicle),
+        area: None,
+        geofence_margin_m: 0.0,
+    };
+    crate::prior::from_upload(&up, now, &checks, now_ns()).map_err(|e| bad(e.to_string()))
+}
 
 /// The world of an uplinked prior: its paths, the BV's reference timing, the VUT's start speed.
 fn scenario_from_prior(
@@ -243,6 +292,14 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<(Run
                 scenario.style = style;
             }
             let prior = crate::prior::from_scenario(&scenario, 0, opts.seed.wrapping_add(1), now_ns())?;
+            (scenario, Some((prior, bus.publisher::<ActivePrior>(services::PRIOR)?)))
+        }
+        EcuSource::Prior { path, agent, sim_settings } => {
+            let settings: v2t_sim::config::SimSettings =
+                v2t_sim::files::load_toml(sim_settings).map_err(|e| EdgeError::Prior(e.to_string()))?;
+            let prior = prior_from_file(cfg, path, agent.as_deref(), opts.seed.wrapping_add(1))?;
+            let model = opts.vut.unwrap_or(VutModel::IdmNormal);
+            let scenario = scenario_from_prior(&prior, cfg, settings, model)?;
             (scenario, Some((prior, bus.publisher::<ActivePrior>(services::PRIOR)?)))
         }
         EcuSource::Uplink { sim_settings, wait_s } => {

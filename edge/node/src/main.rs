@@ -89,8 +89,18 @@ enum Cmd {
         #[command(flatten)]
         common: Common,
         /// The scenario card (its prior is published as the stand-in for a cloud upload).
-        #[arg(long, required_unless_present = "from_uplink", conflicts_with = "from_uplink")]
+        #[arg(long, required_unless_present_any = ["from_uplink", "prior"], conflicts_with_all = ["from_uplink", "prior"])]
         scenario: Option<PathBuf>,
+        /// A trajectory prior (JSON) instead of a card: checked like an upload, published, and the
+        /// world built from it.
+        #[arg(long, conflicts_with = "from_uplink")]
+        prior: Option<PathBuf>,
+        /// The prior's BV agent this BV drives (default: the first BV).
+        #[arg(long, requires = "prior")]
+        agent: Option<String>,
+        /// Record the run as MCAP here.
+        #[arg(long)]
+        mcap: Option<PathBuf>,
         /// Build the world from the prior the uplink node accepts from the cloud instead of a card.
         #[arg(long)]
         from_uplink: bool,
@@ -194,7 +204,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Cmd::SimEcu {
             common,
             scenario,
-            from_uplink,
+            prior,
+            agent,
+            mcap,
+            from_uplink: _,
             sim_settings,
             prior_wait_s,
             vut,
@@ -205,9 +218,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             style,
         } => {
             let cfg = loaded(&common)?;
-            let source = match scenario {
-                Some(card) if !from_uplink => EcuSource::Card(card),
-                _ => EcuSource::Uplink { sim_settings, wait_s: prior_wait_s },
+            let source = match (scenario, prior) {
+                (Some(card), _) => EcuSource::Card(card),
+                (None, Some(path)) => EcuSource::Prior { path, agent, sim_settings },
+                (None, None) => EcuSource::Uplink { sim_settings, wait_s: prior_wait_s },
             };
             let opts = EcuOptions { source, vut, seed, engage_timeout_s, tau_s: tau, style };
             let (outcome, stats) = v2t_edge::ecu::run::<ipc::Service>(&cfg, &opts)?;
@@ -225,8 +239,15 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 stats.timeout_steps,
                 stats.late_steps
             );
+            if let Some(path) = mcap {
+                v2t_sim::recording::write(&outcome, &path)?;
+            }
             if let Some(path) = out {
-                write_json(&path, &serde_json::json!({ "result": r, "ecu": stats }))?;
+                let mut doc = serde_json::to_value(&outcome).context("serializing the run")?;
+                if let Some(obj) = doc.as_object_mut() {
+                    obj.insert("ecu".into(), serde_json::to_value(stats).context("serializing the ECU statistics")?);
+                }
+                write_json(&path, &doc)?;
             }
         }
         Cmd::Engage(c) => v2t_edge::operator::request::<ipc::Service>(&loaded(&c)?, SafetyAction::Engage)?,

@@ -372,7 +372,7 @@ mod tests {
 
         fn upload() -> (PriorUpload, PriorChecks) {
             let (map, sc) = grounded();
-            let up = upload_along_routes(&sc, 77, 12.0, (1_000, 61_000)).unwrap();
+            let up = upload_along_routes(&sc, 77, 25.0, (1_000, 61_000)).unwrap();
             let vehicle: v2t_model::vehicle::VehicleConfig =
                 v2t_sim::files::load_toml(&root().join("config/vehicles/bv_sedan.toml")).unwrap();
             let checks = PriorChecks {

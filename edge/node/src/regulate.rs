@@ -4,7 +4,7 @@
 use std::time::Duration;
 
 use iceoryx2::service::Service;
-use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams, RegulatorStatus};
+use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams, RegulatorStatus, curve_speed_limit};
 use v2t_model::geometry::Point2;
 use v2t_model::path::ReferencePath;
 use v2t_wire::{ActivePrior, BvState, Code, Header, NodeKind, PlanStatus, RegulatedPlan, VutState, services};
@@ -44,6 +44,7 @@ pub struct Regulation {
     vut: Tracked,
     last_accel: f64,
     header: Header,
+    lat_accel_mps2: f64,
 }
 
 fn status_code(s: RegulatorStatus) -> PlanStatus {
@@ -59,8 +60,9 @@ fn status_code(s: RegulatorStatus) -> PlanStatus {
 }
 
 impl Regulation {
-    /// A regulator with `params` and no prior yet.
-    pub fn new(params: RegulatorParams) -> Result<Self, EdgeError> {
+    /// A regulator with `params` and no prior yet, for a BV whose lateral acceleration is limited
+    /// to `lat_accel_mps2` (its plans slow down for the curves of the path ahead).
+    pub fn new(params: RegulatorParams, lat_accel_mps2: f64) -> Result<Self, EdgeError> {
         let regulator = Regulator::new(params).map_err(|e| EdgeError::Regulator(e.to_string()))?;
         Ok(Self {
             regulator,
@@ -69,6 +71,7 @@ impl Regulation {
             vut: Tracked::default(),
             last_accel: 0.0,
             header: Header::default(),
+            lat_accel_mps2,
         })
     }
 
@@ -139,7 +142,8 @@ impl Regulation {
             reference_speed_mps: ctx.reference_speed_at(bv_s),
             reference_key_time_s: None,
         };
-        let d = self.regulator.decide(&input);
+        let lat = self.lat_accel_mps2;
+        let d = self.regulator.decide_on_path(&input, &|s| curve_speed_limit(&ctx.bv_path, s, lat));
         self.last_accel = d.accel_mps2;
         plan.status = status_code(d.status).code();
         plan.accel_mps2 = d.accel_mps2;
@@ -160,7 +164,7 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
     let out = bus.publisher::<RegulatedPlan>(services::PLAN)?;
     let t = cfg.edge.timing;
     let mut heart = Heart::new(&bus, NodeKind::Regulator, t.heartbeat_period_s)?;
-    let mut reg = Regulation::new(cfg.regulator)?;
+    let mut reg = Regulation::new(cfg.regulator, cfg.vehicle.limits.max_lat_accel_mps2)?;
     let (mut bv, mut vut): (Option<BvState>, Option<VutState>) = (None, None);
     let period_ns = (t.regulator_period_s * 1e9) as u64;
     let mut next_ns = now_ns();
@@ -226,7 +230,7 @@ mod tests {
         let params: RegulatorParams = v2t_sim::files::load_toml(&dir.join("regulator/default.toml")).unwrap();
         let (bv, vut) = v2t_game::sim::RegulatedBv::limits_for(&sc, 0).unwrap();
         let prior = crate::prior::from_scenario(&sc, 0, 1, 0).unwrap();
-        (Regulation::new(params.with_limits(bv, vut)).unwrap(), prior)
+        (Regulation::new(params.with_limits(bv, vut), 4.5).unwrap(), prior)
     }
 
     fn bv_at(prior: &ActivePrior, i: usize, stamp_ns: u64) -> BvState {

@@ -480,7 +480,7 @@ mod tests {
         let text = std::fs::read_to_string(root().join("config/examples/semantics_cut_in.json")).unwrap();
         let sem = v2t_model::semantics::parse_semantics_json(&text).unwrap();
         let sc = v2t_ground::ground(&map, &lib, &sem).unwrap().scenario;
-        let up = crate::prior::upload_along_routes(&sc, 5, 10.0, (0, 100_000)).unwrap();
+        let up = crate::prior::upload_along_routes(&sc, 5, 25.0, (0, 100_000)).unwrap();
         let vehicle: v2t_model::vehicle::VehicleConfig =
             v2t_sim::files::load_toml(&root().join("config/vehicles/bv_sedan.toml")).unwrap();
         let checks = PriorChecks {

@@ -45,16 +45,31 @@ impl TrajectoryPrior {
     /// The predefined reference of the TroubleMaker-like baseline and the stand-in where no
     /// diffusion prior exists: every agent of `scenario` drives its route at its start speed (the
     /// route's end holds it), sampled at 10 Hz over `horizon_s`; controls are the yaw rates of the
-    /// path (acceleration 0), so states and controls agree to the path's discretization.
+    /// path (acceleration 0), so states and controls agree to the path's discretization. The
+    /// grounded timing is kept: an agent due at its start anchor `t0` later than the earliest one
+    /// starts `v · t0` before it, on a straight lead-in along its start heading, so that every
+    /// agent keeps moving and the planned PET holds.
     pub fn along_routes_at_start_speed(scenario: &GroundedScenario, horizon_s: f64) -> Result<Self, ValidationError> {
         let dt = 0.1;
         if !(horizon_s >= dt && horizon_s <= 600.0) {
             return Err(ValidationError::new("horizon_s", format!("must lie in [0.1, 600] s, got {horizon_s}")));
         }
         let n = (horizon_s / dt).round() as usize;
+        let t_first = scenario.agents.iter().filter_map(|a| a.start.time_s).fold(f64::INFINITY, f64::min);
         let mut agents = Vec::with_capacity(scenario.agents.len());
         for a in &scenario.agents {
-            let path = ReferencePath::from_points(&a.route)
+            let lead_m = match a.start.time_s {
+                Some(t0) if t0 > t_first => (t0 - t_first) * a.start.speed_mps,
+                _ => 0.0,
+            };
+            let mut route = a.route.clone();
+            if lead_m > 0.01 {
+                let back = crate::geometry::Point2::from_heading(a.start.heading_rad).scale(-lead_m);
+                if let Some(first) = a.route.first() {
+                    route.insert(0, first.add(back));
+                }
+            }
+            let path = ReferencePath::from_points(&route)
                 .map_err(|e| ValidationError::new(format!("{}.route", a.id), e.to_string()))?;
             let v = a.start.speed_mps;
             let states: Vec<State> = (0..=n)

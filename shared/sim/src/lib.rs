@@ -37,6 +37,8 @@ pub mod files;
 pub mod measure;
 pub mod observation;
 pub mod plant;
+#[cfg(feature = "mcap")]
+pub mod recording;
 pub mod runner;
 pub mod scenario;
 pub mod sensing;

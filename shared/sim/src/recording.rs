@@ -1,4 +1,5 @@
-//! MCAP recordings of runs, and replaying them: `video2track sim … --mcap run.mcap` writes every
+//! MCAP recordings of runs (feature `mcap`), and replaying them: `video2track sim … --mcap run.mcap`
+//! and `v2t-edge sim-ecu … --mcap run.mcap` write every
 //! channel a test engineer looks at in Foxglove, and `video2track replay run.mcap` measures the run
 //! again from the recorded truth with the same code the run was measured with.
 //!
@@ -16,11 +17,11 @@ use std::collections::BTreeMap;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
+use crate::measure::{AgentTruth, MeasureSetup, TruthLog, measure};
+use crate::runner::RunOutcome;
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 use v2t_model::kinematics::State;
-use v2t_sim::measure::{AgentTruth, MeasureSetup, TruthLog, measure};
-use v2t_sim::runner::RunOutcome;
 
 /// Name of the metadata record with the setup and the reported result.
 pub const RUN_METADATA: &str = "video2track.run";
@@ -186,7 +187,7 @@ impl Replay {
 
 /// The `/scene`, `/commands` and `/pet` messages of one 10 Hz sample.
 fn sample_messages(
-    sample: &v2t_sim::runner::TraceSample,
+    sample: &crate::runner::TraceSample,
     ids: &[String],
     dims: &BTreeMap<&str, v2t_model::metrics::Dimensions>,
     bv_ids: &[String],

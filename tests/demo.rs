@@ -1,0 +1,50 @@
+//! `video2track demo` end to end: both paper scenarios from their recorded VLM exchanges through
+//! grounding, the prior, the onboard processes and the simulated proving ground, to the report,
+//! the summary, the OpenSCENARIO files and MCAP recordings that replay to the same metrics.
+
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
+
+use v2t_tests::harness::{bin, tempdir};
+use v2t_tests::repo_root;
+
+#[test]
+fn the_demo_runs_both_scenarios_and_writes_what_it_promises() {
+    let out = tempdir("demo");
+    let o = std::process::Command::new(bin("video2track"))
+        .args(["demo", "--out", out.to_str().unwrap()])
+        .current_dir(repo_root())
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let scenarios = summary["scenarios"].as_array().unwrap();
+    assert_eq!(scenarios.len(), 2);
+    for s in scenarios {
+        let name = s["name"].as_str().unwrap();
+        assert_eq!(s["collision"], false, "{name}");
+        assert_eq!(s["order_ok"], true, "{name}");
+        let err = s["fidelity_error_rel"].as_f64().unwrap();
+        println!(
+            "{name}: PET video {} s, track {} s, error {:.1} %",
+            s["pet_video_s"],
+            s["pet_min_track_s"],
+            100.0 * err
+        );
+        for suffix in ["semantics.json", "grounded.json", "prior.json", "xosc", "run.json", "mcap"] {
+            assert!(out.join(format!("{name}.{suffix}")).is_file(), "{name}.{suffix}");
+        }
+        let xosc = std::fs::read_to_string(out.join(format!("{name}.xosc"))).unwrap();
+        assert!(xosc.contains("<OpenSCENARIO") && xosc.contains("FollowTrajectoryAction"), "{name}");
+        let r = std::process::Command::new(bin("video2track"))
+            .arg("replay")
+            .arg(out.join(format!("{name}.mcap")))
+            .current_dir(repo_root())
+            .output()
+            .unwrap();
+        assert!(r.status.success(), "{name}: {}", String::from_utf8_lossy(&r.stdout));
+    }
+    let report = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(report.contains("<svg") && report.contains("cut_in") && report.contains("left_turn"));
+}
