@@ -65,7 +65,6 @@ fn allocations_per_decision_come_only_from_the_solver() {
             v0_mps: 9.0,
             a_prev_mps2: 0.0,
             v_max_mps: 20.0,
-            v_cap_mps: f64::INFINITY,
             a_max_mps2: 3.0,
             d_max_mps2: 6.0,
             event_t_s: Some(4.0 - 0.1 * k as f64),
