@@ -1,0 +1,1 @@
+//! CommonRoad XML (2020a) dynamic obstacles.
