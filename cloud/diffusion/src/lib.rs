@@ -28,5 +28,7 @@
 
 pub mod import;
 pub mod inverse;
+pub mod mining;
 pub mod stats;
+pub mod synth;
 pub mod tracks;

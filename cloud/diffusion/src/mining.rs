@@ -1,0 +1,258 @@
+//! Interaction mining: cut-ins, lane changes, left turns, crossings and merges between pairs of
+//! tracks of an episode, each with the pair, the conflict point and time and the measured
+//! post-encroachment time (PET).
+//!
+//! Each track's driven path becomes a [`ReferencePath`]; [`conflict_zones`] of `v2t-model` finds
+//! where the two swept corridors meet, and [`passage`]/[`pet`] measure the PET there from the
+//! tracks' arc lengths over time, with the conventions of `v2t-model` (second entry minus first
+//! exit, negative when both occupied the zone at once). A zone after which the paths part is a
+//! crossing — a **left turn** when one of the two turns left by more than
+//! [`MiningOptions::left_turn_min_rad`] across it. A zone after which one path stays on the other
+//! is a join: if the joining vehicle drove parallel in a neighbouring lane just before, it is a
+//! **cut-in** when it enters ahead of the other and a **lane change** (behind) otherwise; if it
+//! came in at an angle it is a **merge**. Without the map a merge out of a parallel acceleration
+//! lane reads as a cut-in or lane change. Vehicles following each other in one lane from the start
+//! are not an interaction.
+
+use serde::{Deserialize, Serialize};
+use v2t_model::geometry::{Point2, wrap_angle};
+use v2t_model::metrics::{ConflictKind, ConflictOptions, ConflictZone, PetOutcome, conflict_zones, passage, pet};
+use v2t_model::path::ReferencePath;
+
+use crate::tracks::{Episode, Track};
+
+/// What kind of interaction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InteractionKind {
+    /// A vehicle changes into another's lane ahead of it.
+    CutIn,
+    /// A vehicle changes into another's lane behind it.
+    LaneChange,
+    /// Paths cross while one vehicle turns left.
+    LeftTurn,
+    /// Paths cross otherwise.
+    Crossing,
+    /// A path joins another at an angle (on-ramp, lane drop, turn into a lane).
+    Merge,
+}
+
+/// One mined interaction.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Interaction {
+    /// What kind.
+    pub kind: InteractionKind,
+    /// The vehicle that cuts in, changes lanes, turns left or merges (for crossings: the second
+    /// track of the pair).
+    pub actor: String,
+    /// The other vehicle.
+    pub other: String,
+    /// The vehicle that passed the conflict first.
+    pub first: String,
+    /// A representative point of the conflict zone.
+    pub conflict_point: Point2,
+    /// When the second vehicle entered the zone, s.
+    pub conflict_time_s: f64,
+    /// PET, s (negative: both in the zone at once).
+    pub pet_s: f64,
+}
+
+/// Tuning of [`mine`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MiningOptions {
+    /// Interactions with a larger PET are dropped, s.
+    pub max_pet_s: f64,
+    /// Tracks that travel less than this are left out, m.
+    pub min_travel_m: f64,
+    /// Spacing of the points of the path built from a track, m.
+    pub path_spacing_m: f64,
+    /// A path has joined another once within this of its centreline, m (driven paths wobble).
+    pub merge_tolerance_m: f64,
+    /// A left turn turns by at least this across the zone, rad.
+    pub left_turn_min_rad: f64,
+    /// How far before a join the joining path is examined, m.
+    pub approach_m: f64,
+    /// Largest heading difference for "parallel" before a join, rad.
+    pub parallel_max_rad: f64,
+    /// Lateral offset range of a neighbouring lane, m.
+    pub lane_offset_m: (f64, f64),
+}
+
+impl Default for MiningOptions {
+    fn default() -> Self {
+        Self {
+            max_pet_s: 6.0,
+            min_travel_m: 10.0,
+            path_spacing_m: 1.0,
+            merge_tolerance_m: 0.8,
+            left_turn_min_rad: 0.8,
+            approach_m: 15.0,
+            parallel_max_rad: 0.25,
+            lane_offset_m: (2.0, 5.5),
+        }
+    }
+}
+
+/// A track's path and its arc length at every sample.
+struct Driven<'a> {
+    track: &'a Track,
+    path: ReferencePath,
+    times: Vec<f64>,
+    s: Vec<f64>,
+}
+
+impl<'a> Driven<'a> {
+    fn new(track: &'a Track, spacing_m: f64) -> Option<Self> {
+        let mut pts: Vec<Point2> = Vec::new();
+        for p in track.positions() {
+            if pts.last().is_none_or(|q| q.dist(p) >= spacing_m) {
+                pts.push(p);
+            }
+        }
+        if let (Some(last), Some(end)) = (pts.last(), track.samples.last())
+            && last.dist(end.position()) > 1e-6
+        {
+            pts.push(end.position());
+        }
+        let path = ReferencePath::from_points(&pts).ok()?;
+        let mut hint = 0.0;
+        let s = track
+            .samples
+            .iter()
+            .map(|x| {
+                hint = path.project_near(x.position(), hint, 4.0 * spacing_m + 10.0).map_or(hint, |f| f.s_m);
+                hint
+            })
+            .collect();
+        Some(Self { track, path, times: track.times(), s })
+    }
+
+    /// Total variation of the heading over `[from, to]`, rad: how much the path weaves there.
+    fn weave(&self, from: f64, to: f64) -> f64 {
+        let n = ((to - from) / 1.0).ceil().max(1.0) as usize;
+        let h: Vec<f64> = (0..=n).map(|k| self.path.heading_at(from + (to - from) * k as f64 / n as f64)).collect();
+        h.windows(2).map(|w| if let [x, y] = w { wrap_angle(y - x).abs() } else { 0.0 }).sum()
+    }
+
+    /// Heading change of the path across `[from − d, to + d]`, rad, positive left.
+    fn turn(&self, from: f64, to: f64, d: f64) -> f64 {
+        let a = (from - d).max(0.0);
+        let b = (to + d).min(self.path.length());
+        wrap_angle(self.path.heading_at(b) - self.path.heading_at(a))
+    }
+}
+
+/// PET at a zone and who went first; `None` unless both passed.
+fn measure(a: &Driven<'_>, b: &Driven<'_>, zone: &ConflictZone, t_end: f64) -> Option<(bool, f64, f64)> {
+    let pa = passage(&a.times, &a.s, &zone.a);
+    let pb = passage(&b.times, &b.s, &zone.b);
+    match pet(pa, pb, t_end) {
+        PetOutcome::Measured { first, pet_s, .. } => {
+            let a_first = first == v2t_model::metrics::Side::A;
+            let second_enter = if a_first { pb?.enter_t_s } else { pa?.enter_t_s };
+            Some((a_first, pet_s, second_enter))
+        }
+        _ => None,
+    }
+}
+
+/// Interactions where `b` joins `a` or the two cross.
+/// Joins come with how much the joining path weaves around the join (to tell, when both
+/// directions report one, which vehicle moved over).
+fn zones_of(a: &Driven<'_>, b: &Driven<'_>, opts: &MiningOptions, crossings: bool, out: &mut Vec<(Interaction, f64)>) {
+    let copt = ConflictOptions { merge_tolerance_m: opts.merge_tolerance_m, ..ConflictOptions::default() };
+    let (da, db) = (a.track.dims_or_default(), b.track.dims_or_default());
+    let t_end = a.times.last().copied().unwrap_or(0.0).min(b.times.last().copied().unwrap_or(0.0));
+    for zone in conflict_zones(&a.path, da, &b.path, db, &copt) {
+        let Some((a_first, pet_s, time)) = measure(a, b, &zone, t_end) else { continue };
+        if pet_s > opts.max_pet_s {
+            continue;
+        }
+        let (id_a, id_b) = (a.track.id.clone(), b.track.id.clone());
+        let first = if a_first { id_a.clone() } else { id_b.clone() };
+        let s_b = 0.5 * (zone.b.enter_s_m + zone.b.exit_s_m);
+        let weave = b.weave(s_b - 2.0 * opts.approach_m, s_b + opts.approach_m);
+        let kind_actor = match zone.kind {
+            ConflictKind::Crossing if crossings => {
+                let ta = a.turn(zone.a.enter_s_m, zone.a.exit_s_m, 15.0);
+                let tb = b.turn(zone.b.enter_s_m, zone.b.exit_s_m, 15.0);
+                if ta.max(tb) >= opts.left_turn_min_rad {
+                    Some((InteractionKind::LeftTurn, if ta >= tb { (id_a, id_b) } else { (id_b, id_a) }))
+                } else {
+                    Some((InteractionKind::Crossing, (id_b, id_a)))
+                }
+            }
+            ConflictKind::Crossing => None,
+            ConflictKind::Merge => {
+                let s_a = 0.5 * (zone.a.enter_s_m + zone.a.exit_s_m);
+                if s_b < 1.0 || s_a < 1.0 {
+                    None // following in one lane from the start, or `a` appears at the join
+                } else {
+                    let before = b.path.point_at((s_b - opts.approach_m).max(0.0));
+                    let lateral = a.path.project(before).filter(|f| f.s_m > 0.0 && f.s_m < a.path.length());
+                    let parallel = lateral.is_some_and(|f| {
+                        let dh = wrap_angle(b.path.heading_at((s_b - opts.approach_m).max(0.0)) - a.path.heading_at(f.s_m));
+                        dh.abs() <= opts.parallel_max_rad
+                            && f.l_m.abs() >= opts.lane_offset_m.0
+                            && f.l_m.abs() <= opts.lane_offset_m.1
+                    });
+                    let kind = match (parallel, a_first) {
+                        (true, false) => InteractionKind::CutIn,
+                        (true, true) => InteractionKind::LaneChange,
+                        (false, _) => InteractionKind::Merge,
+                    };
+                    Some((kind, (id_b, id_a)))
+                }
+            }
+        };
+        let Some((kind, (actor, other))) = kind_actor else { continue };
+        out.push((Interaction { kind, actor, other, first, conflict_point: zone.anchor, conflict_time_s: time, pet_s }, weave));
+    }
+}
+
+/// Interactions between two tracks.
+pub fn pair(a: &Track, b: &Track, opts: &MiningOptions) -> Vec<Interaction> {
+    let ok = |t: &Track| t.kind.is_vehicle() && t.path_length_m() >= opts.min_travel_m;
+    if !(ok(a) && ok(b)) {
+        return Vec::new();
+    }
+    let (Some(da), Some(db)) = (Driven::new(a, opts.path_spacing_m), Driven::new(b, opts.path_spacing_m)) else {
+        return Vec::new();
+    };
+    let mut found = Vec::new();
+    zones_of(&da, &db, opts, true, &mut found);
+    zones_of(&db, &da, opts, false, &mut found);
+    // A join seen from both sides: keep the side whose path weaves more there (the one that moved).
+    let is_join = |k: InteractionKind| !matches!(k, InteractionKind::LeftTurn | InteractionKind::Crossing);
+    let mut out: Vec<Interaction> = Vec::new();
+    for (i, (x, wx)) in found.iter().enumerate() {
+        let beaten = is_join(x.kind)
+            && found.iter().enumerate().any(|(j, (y, wy))| {
+                j != i
+                    && is_join(y.kind)
+                    && y.actor != x.actor
+                    && (y.conflict_time_s - x.conflict_time_s).abs() < 3.0
+                    && (wy > wx || (wy == wx && j < i))
+            });
+        if !beaten {
+            out.push(x.clone());
+        }
+    }
+    out.sort_by(|x, y| x.conflict_time_s.total_cmp(&y.conflict_time_s));
+    out
+}
+
+/// Interactions between every pair of tracks of `episode`, in time order.
+pub fn mine(episode: &Episode, opts: &MiningOptions) -> Vec<Interaction> {
+    let mut out = Vec::new();
+    for (i, a) in episode.tracks.iter().enumerate() {
+        for b in episode.tracks.iter().skip(i + 1) {
+            let overlap = a.span_s().zip(b.span_s()).is_some_and(|((a0, a1), (b0, b1))| a0 < b1 && b0 < a1);
+            if overlap {
+                out.extend(pair(a, b, opts));
+            }
+        }
+    }
+    out.sort_by(|x, y| x.conflict_time_s.total_cmp(&y.conflict_time_s));
+    out
+}
