@@ -191,7 +191,8 @@ fn zones_of(a: &Driven<'_>, b: &Driven<'_>, opts: &MiningOptions, crossings: boo
                     let before = b.path.point_at((s_b - opts.approach_m).max(0.0));
                     let lateral = a.path.project(before).filter(|f| f.s_m > 0.0 && f.s_m < a.path.length());
                     let parallel = lateral.is_some_and(|f| {
-                        let dh = wrap_angle(b.path.heading_at((s_b - opts.approach_m).max(0.0)) - a.path.heading_at(f.s_m));
+                        let dh =
+                            wrap_angle(b.path.heading_at((s_b - opts.approach_m).max(0.0)) - a.path.heading_at(f.s_m));
                         dh.abs() <= opts.parallel_max_rad
                             && f.l_m.abs() >= opts.lane_offset_m.0
                             && f.l_m.abs() <= opts.lane_offset_m.1
@@ -206,7 +207,10 @@ fn zones_of(a: &Driven<'_>, b: &Driven<'_>, opts: &MiningOptions, crossings: boo
             }
         };
         let Some((kind, (actor, other))) = kind_actor else { continue };
-        out.push((Interaction { kind, actor, other, first, conflict_point: zone.anchor, conflict_time_s: time, pet_s }, weave));
+        out.push((
+            Interaction { kind, actor, other, first, conflict_point: zone.anchor, conflict_time_s: time, pet_s },
+            weave,
+        ));
     }
 }
 

@@ -139,7 +139,7 @@ pub struct Rejections {
     pub scene: u64,
     /// Shorter than 5 s.
     pub short: u64,
-    /// Two footprints overlapped.
+    /// Two footprints overlapped, or both vehicles were in the conflict zone at once (PET < 0).
     pub collision: u64,
     /// The intended interaction did not happen (or its PET exceeded the mining limit).
     pub no_interaction: u64,
@@ -193,7 +193,11 @@ fn accepts(kind: InteractionKind, mined: InteractionKind) -> bool {
 }
 
 /// Episode `index` of the corpus with `seed` on `lib`, and the draws rejected for it.
-pub fn generate_episode(lib: &TopologyLibrary, seed: u64, index: u64) -> Result<(SyntheticEpisode, Rejections), SynthError> {
+pub fn generate_episode(
+    lib: &TopologyLibrary,
+    seed: u64,
+    index: u64,
+) -> Result<(SyntheticEpisode, Rejections), SynthError> {
     let cands = candidates(lib);
     let n_kinds = cands.len().max(1) as u64;
     let Some((kind, frags)) = cands.get((index % n_kinds) as usize) else {
@@ -258,13 +262,19 @@ pub fn generate_episode(lib: &TopologyLibrary, seed: u64, index: u64) -> Result<
         let tracks = episode.to_episode().tracks;
         let actor = setup.first().map_or("", |a| a.name);
         let found = match tracks.as_slice() {
-            [a, b] => pair(a, b, &opts).into_iter().find(|x| accepts(kind, x.kind) && x.actor == actor),
+            [a, b] => pair(a, b, &opts)
+                .into_iter()
+                .find(|x| accepts(kind, x.kind) && (x.actor == actor || kind == InteractionKind::LeftTurn)),
             _ => None,
         };
         let Some(mined) = found else {
             rejected.no_interaction += 1;
             continue;
         };
+        if mined.pet_s < 0.0 {
+            rejected.collision += 1;
+            continue;
+        }
         episode.mined = mined;
         return Ok((episode, rejected));
     }

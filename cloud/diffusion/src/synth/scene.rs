@@ -4,7 +4,7 @@
 //! they reach the conflict within a few seconds of each other.
 
 use rand_chacha::ChaCha8Rng;
-use v2t_map::library::{AnchorKind, Fragment, Maneuver, Turn};
+use v2t_map::library::{AnchorKind, Fragment, FragmentKind, Maneuver, Turn};
 use v2t_model::metrics::{ConflictKind, ConflictOptions, Dimensions, OccupancyInterval, conflict_zones};
 use v2t_model::path::ReferencePath;
 
@@ -12,6 +12,8 @@ use super::driver::{DriverParams, uniform};
 use super::sim::{AgentSetup, Behavior};
 use crate::mining::InteractionKind;
 
+/// Shortest lane pair a cut-in is simulated on, m.
+const MIN_CUT_IN_M: f64 = 150.0;
 /// Nominal speed where the map gives no limit: intersections, m/s.
 const INTERSECTION_MPS: f64 = 10.0;
 /// … and segments and merges, m/s.
@@ -39,10 +41,10 @@ pub(crate) fn kinds_of(f: &Fragment) -> Vec<InteractionKind> {
     if !left_turn_pairs(f).is_empty() {
         out.push(InteractionKind::LeftTurn);
     }
-    if !f.lane_pairs.is_empty() {
+    if f.lane_pairs.iter().any(|p| p.usable_m >= MIN_CUT_IN_M) {
         out.push(InteractionKind::CutIn);
     }
-    if merge_pair(f).is_some() {
+    if f.kind == FragmentKind::Merge && merge_pair(f).is_some() {
         out.push(InteractionKind::Merge);
     }
     out
@@ -96,7 +98,8 @@ pub(crate) fn left_turn(f: &Fragment, rng: &mut ChaCha8Rng) -> Option<Vec<AgentS
             let db = (0.5 * (b.a.enter_s_m + b.a.exit_s_m) - s_t).abs();
             da.total_cmp(&db)
         });
-    let (own, theirs) = zone.map_or((around(s_t, 0.5 * dt.length_m + 2.0), around(s_o, 0.5 * d_o.length_m + 2.0)), |z| (z.a, z.b));
+    let (own, theirs) =
+        zone.map_or((around(s_t, 0.5 * dt.length_m + 2.0), around(s_o, 0.5 * d_o.length_m + 2.0)), |z| (z.a, z.b));
     let d_turner = DriverParams::sample(rng, nominal);
     let d_other = DriverParams::sample(rng, nominal);
     let t_arrive = uniform(rng, 3.0, 6.0);
@@ -131,7 +134,8 @@ pub(crate) fn left_turn(f: &Fragment, rng: &mut ChaCha8Rng) -> Option<Vec<AgentS
 
 /// A cut-in: the cutter changes from a neighbouring lane into the follower's lane ahead of it.
 pub(crate) fn cut_in(f: &Fragment, rng: &mut ChaCha8Rng) -> Option<Vec<AgentSetup>> {
-    let pair = pick(rng, &f.lane_pairs)?;
+    let pairs: Vec<_> = f.lane_pairs.iter().filter(|p| p.usable_m >= MIN_CUT_IN_M).collect();
+    let pair = *pick(rng, &pairs)?;
     let into_left = uniform(rng, 0.0, 1.0) < 0.5;
     let (target_id, source_id) = if into_left { (&pair.left, &pair.right) } else { (&pair.right, &pair.left) };
     let (target, source) = (f.maneuver(target_id)?, f.maneuver(source_id)?);
@@ -144,7 +148,7 @@ pub(crate) fn cut_in(f: &Fragment, rng: &mut ChaCha8Rng) -> Option<Vec<AgentSetu
     let v_follower = d_follower.desired_speed_mps * uniform(rng, 0.7, 1.0);
     let v_cutter = (v_follower + uniform(rng, -4.0, 2.0)).max(3.0);
     let (df, dc) = (sample_dims(rng), sample_dims(rng));
-    let lead = uniform(rng, 6.0, 35.0);
+    let lead = uniform(rng, 8.0, 45.0);
     Some(vec![
         AgentSetup {
             name: "cutter",

@@ -19,6 +19,13 @@ const LANE_HALF_WIDTH_M: f64 = 1.8;
 const LOOK_AHEAD_M: f64 = 120.0;
 /// A driver stops this far before a conflict it gives way at, m.
 const STOP_MARGIN_M: f64 = 1.0;
+/// A lane change accepts a lag gap of this fraction of the critical gap as time headway of the
+/// vehicle behind (accepted lag gaps are shorter than accepted crossing gaps)…
+const LAG_GAP_FRACTION: f64 = 0.35;
+/// … plus this many seconds of the closing speed, s.
+const LAG_CLOSING_S: f64 = 1.5;
+/// How far an agent may drive beyond its route's end before the episode ends, m.
+pub(crate) const RUN_OUT_M: f64 = 30.0;
 /// Hardest braking, m/s².
 const MAX_DECEL_MPS2: f64 = 8.0;
 /// A decision to go is kept unless the gap shrinks by more than this, s.
@@ -99,8 +106,9 @@ fn footprint(x: &State, d: Dimensions) -> OrientedBox {
     OrientedBox { center: x.position(), heading_rad: x.theta_rad, length_m: d.length_m, width_m: d.width_m }
 }
 
-/// Simulates `agents` for up to `steps` steps of `dt_s`, stopping early once any agent is within
-/// 5 m of its route's end.
+/// Simulates `agents` for up to `steps` steps of `dt_s`, stopping early once every agent is within
+/// 5 m of its route's end or one has driven [`RUN_OUT_M`] beyond it (the route is extended
+/// straight past its end, so that an agent that gave way can still pass the conflict).
 pub(crate) fn simulate(agents: &[AgentSetup], dt_s: f64, steps: usize, rng: &mut ChaCha8Rng) -> SimOutput {
     let mut states: Vec<Vec<State>> = agents
         .iter()
@@ -127,7 +135,8 @@ pub(crate) fn simulate(agents: &[AgentSetup], dt_s: f64, steps: usize, rng: &mut
     for k in 0..steps {
         let t = k as f64 * dt_s;
         let now: Vec<State> = states.iter().map(|h| h.last().copied().unwrap_or_default()).collect();
-        if agents.iter().zip(&run).any(|(a, r)| r.s_m > a.route.length() - 5.0) {
+        let past = |d: f64| agents.iter().zip(&run).map(move |(a, r)| r.s_m > a.route.length() + d);
+        if past(-5.0).all(|p| p) || past(RUN_OUT_M).any(|p| p) {
             break;
         }
         for (i, a) in agents.iter().enumerate() {
@@ -220,9 +229,14 @@ fn decide(
             if r.lane_change_from_s.is_none() && t >= intent_s && t <= give_up_s {
                 let watched = if behind == i { None } else { seen(behind).zip(agents.get(behind)) };
                 let accepted = watched.is_none_or(|(xb, b)| {
-                    let sb = a.route.project_near(xb.position(), r.s_m, LOOK_AHEAD_M).map_or(f64::NEG_INFINITY, |f| f.s_m);
+                    let sb =
+                        a.route.project_near(xb.position(), r.s_m, LOOK_AHEAD_M).map_or(f64::NEG_INFINITY, |f| f.s_m);
                     let lag_gap = r.s_m - sb - 0.5 * (a.dims.length_m + b.dims.length_m);
-                    lag_gap >= d.min_gap_m + xb.speed_mps.max(0.0) * d.critical_gap_s
+                    let closing = (xb.speed_mps - v).max(0.0);
+                    lag_gap
+                        >= d.min_gap_m
+                            + closing * LAG_CLOSING_S
+                            + xb.speed_mps.max(0.0) * LAG_GAP_FRACTION * d.critical_gap_s
                 });
                 if accepted {
                     r.lane_change_from_s = Some(t);
@@ -239,7 +253,9 @@ fn decide(
     // Lateral: pure pursuit of the route shifted by the lane-change profile.
     let look = (0.8 * v).max(4.0);
     let offset_at = |tt: f64| match (a.behavior, r.lane_change_from_s) {
-        (Behavior::LaneChange { .. }, Some(t0)) => min_jerk_offset(a.start_offset_m, 0.0, d.lane_change_duration_s, tt - t0),
+        (Behavior::LaneChange { .. }, Some(t0)) => {
+            min_jerk_offset(a.start_offset_m, 0.0, d.lane_change_duration_s, tt - t0)
+        }
         (Behavior::LaneChange { .. }, None) => a.start_offset_m,
         _ => 0.0,
     };
@@ -336,7 +352,8 @@ mod tests {
             behavior: Behavior::Free,
         };
         lead.driver.accel_noise_mps2 = 0.0;
-        let follower = AgentSetup { name: "follower", start_s: 0.0, start_speed_mps: 12.0, driver: driver(), ..lead.clone() };
+        let follower =
+            AgentSetup { name: "follower", start_s: 0.0, start_speed_mps: 12.0, driver: driver(), ..lead.clone() };
         let out = simulate(&[lead, follower], 0.1, 300, &mut ChaCha8Rng::seed_from_u64(1));
         assert!(!out.collided);
         let (a, b) = (out.states[0].last().unwrap(), out.states[1].last().unwrap());
