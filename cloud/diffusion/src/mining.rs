@@ -189,7 +189,8 @@ fn zones_of(a: &Driven<'_>, b: &Driven<'_>, opts: &MiningOptions, crossings: boo
                     None // following in one lane from the start, or `a` appears at the join
                 } else {
                     let before = b.path.point_at((s_b - opts.approach_m).max(0.0));
-                    let lateral = a.path.project(before).filter(|f| f.s_m > 0.0 && f.s_m < a.path.length());
+                    // `a`'s path may start after that point (it was ahead): its extension counts.
+                    let lateral = a.path.project(before);
                     let parallel = lateral.is_some_and(|f| {
                         let dh =
                             wrap_angle(b.path.heading_at((s_b - opts.approach_m).max(0.0)) - a.path.heading_at(f.s_m));
@@ -259,4 +260,119 @@ pub fn mine(episode: &Episode, opts: &MiningOptions) -> Vec<Interaction> {
     }
     out.sort_by(|x, y| x.conflict_time_s.total_cmp(&y.conflict_time_s));
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tracks::{AgentKind, TrackSample};
+    use v2t_model::path::PathBuilder;
+
+    /// A track driving `path` at `v` from arc length `s0`, 10 Hz for `secs`.
+    fn drive(id: &str, path: &ReferencePath, s0: f64, v: f64, secs: f64) -> Track {
+        let n = (secs / 0.1).round() as usize;
+        let samples = (0..=n)
+            .map(|k| {
+                let t = k as f64 * 0.1;
+                let p = path.point_at(s0 + v * t);
+                TrackSample::at(t, p.x, p.y)
+            })
+            .collect();
+        Track { id: id.into(), dt_s: 0.1, kind: AgentKind::Car, dims: None, samples }
+    }
+
+    fn episode(tracks: Vec<Track>) -> Episode {
+        Episode::from_tracks("t", tracks)
+    }
+
+    #[test]
+    fn a_left_turn_across_straight_traffic() {
+        // A drives east along y = −1.75; B comes west along y = +1.75 and turns left (south).
+        let a = PathBuilder::new(-60.0, -1.75, 0.0).line(120.0).build(0.5).unwrap();
+        let b = PathBuilder::new(60.0, 1.75, std::f64::consts::PI)
+            .line(55.0)
+            .arc(8.0, std::f64::consts::FRAC_PI_2)
+            .line(50.0)
+            .build(0.5)
+            .unwrap();
+        // A reaches x = −3 (the zone) after ~5.7 s, B after ~6 s + its turn: B goes second.
+        let found = mine(
+            &episode(vec![drive("1", &a, 0.0, 10.0, 12.0), drive("2", &b, 0.0, 8.0, 14.0)]),
+            &MiningOptions::default(),
+        );
+        let [x] = found.as_slice() else { panic!("{found:?}") };
+        assert_eq!(x.kind, InteractionKind::LeftTurn);
+        assert_eq!((x.actor.as_str(), x.other.as_str(), x.first.as_str()), ("2", "1", "1"));
+        assert!(x.pet_s > 0.0 && x.pet_s < 6.0, "{x:?}");
+        assert!(x.conflict_point.x.abs() < 8.0 && x.conflict_point.y.abs() < 8.0, "{x:?}");
+    }
+
+    #[test]
+    fn crossings_without_a_left_turn_are_crossings() {
+        let a = PathBuilder::new(-60.0, 0.0, 0.0).line(120.0).build(0.5).unwrap();
+        let b = PathBuilder::new(0.0, -60.0, std::f64::consts::FRAC_PI_2).line(120.0).build(0.5).unwrap();
+        let found = pair(
+            &drive("a", &a, 0.0, 10.0, 12.0),
+            &drive("b", &b, 0.0, 10.0, 12.0),
+            &MiningOptions { max_pet_s: 6.0, ..Default::default() },
+        );
+        // Both arrive at once: they overlap in the zone, PET negative.
+        let [x] = found.as_slice() else { panic!("{found:?}") };
+        assert_eq!(x.kind, InteractionKind::Crossing);
+        assert!(x.pet_s < 0.0);
+        let later =
+            pair(&drive("a", &a, 0.0, 10.0, 12.0), &drive("b", &b, -40.0, 10.0, 16.0), &MiningOptions::default());
+        assert!(later.iter().all(|x| x.pet_s > 0.0 && x.first == "a"), "{later:?}");
+    }
+
+    #[test]
+    fn cut_in_ahead_and_lane_change_behind() {
+        let a = PathBuilder::new(0.0, 0.0, 0.0).line(400.0).build(0.5).unwrap();
+        // B drives in the left lane (y = 3.5) and moves into A's lane over 60 m from x = 60.
+        let b = PathBuilder::new(0.0, 3.5, 0.0).line(60.0).lane_change(60.0, -3.5).line(280.0).build(0.5).unwrap();
+        let ahead = mine(
+            &episode(vec![drive("a", &a, 0.0, 14.0, 15.0), drive("b", &b, 25.0, 14.0, 15.0)]),
+            &MiningOptions::default(),
+        );
+        let [x] = ahead.as_slice() else { panic!("{ahead:?}") };
+        assert_eq!((x.kind, x.actor.as_str(), x.first.as_str()), (InteractionKind::CutIn, "b", "b"));
+        assert!(x.pet_s > 0.5 && x.pet_s < 3.0, "{x:?}");
+        let behind = mine(
+            &episode(vec![drive("a", &a, 80.0, 14.0, 15.0), drive("b", &b, 40.0, 14.0, 15.0)]),
+            &MiningOptions::default(),
+        );
+        let [y] = behind.as_slice() else { panic!("{behind:?}") };
+        assert_eq!((y.kind, y.actor.as_str(), y.first.as_str()), (InteractionKind::LaneChange, "b", "a"));
+    }
+
+    #[test]
+    fn joining_at_an_angle_is_a_merge() {
+        let a = PathBuilder::new(0.0, 0.0, 0.0).line(300.0).build(0.5).unwrap();
+        // B comes in at 20° and turns onto A's line.
+        let b = PathBuilder::new(0.0, -20.0, 20f64.to_radians())
+            .line((20.0 - 30.0 * (1.0 - 20f64.to_radians().cos())) / 20f64.to_radians().sin())
+            .arc(30.0, -20f64.to_radians())
+            .line(150.0)
+            .build(0.5)
+            .unwrap();
+        let found = mine(
+            &episode(vec![drive("a", &a, 0.0, 12.0, 15.0), drive("b", &b, 0.0, 12.0, 15.0)]),
+            &MiningOptions::default(),
+        );
+        let [x] = found.as_slice() else { panic!("{found:?}") };
+        assert_eq!((x.kind, x.actor.as_str()), (InteractionKind::Merge, "b"));
+    }
+
+    #[test]
+    fn following_pedestrians_and_standing_are_not_interactions() {
+        let a = PathBuilder::new(0.0, 0.0, 0.0).line(300.0).build(0.5).unwrap();
+        let follow = vec![drive("lead", &a, 30.0, 12.0, 10.0), drive("follower", &a, 0.0, 12.0, 10.0)];
+        assert!(mine(&episode(follow), &MiningOptions::default()).is_empty());
+        let b = PathBuilder::new(0.0, -60.0, std::f64::consts::FRAC_PI_2).line(120.0).build(0.5).unwrap();
+        let mut walker = drive("w", &b, 30.0, 10.0, 12.0);
+        walker.kind = AgentKind::Pedestrian;
+        assert!(mine(&episode(vec![drive("a", &a, 0.0, 10.0, 12.0), walker]), &MiningOptions::default()).is_empty());
+        let parked = drive("p", &b, 55.0, 0.0, 12.0);
+        assert!(mine(&episode(vec![drive("a", &a, 0.0, 10.0, 12.0), parked]), &MiningOptions::default()).is_empty());
+    }
 }
