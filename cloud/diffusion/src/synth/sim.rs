@@ -1,5 +1,6 @@
 //! The closed-loop simulation of one synthetic episode: every agent drives the kinematic model of
-//! `v2t-model` with an acceleration from its IDM (free road, the vehicle ahead in its lane, a stop
+//! `v2t-model` with an acceleration from its IDM (free road, the vehicle ahead in its lane or
+//! drifting into it, a stop
 //! before a conflict it gives way at) through an actuation lag plus process noise, and a yaw rate
 //! from pure pursuit of its route (shifted sideways along a minimum-jerk profile during a lane
 //! change) plus noise. Others are perceived with the driver's reaction delay. The applied controls
@@ -15,6 +16,8 @@ use super::driver::{DriverParams, OuNoise, min_jerk_offset, normal, pursuit_yaw_
 
 /// Half the width of a lane for "is in my lane", m.
 const LANE_HALF_WIDTH_M: f64 = 1.8;
+/// A vehicle drifting into the lane is followed as soon as it will be in it this long from now, s.
+const ANTICIPATION_S: f64 = 1.0;
 /// Vehicles ahead are looked for this far, m.
 const LOOK_AHEAD_M: f64 = 120.0;
 /// A driver stops this far before a conflict it gives way at, m.
@@ -209,11 +212,16 @@ fn decide(
         let Some(xo) = seen(j) else { continue };
         let Some(f) = a.route.project_near(xo.position(), r.s_m, LOOK_AHEAD_M) else { continue };
         let ahead = f.s_m - r.s_m;
-        if ahead <= 0.0 || ahead > LOOK_AHEAD_M || !lanes.iter().any(|l| (f.l_m - l).abs() < LANE_HALF_WIDTH_M) {
+        // A vehicle moving sideways counts where it will be after the anticipation time.
+        let route_heading = a.route.heading_at(f.s_m);
+        let lateral_v = xo.speed_mps * (xo.theta_rad - route_heading).sin();
+        let l_soon = f.l_m + lateral_v * ANTICIPATION_S;
+        let in_lane = |l_other: f64| lanes.iter().any(|l| (l_other - l).abs() < LANE_HALF_WIDTH_M);
+        if ahead <= 0.0 || ahead > LOOK_AHEAD_M || !(in_lane(f.l_m) || in_lane(l_soon)) {
             continue;
         }
         let gap = ahead - 0.5 * (a.dims.length_m + o.dims.length_m);
-        let lead_v = xo.speed_mps * (xo.theta_rad - a.route.heading_at(f.s_m)).cos();
+        let lead_v = xo.speed_mps * (xo.theta_rad - route_heading).cos();
         accel = accel.min(d.idm_accel(v, v0, Some((gap, lead_v))));
     }
     match a.behavior {
