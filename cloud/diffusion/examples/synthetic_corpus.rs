@@ -8,7 +8,6 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use anyhow::Context;
-use v2t_diffusion::stats::ControlSamples;
 use v2t_diffusion::synth::{generate_corpus, to_jsonl};
 
 fn main() -> anyhow::Result<()> {
@@ -30,7 +29,7 @@ fn main() -> anyhow::Result<()> {
         corpus.rejections
     );
     let mut by_kind: BTreeMap<String, (usize, Vec<f64>)> = BTreeMap::new();
-    let mut samples = ControlSamples::default();
+    let samples = corpus.control_samples();
     let mut worst_gap: f64 = 0.0;
     for e in &corpus.episodes {
         let entry = by_kind.entry(format!("{:?}/{:?}", e.interaction, e.mined.kind)).or_default();
@@ -38,7 +37,6 @@ fn main() -> anyhow::Result<()> {
         entry.1.push(e.pet_s());
         for t in e.trajectories() {
             worst_gap = worst_gap.max(t.rollout_gap_m(e.dt_s));
-            samples.add_sequence(&t.controls, e.dt_s);
         }
     }
     for (k, (count, mut pets)) in by_kind {

@@ -432,9 +432,11 @@ pub fn write(episode: &Episode) -> String {
             if t.id.contains([',', '"', '\n']) { format!("\"{}\"", t.id.replace('"', "\"\"")) } else { t.id.clone() };
         for s in &t.samples {
             let frame = (s.t_s / episode.dt_s).round() as i64;
+            // Whole milliseconds as integers, like the datasets; anything else exactly.
+            let ms = s.t_s * 1000.0;
+            let ms = if (ms - ms.round()).abs() < 1e-6 { format!("{}", ms.round()) } else { format!("{ms}") };
             out.push_str(&format!(
-                "{id},{frame},{},{kind},{},{},{},{},{},{},{}\n",
-                s.t_s * 1000.0,
+                "{id},{frame},{ms},{kind},{},{},{},{},{},{},{}\n",
                 s.x_m,
                 s.y_m,
                 opt(s.vx_mps),

@@ -14,6 +14,7 @@ use super::driver::{DriverParams, uniform};
 use super::scene;
 use super::sim::simulate;
 use crate::mining::{Interaction, InteractionKind, MiningOptions, pair};
+use crate::stats::ControlSamples;
 use crate::tracks::{AgentKind, Episode, Track, TrackSample};
 
 /// Time step of the synthetic corpus, s.
@@ -170,6 +171,19 @@ pub struct SyntheticCorpus {
     pub episodes: Vec<SyntheticEpisode>,
     /// Draws rejected on the way.
     pub rejections: Rejections,
+}
+
+impl SyntheticCorpus {
+    /// Acceleration, jerk and yaw-rate samples of every agent, for realism statistics.
+    pub fn control_samples(&self) -> ControlSamples {
+        let mut out = ControlSamples::default();
+        for e in &self.episodes {
+            for a in &e.agents {
+                out.add_sequence(&a.controls, e.dt_s);
+            }
+        }
+        out
+    }
 }
 
 /// Fragments offering each scene kind, in a fixed order.
