@@ -374,6 +374,36 @@ mod tests {
     }
 
     proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// The smoother is exact on quadratics, linear, and never increases the jerk penalty's
+        /// objective above that of the data itself.
+        #[test]
+        fn smoother_properties(
+            y in prop::collection::vec(-50.0f64..50.0, 4..80),
+            c in prop::array::uniform3(-5.0f64..5.0),
+            log_lambda in -2.0f64..6.0,
+        ) {
+            let lambda = 10f64.powf(log_lambda);
+            let n = y.len();
+            let q: Vec<f64> = (0..n).map(|k| c[0] + c[1] * k as f64 + c[2] * 0.01 * (k * k) as f64).collect();
+            for (a, b) in q.iter().zip(smooth(&q, lambda)) {
+                prop_assert!((a - b).abs() < 1e-6 * (1.0 + a.abs()), "{} {}", a, b);
+            }
+            let sum: Vec<f64> = y.iter().zip(&q).map(|(a, b)| a + b).collect();
+            let (sy, sq, ss) = (smooth(&y, lambda), smooth(&q, lambda), smooth(&sum, lambda));
+            for k in 0..n {
+                prop_assert!((ss[k] - sy[k] - sq[k]).abs() < 1e-6 * (1.0 + ss[k].abs()));
+            }
+            let objective = |p: &[f64]| {
+                let fit: f64 = p.iter().zip(&y).map(|(a, b)| (a - b).powi(2)).sum();
+                let d3: f64 = p.windows(4).map(|w| (w[3] - 3.0 * w[2] + 3.0 * w[1] - w[0]).powi(2)).sum();
+                fit + lambda * d3
+            };
+            prop_assert!(objective(&sy) <= objective(&y) * (1.0 + 1e-9) + 1e-9);
+        }
+    }
+
+    proptest! {
         #![proptest_config(ProptestConfig::with_cases(32))]
         /// Known controls rolled out, 5 cm position noise added: the recovered controls match within
         /// 0.35 m/s² and 0.06 rad/s RMS away from the ends, and their rollout reproduces the

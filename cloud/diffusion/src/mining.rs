@@ -266,6 +266,8 @@ pub fn mine(episode: &Episode, opts: &MiningOptions) -> Vec<Interaction> {
 mod tests {
     use super::*;
     use crate::tracks::{AgentKind, TrackSample};
+    use proptest::prelude::*;
+    use v2t_model::metrics::Dimensions;
     use v2t_model::path::PathBuilder;
 
     /// A track driving `path` at `v` from arc length `s0`, 10 Hz for `secs`.
@@ -374,5 +376,34 @@ mod tests {
         assert!(mine(&episode(vec![drive("a", &a, 0.0, 10.0, 12.0), walker]), &MiningOptions::default()).is_empty());
         let parked = drive("p", &b, 55.0, 0.0, 12.0);
         assert!(mine(&episode(vec![drive("a", &a, 0.0, 10.0, 12.0), parked]), &MiningOptions::default()).is_empty());
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        /// Two vehicles crossing at right angles at constant speeds: the zone is the square where the
+        /// corridors meet, so PET has a closed form.
+        #[test]
+        fn perpendicular_crossing_pet_is_exact(
+            va in 5.0f64..15.0, vb in 5.0f64..15.0, delay in 0.5f64..5.0,
+            la in 3.5f64..6.0, wa in 1.6f64..2.2, lb in 3.5f64..6.0, wb in 1.6f64..2.2,
+        ) {
+            let a_path = PathBuilder::new(-60.0, 0.0, 0.0).line(120.0).build(0.5).unwrap();
+            let b_path = PathBuilder::new(0.0, -60.0, std::f64::consts::FRAC_PI_2).line(120.0).build(0.5).unwrap();
+            let mut a = drive("a", &a_path, 0.0, va, 20.0);
+            a.dims = Some(Dimensions { length_m: la, width_m: wa });
+            // B starts `delay` seconds after A leaves the zone would have let it arrive together.
+            let a_exit = (60.0 + 0.5 * wb + 0.5 * la) / va;
+            let b_enter_at_zero = (60.0 - 0.5 * wa - 0.5 * lb) / vb;
+            let s0 = -vb * (a_exit + delay - b_enter_at_zero);
+            let mut b = drive("b", &b_path, s0, vb, 30.0);
+            b.dims = Some(Dimensions { length_m: lb, width_m: wb });
+            b.samples.retain(|x| x.y_m >= -60.0);
+            let found = pair(&a, &b, &MiningOptions { max_pet_s: 10.0, ..Default::default() });
+            prop_assert_eq!(found.len(), 1, "{:?}", found);
+            let x = &found[0];
+            prop_assert_eq!(x.kind, InteractionKind::Crossing);
+            prop_assert_eq!(x.first.as_str(), "a");
+            prop_assert!((x.pet_s - delay).abs() < 0.05, "PET {} expected {}", x.pet_s, delay);
+        }
     }
 }

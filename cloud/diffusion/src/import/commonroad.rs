@@ -208,6 +208,55 @@ pub fn parse_file(path: &std::path::Path) -> Result<Episode, CommonRoadError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    /// One state element as CommonRoad writes it.
+    fn state_xml(tag: &str, step: i64, x: f64, y: f64, psi: f64, v: f64) -> String {
+        format!(
+            "<{tag}><position><point><x>{x}</x><y>{y}</y></point></position>\
+             <orientation><exact>{psi}</exact></orientation><time><exact>{step}</exact></time>\
+             <velocity><exact>{v}</exact></velocity></{tag}>"
+        )
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        #[test]
+        fn written_obstacles_read_back(
+            dt in prop::sample::select(vec![0.04, 0.1, 0.2]),
+            obstacles in prop::collection::vec(
+                (0i64..20, prop::collection::vec((-1e3f64..1e3, -1e3f64..1e3, -3.1f64..3.1, 0.0f64..40.0), 1..12)),
+                1..4),
+        ) {
+            let mut xml = format!("<commonRoad commonRoadVersion=\"2020a\" benchmarkID=\"P\" timeStepSize=\"{dt}\">");
+            for (i, (start, states)) in obstacles.iter().enumerate() {
+                xml.push_str(&format!("<dynamicObstacle id=\"{}\"><type>car</type>", 100 + i));
+                xml.push_str("<shape><rectangle><length>4.5</length><width>1.8</width></rectangle></shape>");
+                for (k, (x, y, psi, v)) in states.iter().enumerate() {
+                    if k == 0 {
+                        xml.push_str(&state_xml("initialState", *start, *x, *y, *psi, *v));
+                        xml.push_str("<trajectory>");
+                    } else {
+                        xml.push_str(&state_xml("state", start + k as i64, *x, *y, *psi, *v));
+                    }
+                }
+                xml.push_str("</trajectory></dynamicObstacle>");
+            }
+            xml.push_str("</commonRoad>");
+            let e = parse(&xml, "p").unwrap();
+            prop_assert_eq!(e.tracks.len(), obstacles.len());
+            for (t, (start, states)) in e.tracks.iter().zip(&obstacles) {
+                prop_assert_eq!(t.samples.len(), states.len());
+                prop_assert!(t.gaps().is_empty());
+                for (k, (s, (x, y, psi, v))) in t.samples.iter().zip(states).enumerate() {
+                    prop_assert!((s.t_s - (start + k as i64) as f64 * dt).abs() < 1e-9);
+                    prop_assert_eq!((s.x_m, s.y_m, s.psi_rad), (*x, *y, Some(*psi)));
+                    let speed = s.vx_mps.unwrap().hypot(s.vy_mps.unwrap());
+                    prop_assert!((speed - v).abs() < 1e-9);
+                }
+            }
+        }
+    }
 
     fn data(name: &str) -> std::path::PathBuf {
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(name)
