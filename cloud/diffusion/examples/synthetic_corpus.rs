@@ -31,6 +31,8 @@ fn main() -> anyhow::Result<()> {
     let mut by_kind: BTreeMap<String, (usize, Vec<f64>)> = BTreeMap::new();
     let samples = corpus.control_samples();
     let mut worst_gap: f64 = 0.0;
+    let three = corpus.episodes.iter().filter(|e| e.agents.len() == 3).count();
+    println!("  {three} episodes with a third vehicle");
     for e in &corpus.episodes {
         let entry = by_kind.entry(format!("{:?}/{:?}", e.interaction, e.mined.kind)).or_default();
         entry.0 += 1;

@@ -48,7 +48,9 @@ pub enum SynthError {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SyntheticAgent {
-    /// Role in the scene: `turner`/`crossing`, `cutter`/`follower`, `merging`/`through`.
+    /// Role in the scene: `turner`/`crossing` (`crossing_2` behind), `cutter`/`follower` (`lead`
+    /// ahead in the target lane), `merging`/`through` (`through_2` behind). The first is the
+    /// actor of the scene's interaction.
     pub id: String,
     /// Maneuver of the topology library it drove.
     pub route_id: String,
@@ -273,14 +275,22 @@ pub fn generate_episode(
             dt_s: DT_S,
             agents,
         };
+        // The interaction of the scene is the actor's (its first agent) most critical one: the
+        // smallest PET with any other agent among the kinds the scene stands for.
         let tracks = episode.to_episode().tracks;
         let actor = setup.first().map_or("", |a| a.name);
-        let found = match tracks.as_slice() {
-            [a, b] => pair(a, b, &opts)
-                .into_iter()
-                .find(|x| accepts(kind, x.kind) && (x.actor == actor || kind == InteractionKind::LeftTurn)),
-            _ => None,
-        };
+        let found = tracks
+            .iter()
+            .find(|t| t.id == actor)
+            .map(|a| {
+                tracks
+                    .iter()
+                    .filter(|b| b.id != actor)
+                    .flat_map(|b| pair(a, b, &opts))
+                    .filter(|x| accepts(kind, x.kind) && (x.actor == actor || kind == InteractionKind::LeftTurn))
+                    .min_by(|x, y| x.pet_s.total_cmp(&y.pet_s))
+            })
+            .unwrap_or_default();
         let Some(mined) = found else {
             rejected.no_interaction += 1;
             continue;

@@ -14,6 +14,10 @@ use crate::mining::InteractionKind;
 
 /// Shortest lane pair a cut-in is simulated on, m.
 const MIN_CUT_IN_M: f64 = 150.0;
+/// How far before its route a vehicle behind may start, m.
+const RUN_IN_M: f64 = 40.0;
+/// Probability of a third vehicle in a scene.
+const EXTRA_AGENT_P: f64 = 0.5;
 /// Nominal speed where the map gives no limit: intersections, m/s.
 const INTERSECTION_MPS: f64 = 10.0;
 /// … and segments and merges, m/s.
@@ -106,7 +110,7 @@ pub(crate) fn left_turn(f: &Fragment, rng: &mut ChaCha8Rng) -> Option<Vec<AgentS
     let delta = uniform(rng, -3.0, 4.0);
     let v_t = d_turner.curve_capped_speed(&rt, own.enter_s_m, d_turner.desired_speed_mps) * uniform(rng, 0.7, 1.0);
     let v_o = d_other.desired_speed_mps * uniform(rng, 0.7, 1.0);
-    Some(vec![
+    let mut agents = vec![
         AgentSetup {
             name: "turner",
             route_id: turner.id.clone(),
@@ -116,7 +120,7 @@ pub(crate) fn left_turn(f: &Fragment, rng: &mut ChaCha8Rng) -> Option<Vec<AgentS
             start_offset_m: 0.0,
             driver: d_turner,
             dims: dt,
-            behavior: Behavior::GiveWay { other: 1, own, theirs },
+            behavior: Behavior::GiveWay { others: [Some(1), Some(2)], own, theirs },
         },
         AgentSetup {
             name: "crossing",
@@ -129,7 +133,9 @@ pub(crate) fn left_turn(f: &Fragment, rng: &mut ChaCha8Rng) -> Option<Vec<AgentS
             dims: d_o,
             behavior: Behavior::Free,
         },
-    ])
+    ];
+    add_behind(&mut agents, 1, "crossing_2", nominal, rng);
+    Some(agents)
 }
 
 /// A cut-in: the cutter changes from a neighbouring lane into the follower's lane ahead of it.
@@ -149,7 +155,7 @@ pub(crate) fn cut_in(f: &Fragment, rng: &mut ChaCha8Rng) -> Option<Vec<AgentSetu
     let v_cutter = (v_follower + uniform(rng, -4.0, 2.0)).max(3.0);
     let (df, dc) = (sample_dims(rng), sample_dims(rng));
     let lead = uniform(rng, 8.0, 45.0);
-    Some(vec![
+    let mut agents = vec![
         AgentSetup {
             name: "cutter",
             route_id: target.id.clone(),
@@ -164,7 +170,7 @@ pub(crate) fn cut_in(f: &Fragment, rng: &mut ChaCha8Rng) -> Option<Vec<AgentSetu
         AgentSetup {
             name: "follower",
             route_id: target.id.clone(),
-            route: rt,
+            route: rt.clone(),
             start_s: s_follower,
             start_speed_mps: v_follower,
             start_offset_m: 0.0,
@@ -172,7 +178,44 @@ pub(crate) fn cut_in(f: &Fragment, rng: &mut ChaCha8Rng) -> Option<Vec<AgentSetu
             dims: df,
             behavior: Behavior::Free,
         },
-    ])
+    ];
+    // Half the time a third vehicle leads in the target lane, 15–60 m ahead of the cutter.
+    if uniform(rng, 0.0, 1.0) < EXTRA_AGENT_P {
+        let v = v_cutter * uniform(rng, 0.8, 1.15);
+        let driver = DriverParams { desired_speed_mps: v, ..DriverParams::sample(rng, nominal) };
+        let dims = sample_dims(rng);
+        agents.push(AgentSetup {
+            name: "lead",
+            route_id: target.id.clone(),
+            route: rt,
+            start_s: s_follower + lead + uniform(rng, 15.0, 60.0),
+            start_speed_mps: v,
+            start_offset_m: 0.0,
+            driver,
+            dims,
+            behavior: Behavior::Free,
+        });
+    }
+    Some(agents)
+}
+
+/// Half the time, a second vehicle on the route of `agents[of]`, 1.5–5 s behind it (starting at
+/// most [`RUN_IN_M`] before the route, on its straight extension).
+fn add_behind(agents: &mut Vec<AgentSetup>, of: usize, name: &'static str, nominal: f64, rng: &mut ChaCha8Rng) {
+    if uniform(rng, 0.0, 1.0) >= EXTRA_AGENT_P {
+        return;
+    }
+    let Some(base) = agents.get(of) else { return };
+    let driver = DriverParams::sample(rng, nominal);
+    let dims = sample_dims(rng);
+    let v = base.start_speed_mps * uniform(rng, 0.85, 1.1);
+    let start_s = base.start_s - v * uniform(rng, 1.5, 5.0) - 0.5 * (base.dims.length_m + dims.length_m);
+    if start_s < -RUN_IN_M {
+        return;
+    }
+    let extra =
+        AgentSetup { name, start_s, start_speed_mps: v, driver, dims, behavior: Behavior::Free, ..base.clone() };
+    agents.push(extra);
 }
 
 /// A merge: the merging vehicle gives way to the through vehicle by gap acceptance at the merge
@@ -190,7 +233,7 @@ pub(crate) fn merge(f: &Fragment, rng: &mut ChaCha8Rng) -> Option<Vec<AgentSetup
     let delta = uniform(rng, -3.0, 3.0);
     let v_m = d_merging.curve_capped_speed(&rm, own.enter_s_m, d_merging.desired_speed_mps) * uniform(rng, 0.6, 1.0);
     let v_t = d_through.desired_speed_mps * uniform(rng, 0.7, 1.0);
-    Some(vec![
+    let mut agents = vec![
         AgentSetup {
             name: "merging",
             route_id: merging.id.clone(),
@@ -200,7 +243,7 @@ pub(crate) fn merge(f: &Fragment, rng: &mut ChaCha8Rng) -> Option<Vec<AgentSetup
             start_offset_m: 0.0,
             driver: d_merging,
             dims: dm,
-            behavior: Behavior::GiveWay { other: 1, own, theirs },
+            behavior: Behavior::GiveWay { others: [Some(1), Some(2)], own, theirs },
         },
         AgentSetup {
             name: "through",
@@ -213,5 +256,7 @@ pub(crate) fn merge(f: &Fragment, rng: &mut ChaCha8Rng) -> Option<Vec<AgentSetup
             dims: dt,
             behavior: Behavior::Free,
         },
-    ])
+    ];
+    add_behind(&mut agents, 1, "through_2", nominal, rng);
+    Some(agents)
 }

@@ -39,9 +39,9 @@ const HYSTERESIS_S: f64 = 0.3;
 pub(crate) enum Behavior {
     /// Drives its route, following whoever is ahead in its lane.
     Free,
-    /// Gap acceptance against agent `other` at a conflict: `own` is the zone along its own route,
-    /// `theirs` along the other's.
-    GiveWay { other: usize, own: OccupancyInterval, theirs: OccupancyInterval },
+    /// Gap acceptance against the agents `others` (one route, in driving order) at a conflict:
+    /// `own` is the zone along its own route, `theirs` along theirs.
+    GiveWay { others: [Option<usize>; 2], own: OccupancyInterval, theirs: OccupancyInterval },
     /// Starts at the route's lateral offset `start_offset_m` (a neighbouring lane) and changes onto
     /// the route after `intent_s` once agent `behind` leaves a large enough gap, unless
     /// `give_up_s` passed first.
@@ -226,8 +226,10 @@ fn decide(
     }
     match a.behavior {
         Behavior::Free => {}
-        Behavior::GiveWay { other, own, theirs } => {
-            r.decision = give_way(a, &r, x, v0, agents.get(other), seen(other), &own, &theirs);
+        Behavior::GiveWay { others, own, theirs } => {
+            let watched: Vec<(&AgentSetup, State)> =
+                others.iter().flatten().filter_map(|&j| Some((agents.get(j)?, seen(j)?))).collect();
+            r.decision = give_way(a, &r, x, v0, &watched, &own, &theirs);
             if r.decision == Decision::Yield {
                 let gap = own.enter_s_m - r.s_m - STOP_MARGIN_M;
                 accel = accel.min(d.idm_accel(v, v0, Some((gap, 0.0))));
@@ -274,15 +276,15 @@ fn decide(
     (Control { accel_mps2: a_cmd, yaw_rate_radps: omega }, r)
 }
 
-/// Gap acceptance at a conflict (see [`Behavior::GiveWay`]).
-#[allow(clippy::too_many_arguments)]
+/// Gap acceptance at a conflict (see [`Behavior::GiveWay`]) against the `watched` vehicles (all on
+/// one route, each with its perceived state): go if the driver clears its zone at least the
+/// critical gap before the first of them that has not passed yet arrives.
 fn give_way(
     a: &AgentSetup,
     r: &Agent,
     x: State,
     v0: f64,
-    other: Option<&AgentSetup>,
-    seen: Option<State>,
+    watched: &[(&AgentSetup, State)],
     own: &OccupancyInterval,
     theirs: &OccupancyInterval,
 ) -> Decision {
@@ -291,19 +293,22 @@ fn give_way(
     if r.decision == Decision::Committed || r.s_m >= own.enter_s_m {
         return Decision::Committed;
     }
-    let (Some(o), Some(xo)) = (other, seen) else { return Decision::Go };
-    let so = o.route.project_near(xo.position(), theirs.enter_s_m, 300.0).map_or(f64::NEG_INFINITY, |f| f.s_m);
-    if so > theirs.exit_s_m {
-        return Decision::Go;
+    let mut arrive = f64::INFINITY;
+    for (o, xo) in watched {
+        let so = o.route.project_near(xo.position(), theirs.enter_s_m, 300.0).map_or(f64::NEG_INFINITY, |f| f.s_m);
+        if so > theirs.exit_s_m {
+            continue;
+        }
+        let vo = xo.speed_mps;
+        let t = if so >= theirs.enter_s_m {
+            0.0
+        } else if vo > 0.5 {
+            (theirs.enter_s_m - so) / vo
+        } else {
+            f64::INFINITY
+        };
+        arrive = arrive.min(t);
     }
-    let vo = xo.speed_mps;
-    let arrive = if so >= theirs.enter_s_m {
-        0.0
-    } else if vo > 0.5 {
-        (theirs.enter_s_m - so) / vo
-    } else {
-        f64::INFINITY
-    };
     let clear = time_to_cover(own.exit_s_m - r.s_m, v, d.max_accel_mps2, v0);
     let threshold = d.critical_gap_s - if r.decision == Decision::Go { HYSTERESIS_S } else { 0.0 };
     if arrive - clear >= threshold {
