@@ -18,6 +18,10 @@
 //! are negated so that the frame is right-handed like every other in Video2Track. highD has no
 //! timestamps: pass [`CsvOptions::frame_rate_hz`] (25 Hz).
 //!
+//! The parser is a small hand-written one (quoted fields with `""`, line breaks inside quotes,
+//! CRLF, a BOM) rather than the `csv` crate: track files are plain and this keeps line numbers
+//! exact for errors.
+//!
 //! Every error names the line and, where it is about a value, the column. Non-finite values and a
 //! (track, frame) pair given twice are errors; missing frames inside a track are reported as
 //! [`TrackGap`]s beside the episode.
