@@ -86,6 +86,22 @@ impl DriverParams {
         self.max_accel_mps2 * (free - interaction)
     }
 
+    /// Enhanced-IDM acceleration behind a vehicle at `gap` driving at `lead_v` (Kesting, Treiber &
+    /// Helbing 2010, coolness 0.99, the leader's acceleration taken as 0): where the IDM brakes
+    /// harder than the constant-acceleration heuristic needs — typically right after a cut-in with
+    /// a short gap but no closing speed — the braking is softened toward the heuristic, as human
+    /// drivers do.
+    pub fn eidm_accel(&self, v: f64, v0: f64, gap: f64, lead_v: f64) -> f64 {
+        const COOLNESS: f64 = 0.99;
+        let idm = self.idm_accel(v, v0, Some((gap, lead_v)));
+        let cah = if v <= lead_v { 0.0 } else { -(v - lead_v).powi(2) / (2.0 * gap.max(0.1)) };
+        if idm >= cah {
+            return idm;
+        }
+        let b = self.comfort_decel_mps2.max(0.1);
+        (1.0 - COOLNESS) * idm + COOLNESS * (cah + b * ((idm - cah) / b).tanh())
+    }
+
     /// Desired speed at arc length `s` on `path`: `v0` capped by the curve speed
     /// `√(a_lat / |κ|)` over the stretch the driver can still brake for comfortably.
     pub fn curve_capped_speed(&self, path: &ReferencePath, s: f64, v: f64) -> f64 {
@@ -153,6 +169,22 @@ mod tests {
         assert!(d.idm_accel(0.0, 12.0, None) > 0.0);
         assert!(d.idm_accel(d.desired_speed_mps, d.desired_speed_mps, None).abs() < 1e-9);
         assert!(d.idm_accel(10.0, 12.0, Some((5.0, 0.0))) < -d.comfort_decel_mps2);
+    }
+
+    #[test]
+    fn enhanced_idm_softens_a_close_cut_in_without_closing_speed() {
+        let d = DriverParams::sample(&mut ChaCha8Rng::seed_from_u64(2), 15.0);
+        // A vehicle cut in 6 m ahead at the same speed: the IDM brakes hard, the enhanced IDM gently.
+        let (idm, eidm) = (d.idm_accel(15.0, 15.0, Some((6.0, 15.0))), d.eidm_accel(15.0, 15.0, 6.0, 15.0));
+        assert!(
+            idm < -d.comfort_decel_mps2 && eidm > idm && eidm >= -d.comfort_decel_mps2 + 0.01 * idm - 1e-9,
+            "{idm} {eidm}"
+        );
+        // Closing fast on a near obstacle it still brakes at least as the kinematics need.
+        let need = -(10.0f64 * 10.0) / (2.0 * 20.0);
+        assert!(d.eidm_accel(10.0, 15.0, 20.0, 0.0) <= need + 0.5);
+        // Free of interaction where the IDM is not braking.
+        assert_eq!(d.eidm_accel(5.0, 15.0, 200.0, 15.0), d.idm_accel(5.0, 15.0, Some((200.0, 15.0))));
     }
 
     #[test]

@@ -1,6 +1,6 @@
 //! The closed-loop simulation of one synthetic episode: every agent drives the kinematic model of
 //! `v2t-model` with an acceleration from its IDM (free road, the vehicle ahead in its lane or
-//! drifting into it, a stop
+//! drifting into it — with the enhanced IDM's softening —, a stop
 //! before a conflict it gives way at) through an actuation lag plus process noise, and a yaw rate
 //! from pure pursuit of its route (shifted sideways along a minimum-jerk profile during a lane
 //! change) plus noise. Others are perceived with the driver's reaction delay. The applied controls
@@ -222,7 +222,7 @@ fn decide(
         }
         let gap = ahead - 0.5 * (a.dims.length_m + o.dims.length_m);
         let lead_v = xo.speed_mps * (xo.theta_rad - route_heading).cos();
-        accel = accel.min(d.idm_accel(v, v0, Some((gap, lead_v))));
+        accel = accel.min(d.eidm_accel(v, v0, gap, lead_v));
     }
     match a.behavior {
         Behavior::Free => {}
