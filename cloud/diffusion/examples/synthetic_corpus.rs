@@ -65,7 +65,14 @@ fn main() -> anyhow::Result<()> {
     if let Some(out) = args.get(3) {
         let text = to_jsonl(&corpus)?;
         std::fs::write(out, &text).with_context(|| out.clone())?;
-        println!("  wrote {out} ({} bytes)", text.len());
+        let start = Instant::now();
+        let back = v2t_diffusion::synth::read_jsonl_file(std::path::Path::new(out))?;
+        println!(
+            "  wrote {out} ({} bytes); read back in {:.2} s, identical: {}",
+            text.len(),
+            start.elapsed().as_secs_f64(),
+            back == corpus
+        );
     }
     Ok(())
 }
