@@ -260,6 +260,26 @@ pub fn to_controls(track: &Track, options: &InverseOptions) -> Result<InverseRes
     Ok(InverseResult { trajectory, dt_s, rollout_gap_m, smoothing_rms_m })
 }
 
+/// Every vehicle track of `episode`, cut at its gaps, turned into controls; pieces shorter than
+/// `min_samples` (at least 3) are left out, and the pieces that fail come back with their error.
+pub fn episode_to_controls(
+    episode: &crate::tracks::Episode,
+    options: &InverseOptions,
+    min_samples: usize,
+) -> (Vec<InverseResult>, Vec<InverseError>) {
+    let mut done = Vec::new();
+    let mut failed = Vec::new();
+    for track in episode.tracks.iter().filter(|t| t.kind.is_vehicle()) {
+        for piece in split_at_gaps(track).iter().filter(|p| p.samples.len() >= min_samples.max(3)) {
+            match to_controls(piece, options) {
+                Ok(r) => done.push(r),
+                Err(e) => failed.push(e),
+            }
+        }
+    }
+    (done, failed)
+}
+
 /// `track` cut at its gaps ([`Track::gaps`]) into pieces on one time grid each; pieces keep the
 /// id with `#k` appended when there is more than one.
 pub fn split_at_gaps(track: &Track) -> Vec<Track> {
@@ -356,6 +376,26 @@ mod tests {
         assert!(states[45].speed_mps < -1.0);
         let traj = AgentTrajectory { id: "r".into(), role: AgentRole::Bv, states, controls: u };
         assert!(traj.rollout_gap_m(dt) < 0.3 * dt * 20.0);
+    }
+
+    #[test]
+    fn whole_episodes_are_inverted_piece_by_piece() {
+        let dt = 0.1;
+        let u = controls(60, dt, 1.0, 0.1, 0.0);
+        let xs = rollout(State { px: 0.0, py: 0.0, theta_rad: 0.0, speed_mps: 10.0 }, &u, dt);
+        let mut car = track_of(&xs, dt, 0.0, 0);
+        car.samples.drain(20..23);
+        let mut walker = track_of(&xs, dt, 0.0, 0);
+        walker.id = "w".into();
+        walker.kind = AgentKind::Pedestrian;
+        let mut bad = track_of(&xs, dt, 0.0, 0);
+        bad.id = "bad".into();
+        bad.samples[30].x_m = f64::INFINITY;
+        let e = crate::tracks::Episode::from_tracks("e", vec![car, walker, bad]);
+        let (done, failed) = episode_to_controls(&e, &InverseOptions::default(), 10);
+        assert_eq!(done.len(), 2, "the car in two pieces");
+        assert_eq!(done[0].trajectory.id, "t#0");
+        assert_eq!(failed.len(), 1);
     }
 
     #[test]
