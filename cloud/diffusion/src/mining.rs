@@ -215,10 +215,24 @@ fn zones_of(a: &Driven<'_>, b: &Driven<'_>, opts: &MiningOptions, crossings: boo
     }
 }
 
+/// Whether the bounding boxes of the two tracks' positions, grown by `margin_m`, overlap (a cheap
+/// test before the corridors are intersected).
+fn near(a: &Track, b: &Track, margin_m: f64) -> bool {
+    let bbox = |t: &Track| {
+        t.samples
+            .iter()
+            .fold((f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY), |(x0, y0, x1, y1), s| {
+                (x0.min(s.x_m), y0.min(s.y_m), x1.max(s.x_m), y1.max(s.y_m))
+            })
+    };
+    let (a, b) = (bbox(a), bbox(b));
+    a.0 - margin_m <= b.2 && b.0 - margin_m <= a.2 && a.1 - margin_m <= b.3 && b.1 - margin_m <= a.3
+}
+
 /// Interactions between two tracks.
 pub fn pair(a: &Track, b: &Track, opts: &MiningOptions) -> Vec<Interaction> {
     let ok = |t: &Track| t.kind.is_vehicle() && t.path_length_m() >= opts.min_travel_m;
-    if !(ok(a) && ok(b)) {
+    if !(ok(a) && ok(b)) || !near(a, b, 10.0) {
         return Vec::new();
     }
     let (Some(da), Some(db)) = (Driven::new(a, opts.path_spacing_m), Driven::new(b, opts.path_spacing_m)) else {

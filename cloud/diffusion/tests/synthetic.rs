@@ -146,3 +146,28 @@ fn inverse_kinematics_recovers_the_simulated_controls() {
     assert!(d.accel_mps2.unwrap() < 0.25, "{d:?}");
     assert!(d.yaw_rate_radps.unwrap() < 0.02, "{d:?}");
 }
+
+/// Any map: a plain straight two-lane road long enough for cut-ins gives a corpus of cut-ins only.
+#[test]
+fn a_two_lane_road_gives_cut_ins() {
+    let xodr = r#"<OpenDRIVE><header revMajor="1" revMinor="6"/>
+      <road id="1" length="400" junction="-1">
+        <planView><geometry s="0" x="0" y="0" hdg="0" length="400"><line/></geometry></planView>
+        <lanes><laneSection s="0">
+          <center><lane id="0" type="none"/></center>
+          <right>
+            <lane id="-1" type="driving"><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane>
+            <lane id="-2" type="driving"><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane>
+          </right>
+        </laneSection></lanes>
+      </road></OpenDRIVE>"#;
+    let m = Map::parse(xodr, "straight").unwrap();
+    let c = generate_corpus(&m, 4, 3).unwrap();
+    assert!(
+        c.episodes.iter().all(|e| e.interaction == InteractionKind::CutIn && e.mined.kind == InteractionKind::CutIn)
+    );
+    assert!(
+        c.episodes.iter().all(|e| e.agents[0].states.iter().all(|s| s.py < 0.5 && s.py > -7.5)),
+        "stays on the road"
+    );
+}
