@@ -232,7 +232,7 @@ fn near(a: &Track, b: &Track, margin_m: f64) -> bool {
 /// Interactions between two tracks.
 pub fn pair(a: &Track, b: &Track, opts: &MiningOptions) -> Vec<Interaction> {
     let ok = |t: &Track| t.kind.is_vehicle() && t.path_length_m() >= opts.min_travel_m;
-    if !(ok(a) && ok(b)) || !near(a, b, 10.0) {
+    if !(ok(a) && ok(b) && near(a, b, 10.0)) {
         return Vec::new();
     }
     let (Some(da), Some(db)) = (Driven::new(a, opts.path_spacing_m), Driven::new(b, opts.path_spacing_m)) else {
