@@ -199,9 +199,8 @@ pub fn invert_positions(
         };
         heads.push((theta, v));
     }
-    if let Some(&last) = heads.last() {
-        heads.push(last);
-    }
+    // The last state keeps the last step's heading and speed (a single position stands still).
+    heads.push(heads.last().copied().unwrap_or((theta, 0.0)));
     let states: Vec<State> = positions
         .iter()
         .zip(&heads)
@@ -396,6 +395,17 @@ mod tests {
         assert_eq!(done.len(), 2, "the car in two pieces");
         assert_eq!(done[0].trajectory.id, "t#0");
         assert_eq!(failed.len(), 1);
+    }
+
+    #[test]
+    fn one_or_two_positions_still_give_states() {
+        let (s1, u1) = invert_positions(&[Point2::new(1.0, 2.0)], 0.1, 0.3, 0.5);
+        assert_eq!((s1.len(), u1.len()), (1, 0));
+        assert_eq!((s1[0].theta_rad, s1[0].speed_mps), (0.5, 0.0));
+        let (s2, u2) = invert_positions(&[Point2::new(0.0, 0.0), Point2::new(0.0, 1.0)], 0.1, 0.3, 0.0);
+        assert_eq!((s2.len(), u2.len()), (2, 1));
+        assert!((s2[0].theta_rad - std::f64::consts::FRAC_PI_2).abs() < 1e-12 && (s2[0].speed_mps - 10.0).abs() < 1e-9);
+        assert!(invert_positions(&[], 0.1, 0.3, 0.0).0.is_empty());
     }
 
     #[test]

@@ -72,8 +72,8 @@ pub enum CsvError {
         /// Record fields.
         found: usize,
     },
-    /// A field that is not a number.
-    #[error("line {line}, column `{column}`: `{value}` is not a number")]
+    /// A field that is not a number (a frame: not a whole number).
+    #[error("line {line}, column `{column}`: `{value}` is not a number of the kind expected")]
     Number {
         /// Line (1-based).
         line: usize,
@@ -354,7 +354,14 @@ pub fn parse(text: &str, name: &str, options: &CsvOptions) -> Result<CsvImport, 
         }
         let id = cols.text(&rec, Field::TrackId).unwrap_or_default().to_owned();
         let frame_f = cols.required(&rec, Field::Frame, line)?;
-        let frame = frame_f.round() as i64;
+        if frame_f.fract() != 0.0 || frame_f.abs() > 1e15 {
+            return Err(CsvError::Number {
+                line,
+                column: cols.index(Field::Frame).and_then(|i| cols.names.get(i)).cloned().unwrap_or_default(),
+                value: cols.text(&rec, Field::Frame).unwrap_or_default().to_owned(),
+            });
+        }
+        let frame = frame_f as i64;
         if let Some(&first_line) = seen.get(&(id.clone(), frame)) {
             return Err(CsvError::DuplicateFrame { line, first_line, track: id, frame });
         }
@@ -527,6 +534,8 @@ mod tests {
         );
         let short = "track_id,frame_id,timestamp_ms,x,y\n1,1,100,0\n";
         assert_eq!(parse(short, "e", &opts).unwrap_err(), CsvError::FieldCount { line: 2, expected: 5, found: 4 });
+        let half_frame = "track_id,frame_id,timestamp_ms,x,y\n1,1.5,100,0,0\n";
+        assert!(matches!(parse(half_frame, "e", &opts), Err(CsvError::Number { line: 2, .. })));
         let missing = "track_id,timestamp_ms,x,y\n";
         assert!(matches!(parse(missing, "e", &opts), Err(CsvError::MissingColumn { column: "frame_id", .. })));
         let twice = "track_id,id,frame_id,timestamp_ms,x,y\n";
