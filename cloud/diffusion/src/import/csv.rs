@@ -16,7 +16,8 @@
 //! A highD `tracks.csv` (recognised by `xVelocity` with `height`) gives the top-left corner of
 //! the bounding box in image axes (y down): positions are moved to the box centre and y and `vy`
 //! are negated so that the frame is right-handed like every other in Video2Track. highD has no
-//! timestamps: pass [`CsvOptions::frame_rate_hz`] (25 Hz).
+//! timestamps: pass [`CsvOptions::frame_rate_hz`] (25 Hz); its `tracksMeta.csv` (class, box) is
+//! applied with [`apply_high_d_meta`].
 //!
 //! The parser is a small hand-written one (quoted fields with `""`, line breaks inside quotes,
 //! CRLF, a BOM) rather than the `csv` crate: track files are plain and this keeps line numbers
@@ -431,6 +432,44 @@ pub fn parse_file(path: &std::path::Path, options: &CsvOptions) -> Result<CsvImp
     parse(&text, &stem, options)
 }
 
+/// Applies a highD `tracksMeta.csv` (columns `id`, `width`, `height`, `class`, by name) to an
+/// episode read from the matching `tracks.csv`: each track gets its class as kind and the box as
+/// footprint. Returns the number of tracks updated; ids absent from the episode are ignored.
+pub fn apply_high_d_meta(episode: &mut Episode, meta: &str) -> Result<usize, CsvError> {
+    let mut recs = records(meta)?.into_iter();
+    let (_, header) = recs.next().ok_or(CsvError::Empty)?;
+    let col = |name: &'static str| {
+        header
+            .iter()
+            .position(|h| h.trim().eq_ignore_ascii_case(name))
+            .ok_or(CsvError::MissingColumn { column: name, accepted: name.to_owned() })
+    };
+    let (id_c, w_c, h_c, class_c) = (col("id")?, col("width")?, col("height")?, col("class")?);
+    let mut updated = 0;
+    for (line, rec) in recs {
+        if rec.len() != header.len() {
+            return Err(CsvError::FieldCount { line, expected: header.len(), found: rec.len() });
+        }
+        let field = |c: usize| rec.get(c).map(|s| s.trim()).unwrap_or_default();
+        let number = |c: usize| {
+            let text = field(c);
+            let column = header.get(c).cloned().unwrap_or_default();
+            match text.parse::<f64>() {
+                Ok(v) if v.is_finite() => Ok(v),
+                Ok(_) => Err(CsvError::NonFinite { line, column, value: text.to_owned() }),
+                Err(_) => Err(CsvError::Number { line, column, value: text.to_owned() }),
+            }
+        };
+        let (length_m, width_m) = (number(w_c)?, number(h_c)?);
+        if let Some(t) = episode.tracks.iter_mut().find(|t| t.id == field(id_c)) {
+            t.kind = AgentKind::from_label(field(class_c));
+            t.dims = Some(Dimensions { length_m, width_m });
+            updated += 1;
+        }
+    }
+    Ok(updated)
+}
+
 /// Writes an episode as INTERACTION-style CSV (`track_id,frame_id,timestamp_ms,agent_type,x,y,vx,
 /// vy,psi_rad,length,width`); frame ids are `round(t / dt)` of the episode's period, empty fields
 /// stand for values not recorded. Numbers are written in the shortest form that reads back exactly.
@@ -511,6 +550,22 @@ mod tests {
         assert_eq!((t.samples[0].x_m, t.samples[0].y_m), (12.0, -21.0));
         assert_eq!(t.samples[0].vy_mps, Some(-0.5));
         assert_eq!(t.dims, Some(Dimensions { length_m: 4.0, width_m: 2.0 }));
+    }
+
+    #[test]
+    fn high_d_meta_gives_class_and_box() {
+        let text = "frame,id,x,y,width,height,xVelocity,yVelocity\n1,7,10,20,4,2,30,0\n2,7,11.2,20,4,2,30,0\n";
+        let mut e = parse(text, "h", &CsvOptions { frame_rate_hz: Some(25.0) }).unwrap().episode;
+        let meta = "id,width,height,initialFrame,class\n7,15.2,2.5,1,Truck\n8,4.1,1.9,9,Car\n";
+        assert_eq!(apply_high_d_meta(&mut e, meta).unwrap(), 1);
+        assert_eq!(e.tracks[0].kind, AgentKind::Truck);
+        assert_eq!(e.tracks[0].dims, Some(Dimensions { length_m: 15.2, width_m: 2.5 }));
+        let bad = "id,width,height,class\n7,x,2.5,Car\n";
+        assert!(matches!(apply_high_d_meta(&mut e, bad), Err(CsvError::Number { line: 2, .. })));
+        assert!(matches!(
+            apply_high_d_meta(&mut e, "id,width\n"),
+            Err(CsvError::MissingColumn { column: "height", .. })
+        ));
     }
 
     #[test]
