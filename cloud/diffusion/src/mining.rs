@@ -2,7 +2,8 @@
 //! tracks of an episode, each with the pair, the conflict point and time and the measured
 //! post-encroachment time (PET).
 //!
-//! Each track's driven path becomes a [`ReferencePath`]; [`conflict_zones`] of `v2t-model` finds
+//! Each track is smoothed ([`crate::inverse::smooth`], [`MiningOptions::position_noise_m`]) and its
+//! driven path becomes a [`ReferencePath`]; [`conflict_zones`] of `v2t-model` finds
 //! where the two swept corridors meet, and [`passage`]/[`pet`] measure the PET there from the
 //! tracks' arc lengths over time, with the conventions of `v2t-model` (second entry minus first
 //! exit, negative when both occupied the zone at once). A zone after which the paths part is a
@@ -10,7 +11,9 @@
 //! [`MiningOptions::left_turn_min_rad`] across it. A zone after which one path stays on the other
 //! is a join: if the joining vehicle drove parallel in a neighbouring lane just before, it is a
 //! **cut-in** when it enters ahead of the other and a **lane change** (behind) otherwise; if it
-//! came in at an angle it is a **merge**. Without the map a merge out of a parallel acceleration
+//! came in at an angle it is a **merge**. Two paths that join are joined both ways, geometrically;
+//! the vehicle that moved over is the one whose path weaves there (an S-shaped lane change leaves
+//! a residual to a quadratic fit, a straight or evenly curved lane does not). Without the map a merge out of a parallel acceleration
 //! lane reads as a cut-in or lane change. Vehicles following each other in one lane from the start
 //! are not an interaction.
 
@@ -20,6 +23,9 @@ use v2t_model::metrics::{ConflictKind, ConflictOptions, ConflictZone, PetOutcome
 use v2t_model::path::ReferencePath;
 
 use crate::tracks::{Episode, Track};
+
+/// Jerk standard deviation of the smoother applied to tracks before mining, m/s³.
+const SMOOTHING_JERK_MPS3: f64 = 2.0;
 
 /// What kind of interaction.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -62,6 +68,11 @@ pub struct Interaction {
 pub struct MiningOptions {
     /// Interactions with a larger PET are dropped, s.
     pub max_pet_s: f64,
+    /// … and those with a PET below this (a long overlap: side by side, not a conflict), s.
+    pub min_pet_s: f64,
+    /// Standard deviation of the recording's position noise, for the smoother that tracks go
+    /// through first (`inverse::smooth`), m; 0 turns smoothing off.
+    pub position_noise_m: f64,
     /// Tracks that travel less than this are left out, m.
     pub min_travel_m: f64,
     /// Spacing of the points of the path built from a track, m.
@@ -82,6 +93,8 @@ impl Default for MiningOptions {
     fn default() -> Self {
         Self {
             max_pet_s: 6.0,
+            min_pet_s: -2.0,
+            position_noise_m: 0.05,
             min_travel_m: 10.0,
             path_spacing_m: 1.0,
             merge_tolerance_m: 0.8,
@@ -102,36 +115,56 @@ struct Driven<'a> {
 }
 
 impl<'a> Driven<'a> {
-    fn new(track: &'a Track, spacing_m: f64) -> Option<Self> {
+    fn new(track: &'a Track, opts: &MiningOptions) -> Option<Self> {
+        // Recorded positions are smoothed first (the smoother of `inverse`): paths, headings and
+        // joins are then read from the motion rather than from the noise.
+        let lambda = crate::inverse::smoothing_lambda(opts.position_noise_m, SMOOTHING_JERK_MPS3, track.dt_s);
+        let xs: Vec<f64> = track.samples.iter().map(|s| s.x_m).collect();
+        let ys: Vec<f64> = track.samples.iter().map(|s| s.y_m).collect();
+        let positions: Vec<Point2> = crate::inverse::smooth(&xs, lambda)
+            .into_iter()
+            .zip(crate::inverse::smooth(&ys, lambda))
+            .map(|(x, y)| Point2::new(x, y))
+            .collect();
         let mut pts: Vec<Point2> = Vec::new();
-        for p in track.positions() {
-            if pts.last().is_none_or(|q| q.dist(p) >= spacing_m) {
+        for &p in &positions {
+            if pts.last().is_none_or(|q| q.dist(p) >= opts.path_spacing_m) {
                 pts.push(p);
             }
         }
-        if let (Some(last), Some(end)) = (pts.last(), track.samples.last())
-            && last.dist(end.position()) > 1e-6
+        if let (Some(last), Some(&end)) = (pts.last(), positions.last())
+            && last.dist(end) > 1e-6
         {
-            pts.push(end.position());
+            pts.push(end);
         }
         let path = ReferencePath::from_points(&pts).ok()?;
         let mut hint = 0.0;
-        let s = track
-            .samples
+        let s = positions
             .iter()
-            .map(|x| {
-                hint = path.project_near(x.position(), hint, 4.0 * spacing_m + 10.0).map_or(hint, |f| f.s_m);
+            .map(|p| {
+                hint = path.project_near(*p, hint, 4.0 * opts.path_spacing_m + 10.0).map_or(hint, |f| f.s_m);
                 hint
             })
             .collect();
         Some(Self { track, path, times: track.times(), s })
     }
 
-    /// Total variation of the heading over `[from, to]`, rad: how much the path weaves there.
+    /// How much the path weaves over `[from, to]`: the RMS residual of a quadratic fit of its
+    /// points in the frame of their chord, m. A lane change (an S, cubic about its inflection)
+    /// leaves a residual; a straight or evenly curved lane does not.
     fn weave(&self, from: f64, to: f64) -> f64 {
-        let n = ((to - from) / 1.0).ceil().max(1.0) as usize;
-        let h: Vec<f64> = (0..=n).map(|k| self.path.heading_at(from + (to - from) * k as f64 / n as f64)).collect();
-        h.windows(2).map(|w| if let [x, y] = w { wrap_angle(y - x).abs() } else { 0.0 }).sum()
+        let (from, to) = (from.max(0.0), to.min(self.path.length()));
+        let n = ((to - from) / 1.0).ceil().max(2.0) as usize;
+        let pts: Vec<Point2> = (0..=n).map(|k| self.path.point_at(from + (to - from) * k as f64 / n as f64)).collect();
+        let (Some(&p0), Some(&p1)) = (pts.first(), pts.last()) else { return 0.0 };
+        let chord = p1.sub(p0);
+        let len = chord.norm();
+        if len < 1.0 {
+            return 0.0;
+        }
+        let (ex, ey) = (chord.scale(1.0 / len), chord.scale(1.0 / len).perp());
+        let local: Vec<(f64, f64)> = pts.iter().map(|p| (p.sub(p0).dot(ex) / len, p.sub(p0).dot(ey))).collect();
+        quadratic_fit_rms(&local)
     }
 
     /// Heading change of the path across `[from − d, to + d]`, rad, positive left.
@@ -140,6 +173,31 @@ impl<'a> Driven<'a> {
         let b = (to + d).min(self.path.length());
         wrap_angle(self.path.heading_at(b) - self.path.heading_at(a))
     }
+}
+
+/// RMS residual of the least-squares fit `y = c0 + c1 x + c2 x²` to `points` (normal equations,
+/// Cramer's rule); 0 when the fit is degenerate.
+fn quadratic_fit_rms(points: &[(f64, f64)]) -> f64 {
+    let mut m = [0.0_f64; 5]; // Σ x^k, k = 0..4
+    let mut r = [0.0_f64; 3]; // Σ x^k y, k = 0..2
+    for &(x, y) in points {
+        let (x2, x3) = (x * x, x * x * x);
+        m = [m[0] + 1.0, m[1] + x, m[2] + x2, m[3] + x3, m[4] + x2 * x2];
+        r = [r[0] + y, r[1] + x * y, r[2] + x2 * y];
+    }
+    let det3 = |a: [f64; 9]| {
+        a[0] * (a[4] * a[8] - a[5] * a[7]) - a[1] * (a[3] * a[8] - a[5] * a[6]) + a[2] * (a[3] * a[7] - a[4] * a[6])
+    };
+    let base = [m[0], m[1], m[2], m[1], m[2], m[3], m[2], m[3], m[4]];
+    let d = det3(base);
+    if d.abs() < 1e-12 {
+        return 0.0;
+    }
+    let c0 = det3([r[0], m[1], m[2], r[1], m[2], m[3], r[2], m[3], m[4]]) / d;
+    let c1 = det3([m[0], r[0], m[2], m[1], r[1], m[3], m[2], r[2], m[4]]) / d;
+    let c2 = det3([m[0], m[1], r[0], m[1], m[2], r[1], m[2], m[3], r[2]]) / d;
+    let sum: f64 = points.iter().map(|&(x, y)| (y - c0 - c1 * x - c2 * x * x).powi(2)).sum();
+    (sum / points.len().max(1) as f64).sqrt()
 }
 
 /// PET at a zone and who went first; `None` unless both passed.
@@ -165,13 +223,13 @@ fn zones_of(a: &Driven<'_>, b: &Driven<'_>, opts: &MiningOptions, crossings: boo
     let t_end = a.times.last().copied().unwrap_or(0.0).min(b.times.last().copied().unwrap_or(0.0));
     for zone in conflict_zones(&a.path, da, &b.path, db, &copt) {
         let Some((a_first, pet_s, time)) = measure(a, b, &zone, t_end) else { continue };
-        if pet_s > opts.max_pet_s {
+        if pet_s > opts.max_pet_s || pet_s < opts.min_pet_s {
             continue;
         }
         let (id_a, id_b) = (a.track.id.clone(), b.track.id.clone());
         let first = if a_first { id_a.clone() } else { id_b.clone() };
         let s_b = 0.5 * (zone.b.enter_s_m + zone.b.exit_s_m);
-        let weave = b.weave(s_b - 2.0 * opts.approach_m, s_b + opts.approach_m);
+        let weave = b.weave(s_b - 3.0 * opts.approach_m, s_b + 2.0 * opts.approach_m);
         let kind_actor = match zone.kind {
             ConflictKind::Crossing if crossings => {
                 let ta = a.turn(zone.a.enter_s_m, zone.a.exit_s_m, 15.0);
@@ -235,7 +293,7 @@ pub fn pair(a: &Track, b: &Track, opts: &MiningOptions) -> Vec<Interaction> {
     if !(ok(a) && ok(b) && near(a, b, 10.0)) {
         return Vec::new();
     }
-    let (Some(da), Some(db)) = (Driven::new(a, opts.path_spacing_m), Driven::new(b, opts.path_spacing_m)) else {
+    let (Some(da), Some(db)) = (Driven::new(a, opts), Driven::new(b, opts)) else {
         return Vec::new();
     };
     let mut found = Vec::new();
