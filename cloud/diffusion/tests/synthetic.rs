@@ -80,6 +80,18 @@ fn every_episode_is_consistent_and_has_its_interaction() {
 }
 
 #[test]
+fn the_summary_counts_every_episode() {
+    let s = corpus().summary();
+    assert_eq!(s.episodes, 30);
+    assert_eq!(s.by_kind.iter().map(|k| k.2).sum::<usize>(), 30);
+    assert_eq!(s.pet_s.total(), 30);
+    let steps: usize = corpus().episodes.iter().flat_map(|e| e.agents.iter().map(|a| a.controls.len())).sum();
+    assert_eq!(s.controls.accel.total() + s.controls.accel.non_finite, steps as u64);
+    let back: v2t_diffusion::synth::CorpusSummary = serde_json::from_str(&serde_json::to_string(&s).unwrap()).unwrap();
+    assert_eq!(back, s);
+}
+
+#[test]
 fn drivers_are_heterogeneous() {
     let v0: Vec<f64> =
         corpus().episodes.iter().flat_map(|e| e.agents.iter().map(|a| a.driver.time_headway_s)).collect();

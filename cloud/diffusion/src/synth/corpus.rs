@@ -14,7 +14,7 @@ use super::driver::{DriverParams, uniform};
 use super::scene;
 use super::sim::simulate;
 use crate::mining::{Interaction, InteractionKind, MiningOptions, pair};
-use crate::stats::ControlSamples;
+use crate::stats::{ControlHistograms, ControlSamples, Histogram};
 use crate::tracks::{AgentKind, Episode, Track, TrackSample};
 
 /// Time step of the synthetic corpus, s.
@@ -175,7 +175,40 @@ pub struct SyntheticCorpus {
     pub rejections: Rejections,
 }
 
+/// What a synthetic corpus holds, for realism reports: episodes per scene kind, the PET
+/// histogram and the control histograms.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CorpusSummary {
+    /// Episodes.
+    pub episodes: usize,
+    /// Episodes per (scene kind, mined kind).
+    pub by_kind: Vec<(InteractionKind, InteractionKind, usize)>,
+    /// Measured PET, 0–6 s in 0.25 s bins.
+    pub pet_s: Histogram,
+    /// Acceleration, jerk and yaw rate of every agent.
+    pub controls: ControlHistograms,
+}
+
 impl SyntheticCorpus {
+    /// Counts and histograms of the corpus.
+    pub fn summary(&self) -> CorpusSummary {
+        let mut by_kind: Vec<(InteractionKind, InteractionKind, usize)> = Vec::new();
+        let mut pet = Histogram { lo: 0.0, hi: 6.0, counts: vec![0; 24], underflow: 0, overflow: 0, non_finite: 0 };
+        for e in &self.episodes {
+            pet.add(e.pet_s());
+            match by_kind.iter_mut().find(|(k, m, _)| *k == e.interaction && *m == e.mined.kind) {
+                Some(entry) => entry.2 += 1,
+                None => by_kind.push((e.interaction, e.mined.kind, 1)),
+            }
+        }
+        CorpusSummary {
+            episodes: self.episodes.len(),
+            by_kind,
+            pet_s: pet,
+            controls: self.control_samples().histograms(),
+        }
+    }
+
     /// Acceleration, jerk and yaw-rate samples of every agent, for realism statistics.
     pub fn control_samples(&self) -> ControlSamples {
         let mut out = ControlSamples::default();

@@ -33,7 +33,8 @@ mod scene;
 mod sim;
 
 pub use corpus::{
-    DT_S, Rejections, SynthError, SyntheticAgent, SyntheticCorpus, SyntheticEpisode, generate_corpus, generate_episode,
+    CorpusSummary, DT_S, Rejections, SynthError, SyntheticAgent, SyntheticCorpus, SyntheticEpisode, generate_corpus,
+    generate_episode,
 };
 pub use driver::DriverParams;
 pub use format::{CorpusHeader, CorpusIoError, FORMAT, VERSION, from_jsonl, read_jsonl_file, to_jsonl};
