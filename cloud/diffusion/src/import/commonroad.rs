@@ -1,0 +1,314 @@
+//! CommonRoad XML (2020a) dynamic obstacles.
+//!
+//! Every `dynamicObstacle` becomes a [`Track`]: its `initialState` and the `state`s of its
+//! `trajectory`, each at `time × timeStepSize` (the scenario's attribute). A state gives
+//! `position/point/{x,y}` (or the centre of a `rectangle`/`circle` position), `orientation`,
+//! `time` and `velocity`, each either `exact` or an interval (`intervalStart`/`intervalEnd`; the
+//! midpoint is used, for time the start). CommonRoad's velocity is along the orientation, so
+//! `vx = v cos ψ`, `vy = v sin ψ`. `type` and `shape/rectangle/{length,width}` give the kind and
+//! footprint. Lanelets, static obstacles and everything else are ignored. Errors name the line.
+
+use v2t_model::metrics::Dimensions;
+
+use crate::tracks::{AgentKind, Episode, Track, TrackSample};
+
+/// What can go wrong reading a CommonRoad file.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CommonRoadError {
+    /// Not well-formed XML.
+    #[error("XML: {0}")]
+    Xml(String),
+    /// The root element is not `commonRoad`.
+    #[error("root element is `{0}`, expected `commonRoad`")]
+    NotCommonRoad(String),
+    /// `timeStepSize` missing or not a positive finite number.
+    #[error("line {line}: timeStepSize `{value}` is not a positive number")]
+    TimeStepSize {
+        /// Line of the root element.
+        line: u32,
+        /// The attribute's text.
+        value: String,
+    },
+    /// A required element is absent.
+    #[error("line {line}: obstacle `{obstacle}`: no `{what}`")]
+    Missing {
+        /// Line of the state (or obstacle).
+        line: u32,
+        /// Obstacle id.
+        obstacle: String,
+        /// What is missing.
+        what: &'static str,
+    },
+    /// A value that is not a finite number.
+    #[error("line {line}: obstacle `{obstacle}`: `{element}` is `{value}`, not a finite number")]
+    Number {
+        /// Line of the element.
+        line: u32,
+        /// Obstacle id.
+        obstacle: String,
+        /// Element name.
+        element: String,
+        /// Its text.
+        value: String,
+    },
+    /// Two states of one obstacle at the same time step.
+    #[error("line {line}: obstacle `{obstacle}`: time step {step} given twice")]
+    DuplicateTime {
+        /// Line of the second state.
+        line: u32,
+        /// Obstacle id.
+        obstacle: String,
+        /// The time step.
+        step: i64,
+    },
+    /// The file could not be read.
+    #[error("{path}: {message}")]
+    Io {
+        /// The file.
+        path: String,
+        /// What the OS said.
+        message: String,
+    },
+}
+
+type Node<'a, 'i> = roxmltree::Node<'a, 'i>;
+
+fn line(doc: &roxmltree::Document<'_>, node: Node<'_, '_>) -> u32 {
+    doc.text_pos_at(node.range().start).row
+}
+
+fn child<'a, 'i>(node: Node<'a, 'i>, name: &str) -> Option<Node<'a, 'i>> {
+    node.children().find(|c| c.has_tag_name(name))
+}
+
+/// Reads a finite number from the text of `node`.
+fn number(doc: &roxmltree::Document<'_>, node: Node<'_, '_>, obstacle: &str) -> Result<f64, CommonRoadError> {
+    let text = node.text().unwrap_or("").trim();
+    text.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| CommonRoadError::Number {
+        line: line(doc, node),
+        obstacle: obstacle.to_owned(),
+        element: node.tag_name().name().to_owned(),
+        value: text.to_owned(),
+    })
+}
+
+/// An `exact` value, or the midpoint of `intervalStart`/`intervalEnd` (the start alone when
+/// `start_only`). `None` when the element is absent.
+fn value(
+    doc: &roxmltree::Document<'_>,
+    parent: Node<'_, '_>,
+    name: &str,
+    obstacle: &str,
+    start_only: bool,
+) -> Result<Option<f64>, CommonRoadError> {
+    let Some(el) = child(parent, name) else { return Ok(None) };
+    if let Some(exact) = child(el, "exact") {
+        return number(doc, exact, obstacle).map(Some);
+    }
+    let start = child(el, "intervalStart").map(|n| number(doc, n, obstacle)).transpose()?;
+    let end = child(el, "intervalEnd").map(|n| number(doc, n, obstacle)).transpose()?;
+    Ok(match (start, end) {
+        (Some(a), _) if start_only => Some(a),
+        (Some(a), Some(b)) => Some(0.5 * (a + b)),
+        (a, b) => a.or(b),
+    })
+}
+
+/// `(x, y)` of a `position`: its point, or the centre of its rectangle or circle.
+fn position(
+    doc: &roxmltree::Document<'_>,
+    state: Node<'_, '_>,
+    obstacle: &str,
+) -> Result<Option<(f64, f64)>, CommonRoadError> {
+    let Some(pos) = child(state, "position") else { return Ok(None) };
+    let point = child(pos, "point").or_else(|| {
+        ["rectangle", "circle"].into_iter().find_map(|shape| child(pos, shape).and_then(|s| child(s, "center")))
+    });
+    let Some(p) = point else { return Ok(None) };
+    let x = child(p, "x").map(|n| number(doc, n, obstacle)).transpose()?;
+    let y = child(p, "y").map(|n| number(doc, n, obstacle)).transpose()?;
+    Ok(x.zip(y))
+}
+
+fn state_sample(
+    doc: &roxmltree::Document<'_>,
+    state: Node<'_, '_>,
+    obstacle: &str,
+    dt_s: f64,
+) -> Result<(i64, TrackSample), CommonRoadError> {
+    let missing = |what| CommonRoadError::Missing { line: line(doc, state), obstacle: obstacle.to_owned(), what };
+    let (x, y) = position(doc, state, obstacle)?.ok_or_else(|| missing("position/point"))?;
+    let step = value(doc, state, "time", obstacle, true)?.ok_or_else(|| missing("time"))?.round() as i64;
+    let psi = value(doc, state, "orientation", obstacle, false)?;
+    let v = value(doc, state, "velocity", obstacle, false)?;
+    let (vx, vy) = match (v, psi) {
+        (Some(v), Some(psi)) => (Some(v * psi.cos()), Some(v * psi.sin())),
+        _ => (None, None),
+    };
+    Ok((step, TrackSample { t_s: step as f64 * dt_s, x_m: x, y_m: y, vx_mps: vx, vy_mps: vy, psi_rad: psi }))
+}
+
+/// Parses CommonRoad XML into an episode named after its `benchmarkID` (or `name`).
+pub fn parse(xml: &str, name: &str) -> Result<Episode, CommonRoadError> {
+    let doc = roxmltree::Document::parse(xml).map_err(|e| CommonRoadError::Xml(e.to_string()))?;
+    let root = doc.root_element();
+    if !root.has_tag_name("commonRoad") {
+        return Err(CommonRoadError::NotCommonRoad(root.tag_name().name().to_owned()));
+    }
+    let raw = root.attribute("timeStepSize").unwrap_or("");
+    let dt_s = raw
+        .trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .ok_or_else(|| CommonRoadError::TimeStepSize { line: line(&doc, root), value: raw.to_owned() })?;
+    let mut tracks = Vec::new();
+    for obstacle in root.children().filter(|c| c.has_tag_name("dynamicObstacle")) {
+        let id = obstacle.attribute("id").unwrap_or("").to_owned();
+        let kind = child(obstacle, "type").and_then(|t| t.text()).map_or(AgentKind::Unknown, AgentKind::from_label);
+        let dims = child(obstacle, "shape").and_then(|s| child(s, "rectangle")).and_then(|r| {
+            let l = child(r, "length").and_then(|n| number(&doc, n, &id).ok())?;
+            let w = child(r, "width").and_then(|n| number(&doc, n, &id).ok())?;
+            Some(Dimensions { length_m: l, width_m: w })
+        });
+        let mut states: Vec<Node<'_, '_>> = child(obstacle, "initialState").into_iter().collect();
+        if let Some(traj) = child(obstacle, "trajectory") {
+            states.extend(traj.children().filter(|c| c.has_tag_name("state")));
+        }
+        if states.is_empty() {
+            return Err(CommonRoadError::Missing { line: line(&doc, obstacle), obstacle: id, what: "initialState" });
+        }
+        let mut samples: Vec<(i64, u32, TrackSample)> = Vec::with_capacity(states.len());
+        for s in states {
+            let (step, sample) = state_sample(&doc, s, &id, dt_s)?;
+            samples.push((step, line(&doc, s), sample));
+        }
+        samples.sort_by_key(|s| s.0);
+        for w in samples.windows(2) {
+            if let [a, b] = w
+                && a.0 == b.0
+            {
+                return Err(CommonRoadError::DuplicateTime { line: a.1.max(b.1), obstacle: id, step: b.0 });
+            }
+        }
+        tracks.push(Track { id, dt_s, kind, dims, samples: samples.into_iter().map(|s| s.2).collect() });
+    }
+    let name = root.attribute("benchmarkID").filter(|s| !s.trim().is_empty()).unwrap_or(name);
+    Ok(Episode::from_tracks(name, tracks))
+}
+
+/// Reads and parses a CommonRoad file; `name` defaults to the file stem.
+pub fn parse_file(path: &std::path::Path) -> Result<Episode, CommonRoadError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| CommonRoadError::Io { path: path.display().to_string(), message: e.to_string() })?;
+    let stem = path.file_stem().map_or_else(|| "commonroad".to_owned(), |s| s.to_string_lossy().into_owned());
+    parse(&text, &stem)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// One state element as CommonRoad writes it.
+    fn state_xml(tag: &str, step: i64, x: f64, y: f64, psi: f64, v: f64) -> String {
+        format!(
+            "<{tag}><position><point><x>{x}</x><y>{y}</y></point></position>\
+             <orientation><exact>{psi}</exact></orientation><time><exact>{step}</exact></time>\
+             <velocity><exact>{v}</exact></velocity></{tag}>"
+        )
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        #[test]
+        fn written_obstacles_read_back(
+            dt in prop::sample::select(vec![0.04, 0.1, 0.2]),
+            obstacles in prop::collection::vec(
+                (0i64..20, prop::collection::vec((-1e3f64..1e3, -1e3f64..1e3, -3.1f64..3.1, 0.0f64..40.0), 1..12)),
+                1..4),
+        ) {
+            let mut xml = format!("<commonRoad commonRoadVersion=\"2020a\" benchmarkID=\"P\" timeStepSize=\"{dt}\">");
+            for (i, (start, states)) in obstacles.iter().enumerate() {
+                xml.push_str(&format!("<dynamicObstacle id=\"{}\"><type>car</type>", 100 + i));
+                xml.push_str("<shape><rectangle><length>4.5</length><width>1.8</width></rectangle></shape>");
+                for (k, (x, y, psi, v)) in states.iter().enumerate() {
+                    if k == 0 {
+                        xml.push_str(&state_xml("initialState", *start, *x, *y, *psi, *v));
+                        xml.push_str("<trajectory>");
+                    } else {
+                        xml.push_str(&state_xml("state", start + k as i64, *x, *y, *psi, *v));
+                    }
+                }
+                xml.push_str("</trajectory></dynamicObstacle>");
+            }
+            xml.push_str("</commonRoad>");
+            let e = parse(&xml, "p").unwrap();
+            prop_assert_eq!(e.tracks.len(), obstacles.len());
+            for (t, (start, states)) in e.tracks.iter().zip(&obstacles) {
+                prop_assert_eq!(t.samples.len(), states.len());
+                prop_assert!(t.gaps().is_empty());
+                for (k, (s, (x, y, psi, v))) in t.samples.iter().zip(states).enumerate() {
+                    prop_assert!((s.t_s - (start + k as i64) as f64 * dt).abs() < 1e-9);
+                    prop_assert_eq!((s.x_m, s.y_m, s.psi_rad), (*x, *y, Some(*psi)));
+                    let speed = s.vx_mps.unwrap().hypot(s.vy_mps.unwrap());
+                    prop_assert!((speed - v).abs() < 1e-9);
+                }
+            }
+        }
+    }
+
+    fn data(name: &str) -> std::path::PathBuf {
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(name)
+    }
+
+    #[test]
+    fn hand_made_scenario_reads() {
+        let e = parse_file(&data("two_vehicles.cr.xml")).unwrap();
+        assert_eq!(e.id, "ZAM_V2T-1_1_T-1");
+        assert_eq!(e.tracks.len(), 2);
+        let a = &e.tracks[0];
+        assert_eq!(a.id, "30");
+        assert_eq!(a.kind, AgentKind::Car);
+        assert_eq!(a.dims, Some(Dimensions { length_m: 4.5, width_m: 1.8 }));
+        assert_eq!(a.samples.len(), 4);
+        assert!((a.dt_s - 0.1).abs() < 1e-12);
+        assert!((a.samples[3].t_s - 0.3).abs() < 1e-12);
+        assert!((a.samples[1].x_m - 11.0).abs() < 1e-12);
+        assert!((a.samples[0].vx_mps.unwrap() - 10.0).abs() < 1e-12);
+        let b = &e.tracks[1];
+        assert_eq!(b.kind, AgentKind::Truck);
+        // Interval orientation: midpoint; velocity along it.
+        assert!((b.samples[1].psi_rad.unwrap() - 1.6).abs() < 1e-12);
+        assert!((b.samples[1].vy_mps.unwrap() - 5.0 * 1.6f64.sin()).abs() < 1e-12);
+        // Rectangle position: its centre; missing third step is a gap.
+        assert!((b.samples[2].y_m - -4.0).abs() < 1e-12);
+        assert_eq!(b.gaps(), vec![1]);
+    }
+
+    #[test]
+    fn errors_name_the_line() {
+        let head = r#"<commonRoad commonRoadVersion="2020a" benchmarkID="X" timeStepSize="0.1">"#;
+        let state = |x: &str, t: u32| {
+            format!(
+                "<state><position><point><x>{x}</x><y>0</y></point></position><time><exact>{t}</exact></time></state>"
+            )
+        };
+        let obstacle = |body: String| {
+            format!(
+                "{head}\n<dynamicObstacle id=\"1\"><type>car</type>\n<initialState><position><point><x>0</x><y>0</y></point></position><time><exact>0</exact></time></initialState>\n<trajectory>{body}</trajectory></dynamicObstacle></commonRoad>"
+            )
+        };
+        let e = parse(&obstacle(state("nan", 1)), "x").unwrap_err();
+        assert!(matches!(e, CommonRoadError::Number { line: 4, ref element, .. } if element == "x"), "{e}");
+        let e = parse(&obstacle(state("1", 0)), "x").unwrap_err();
+        assert!(matches!(e, CommonRoadError::DuplicateTime { line: 4, step: 0, .. }), "{e}");
+        let e = parse(&obstacle("<state><time><exact>1</exact></time></state>".into()), "x").unwrap_err();
+        assert!(matches!(e, CommonRoadError::Missing { line: 4, what: "position/point", .. }), "{e}");
+        let bad_dt = r#"<commonRoad timeStepSize="-1"></commonRoad>"#;
+        assert!(matches!(parse(bad_dt, "x"), Err(CommonRoadError::TimeStepSize { line: 1, .. })));
+        assert!(matches!(parse("<OpenDRIVE/>", "x"), Err(CommonRoadError::NotCommonRoad(_))));
+        assert!(matches!(parse("<commonRoad", "x"), Err(CommonRoadError::Xml(_))));
+        assert_eq!(parse(&obstacle(state("1", 1)), "x").unwrap().tracks[0].samples.len(), 2);
+    }
+}

@@ -1,0 +1,212 @@
+//! Recorded tracks: what the importers produce and what mining and inverse kinematics consume.
+//!
+//! A [`Track`] is one road user's samples `(t, x, y, vx?, vy?, ψ?)` in a planar frame (metres,
+//! seconds); velocities and heading are optional because not every format records them. An
+//! [`Episode`] is a set of tracks over a common time span, e.g. one recording of a dataset.
+
+use serde::{Deserialize, Serialize};
+use v2t_model::geometry::Point2;
+use v2t_model::metrics::Dimensions;
+
+/// What kind of road user a track belongs to, when the source says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AgentKind {
+    /// Passenger car (also `van`).
+    Car,
+    /// Truck or bus.
+    Truck,
+    /// Motorcycle.
+    Motorcycle,
+    /// Bicycle.
+    Bicycle,
+    /// Pedestrian (INTERACTION's `pedestrian/bicycle` lands here).
+    Pedestrian,
+    /// Not given or not recognised.
+    #[default]
+    Unknown,
+}
+
+impl AgentKind {
+    /// Reads the labels of INTERACTION, highD and CommonRoad (case-insensitive); anything else is
+    /// [`AgentKind::Unknown`].
+    pub fn from_label(label: &str) -> Self {
+        match label.trim().to_ascii_lowercase().as_str() {
+            "car" | "van" | "passenger_car" | "passengercar" | "taxi" | "priorityvehicle" => Self::Car,
+            "truck" | "bus" | "trailer" | "semitrailer" | "truck_bus" => Self::Truck,
+            "motorcycle" | "motorbike" => Self::Motorcycle,
+            "bicycle" | "bike" => Self::Bicycle,
+            "pedestrian" | "pedestrian/bicycle" => Self::Pedestrian,
+            _ => Self::Unknown,
+        }
+    }
+
+    /// Whether it is a motor vehicle that follows the kinematic model of `v2t-model`.
+    pub fn is_vehicle(self) -> bool {
+        matches!(self, Self::Car | Self::Truck | Self::Motorcycle | Self::Unknown)
+    }
+}
+
+/// One sample of a track.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TrackSample {
+    /// Time, s.
+    pub t_s: f64,
+    /// Position east, m.
+    pub x_m: f64,
+    /// Position north, m.
+    pub y_m: f64,
+    /// Velocity east, m/s, when recorded.
+    pub vx_mps: Option<f64>,
+    /// Velocity north, m/s, when recorded.
+    pub vy_mps: Option<f64>,
+    /// Heading, rad (counter-clockwise from east), when recorded.
+    pub psi_rad: Option<f64>,
+}
+
+impl TrackSample {
+    /// A sample with a position only.
+    pub fn at(t_s: f64, x_m: f64, y_m: f64) -> Self {
+        Self { t_s, x_m, y_m, vx_mps: None, vy_mps: None, psi_rad: None }
+    }
+
+    /// The position.
+    pub fn position(&self) -> Point2 {
+        Point2::new(self.x_m, self.y_m)
+    }
+}
+
+/// One road user's samples in time order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Track {
+    /// Id within its episode.
+    pub id: String,
+    /// Nominal sampling period, s.
+    pub dt_s: f64,
+    /// Kind of road user.
+    pub kind: AgentKind,
+    /// Footprint, when known.
+    pub dims: Option<Dimensions>,
+    /// Samples, strictly increasing in time.
+    pub samples: Vec<TrackSample>,
+}
+
+impl Track {
+    /// First and last sample time, s.
+    pub fn span_s(&self) -> Option<(f64, f64)> {
+        Some((self.samples.first()?.t_s, self.samples.last()?.t_s))
+    }
+
+    /// Sample times, s.
+    pub fn times(&self) -> Vec<f64> {
+        self.samples.iter().map(|s| s.t_s).collect()
+    }
+
+    /// Positions.
+    pub fn positions(&self) -> Vec<Point2> {
+        self.samples.iter().map(TrackSample::position).collect()
+    }
+
+    /// Length driven (sum of distances between consecutive samples), m.
+    pub fn path_length_m(&self) -> f64 {
+        self.samples.windows(2).map(|w| if let [a, b] = w { a.position().dist(b.position()) } else { 0.0 }).sum()
+    }
+
+    /// The footprint, or a typical car's (4.6 m × 1.9 m) when unknown.
+    pub fn dims_or_default(&self) -> Dimensions {
+        self.dims.unwrap_or(Dimensions { length_m: 4.6, width_m: 1.9 })
+    }
+
+    /// Indices `k` where the time step to sample `k + 1` is more than 1.5 sampling periods: holes in
+    /// the record.
+    pub fn gaps(&self) -> Vec<usize> {
+        self.samples
+            .windows(2)
+            .enumerate()
+            .filter_map(|(k, w)| match w {
+                [a, b] if b.t_s - a.t_s > 1.5 * self.dt_s => Some(k),
+                _ => None,
+            })
+            .collect()
+    }
+}
+
+/// A set of tracks over a common time span.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Episode {
+    /// Where it came from (file name, scenario id, synthetic episode id).
+    pub id: String,
+    /// Nominal sampling period shared by the tracks, s.
+    pub dt_s: f64,
+    /// Start of the span, s.
+    pub t_start_s: f64,
+    /// End of the span, s.
+    pub t_end_s: f64,
+    /// The tracks, by id.
+    pub tracks: Vec<Track>,
+}
+
+impl Episode {
+    /// An episode spanning all of `tracks`; `dt_s` is the smallest track period (0.1 s if none).
+    pub fn from_tracks(id: impl Into<String>, mut tracks: Vec<Track>) -> Self {
+        tracks.sort_by(|a, b| natural_order(&a.id, &b.id));
+        let spans: Vec<(f64, f64)> = tracks.iter().filter_map(Track::span_s).collect();
+        let t_start_s = spans.iter().map(|s| s.0).fold(f64::INFINITY, f64::min);
+        let t_end_s = spans.iter().map(|s| s.1).fold(f64::NEG_INFINITY, f64::max);
+        let dt_s = tracks.iter().map(|t| t.dt_s).filter(|d| *d > 0.0).fold(f64::INFINITY, f64::min);
+        Self {
+            id: id.into(),
+            dt_s: if dt_s.is_finite() { dt_s } else { 0.1 },
+            t_start_s: if t_start_s.is_finite() { t_start_s } else { 0.0 },
+            t_end_s: if t_end_s.is_finite() { t_end_s } else { 0.0 },
+            tracks,
+        }
+    }
+
+    /// A track by id.
+    pub fn track(&self, id: &str) -> Option<&Track> {
+        self.tracks.iter().find(|t| t.id == id)
+    }
+}
+
+/// Numeric ids in numeric order (`2` before `10`), others after them in text order.
+fn natural_order(a: &str, b: &str) -> std::cmp::Ordering {
+    match (a.parse::<i64>(), b.parse::<i64>()) {
+        (Ok(x), Ok(y)) => x.cmp(&y),
+        (Ok(_), Err(_)) => std::cmp::Ordering::Less,
+        (Err(_), Ok(_)) => std::cmp::Ordering::Greater,
+        (Err(_), Err(_)) => a.cmp(b),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn track(id: &str, t0: f64, n: usize) -> Track {
+        let samples = (0..n).map(|k| TrackSample::at(t0 + 0.1 * k as f64, k as f64, 0.0)).collect();
+        Track { id: id.into(), dt_s: 0.1, kind: AgentKind::Car, dims: None, samples }
+    }
+
+    #[test]
+    fn an_episode_spans_its_tracks_in_id_order() {
+        let e = Episode::from_tracks("e", vec![track("10", 1.0, 5), track("2", 0.5, 3)]);
+        assert_eq!(e.tracks[0].id, "2");
+        assert!((e.t_start_s - 0.5).abs() < 1e-12 && (e.t_end_s - 1.4).abs() < 1e-12);
+        assert!((e.track("10").unwrap().path_length_m() - 4.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn gaps_are_found() {
+        let mut t = track("1", 0.0, 5);
+        t.samples.remove(2);
+        assert_eq!(t.gaps(), vec![1]);
+    }
+
+    #[test]
+    fn labels_map_to_kinds() {
+        assert_eq!(AgentKind::from_label("Truck"), AgentKind::Truck);
+        assert_eq!(AgentKind::from_label("pedestrian/bicycle"), AgentKind::Pedestrian);
+        assert_eq!(AgentKind::from_label("zeppelin"), AgentKind::Unknown);
+    }
+}
