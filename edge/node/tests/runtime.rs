@@ -23,8 +23,13 @@ fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
+/// The runtime's configuration: `config/edge/bv1.toml`, or the file `V2T_EDGE_CONFIG` names (the vcan
+/// guest's, with a looser watchdog).
 fn config() -> String {
-    root().join("config/edge/bv1.toml").display().to_string()
+    match std::env::var("V2T_EDGE_CONFIG") {
+        Ok(path) if !path.is_empty() => path,
+        _ => root().join("config/edge/bv1.toml").display().to_string(),
+    }
 }
 
 /// `--can-iface IFACE` when `V2T_CAN_IFACE` names a SocketCAN interface (the vcan guest sets
