@@ -288,3 +288,43 @@ fn a_lost_broker_brings_the_minimal_risk_stop_when_the_policy_says_so() {
     assert_eq!(cmd.action, SafetyAction::MinimalRiskStop.code());
     assert!(lost.elapsed() >= Duration::from_millis(500), "stopped before the timeout");
 }
+
+/// A restarted uplink with a `state_file` refuses a replay of a frame it accepted before the
+/// restart; without one, the frame would pass again while younger than `max_age_s`.
+#[test]
+fn a_restarted_uplink_still_refuses_replays() {
+    use v2t_tests::harness::edge_config_with;
+    let dir = tempdir("restart");
+    let (key, secret, public) = write_keys(&dir, 14);
+    let broker = Broker::start(BrokerKind::Mosquitto, &dir, &secret);
+    let extra = format!("state_file = \"{}\"\n", dir.join("bv1.seq").display());
+    let cfg = edge_config_with(
+        &dir,
+        &format!("mqtt://127.0.0.1:{}", broker.port),
+        &public,
+        "bv1",
+        "config/edge/bv1.toml",
+        &extra,
+    );
+    let ns = format!("v2t/test/restart{}", std::process::id());
+    let args = ["node", "uplink", "--config", cfg.to_str().unwrap(), "--namespace", &ns];
+    let node = Proc::start(&bin("v2t-edge"), &args, "uplink");
+    node.expect_line("connected", Duration::from_secs(10));
+    let mut cloud = Cloud::connect(broker.port, key);
+    cloud.telemetry("bv1", Duration::from_secs(5));
+    let arm = cloud.frame("bv1", CloudBody::Command(CloudCommand::Arm));
+    cloud.send("bv1", topics::CMD, arm.clone());
+    assert_eq!(cloud.event("bv1", Duration::from_secs(5))["verdict"], "accepted");
+    drop(node);
+    let node = Proc::start(&bin("v2t-edge"), &args, "uplink-again");
+    node.expect_line("resuming after sequence number", Duration::from_secs(10));
+    node.expect_line("connected", Duration::from_secs(10));
+    cloud.send("bv1", topics::CMD, arm);
+    let e = cloud.event("bv1", Duration::from_secs(5));
+    assert_eq!(e["verdict"], "refused", "{e}");
+    assert!(e["detail"].as_str().unwrap().contains("replay"), "{e}");
+    // A new frame passes.
+    let start = cloud.frame("bv1", CloudBody::Command(CloudCommand::Start));
+    cloud.send("bv1", topics::CMD, start);
+    assert_eq!(cloud.event("bv1", Duration::from_secs(5))["verdict"], "accepted");
+}

@@ -83,6 +83,11 @@ pub struct UplinkConfig {
     /// … and its key.
     #[serde(default)]
     pub client_key: Option<String>,
+    /// File (relative to this file) where the last accepted sequence number is kept, so that a
+    /// restarted uplink still refuses every frame it accepted or passed before (without it, frames
+    /// younger than `max_age_s` could be replayed to a restarted node).
+    #[serde(default)]
+    pub state_file: Option<String>,
 }
 
 impl Validate for UplinkConfig {
@@ -172,6 +177,13 @@ impl UplinkSettings {
     }
 }
 
+/// Writes `seq` to `path` atomically (a temporary file renamed over it).
+fn save_seq(path: &Path, seq: u64) -> std::io::Result<()> {
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, format!("{seq}\n"))?;
+    std::fs::rename(&tmp, path)
+}
+
 /// Unix time, ms.
 pub fn unix_ms() -> u64 {
     SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| u64::try_from(d.as_millis()).unwrap_or(u64::MAX))
@@ -221,6 +233,16 @@ impl UplinkLogic {
     /// The logic of BV `bv_id`, trusting `key`.
     pub fn new(key: link::VerifyingKey, bv_id: &str, window: Window, checks: PriorChecks) -> Self {
         Self { rx: Receiver::new(key, bv_id, window), checks, active: None }
+    }
+
+    /// Refuses every sequence number up to `seq` from now on (the state a previous run left).
+    pub fn resume_after(&mut self, seq: u64) {
+        self.rx.resume_after(seq);
+    }
+
+    /// The last accepted sequence number.
+    pub fn last_seq(&self) -> Option<u64> {
+        self.rx.last_seq()
     }
 
     /// The prior handed to the regulator last.
@@ -310,6 +332,21 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
     };
     let window = Window { max_age_ms: (u.max_age_s * 1e3) as u64, max_skew_ms: (u.max_skew_s * 1e3) as u64 };
     let mut logic = UplinkLogic::new(settings.cloud_key, &u.bv_id, window, checks);
+    let state_file = u.state_file.as_deref().map(|w| v2t_sim::files::relative_to(&cfg.path, w));
+    if let Some(path) = &state_file {
+        match std::fs::read_to_string(path) {
+            Ok(text) => {
+                let seq: u64 = text.trim().parse().map_err(|_| EdgeError::Config {
+                    path: path.clone(),
+                    message: format!("uplink state: `{}` is not a sequence number", text.trim()),
+                })?;
+                logic.resume_after(seq);
+                eprintln!("uplink: resuming after sequence number {seq}");
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(EdgeError::Config { path: path.clone(), message: format!("uplink state: {e}") }),
+        }
+    }
     let topic = |leaf: &str| topics::bv(&u.fleet, &u.bv_id, leaf);
     let subscribe = vec![topic(topics::PRIOR), topic(topics::CMD), topics::all_cmd(&u.fleet)];
     let mqtt = MqttLink::start(&settings.mqtt, subscribe).map_err(|m| EdgeError::Prior(format!("uplink: {m}")))?;
@@ -356,6 +393,12 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
                 LinkEvent::Frame { payload: bytes, .. } => {
                     let outcome = logic.on_frame(&bytes, unix_ms(), now_ns());
                     eprintln!("uplink: {} {}", outcome.verdict, outcome.detail);
+                    if let (Some(path), Some(seq), "accepted") = (&state_file, outcome.seq, outcome.verdict)
+                        && let Err(e) = save_seq(path, seq)
+                    {
+                        // The frame stands; only a later restart could accept a replay of it.
+                        eprintln!("uplink: cannot save the sequence number to {}: {e}", path.display());
+                    }
                     for a in &outcome.actions {
                         match a {
                             Action::Prior(p) => {
@@ -575,6 +618,7 @@ mod tests {
             ca_file: None,
             client_cert: None,
             client_key: None,
+            state_file: None,
         };
         assert_eq!(c.validate(), Ok(()));
         c.bv_id = "bv/#".into();
