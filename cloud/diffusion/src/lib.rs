@@ -26,6 +26,7 @@
 //! assert!(inv.rollout_gap_m < 1e-9);
 //! ```
 
+pub mod guidance;
 pub mod import;
 pub mod inverse;
 pub mod mining;
