@@ -104,12 +104,7 @@ fn guidance_for(p: &Problem, weights: GuidanceWeights) -> Guidance {
             .collect(),
         // A long boundary with a kink, a repeated point (zero-length segment) and a second one.
         boundaries: vec![
-            vec![
-                Point2::new(-500.0, y),
-                Point2::new(10.0, y + 0.5),
-                Point2::new(10.0, y + 0.5),
-                Point2::new(500.0, y),
-            ],
+            vec![Point2::new(-500.0, y), Point2::new(10.0, y + 0.5), Point2::new(10.0, y + 0.5), Point2::new(500.0, y)],
             vec![Point2::new(-500.0, y + 5.0), Point2::new(500.0, y + 5.0)],
         ],
         conflict_windows: if n >= 2 {
@@ -208,9 +203,8 @@ fn zero_energy_and_gradient_where_constraints_hold() {
 fn zero_weights_switch_terms_off() {
     let (g0, x0s, _) = satisfied();
     // Violate everything: swerve across the boundary into the other agent, brake hard, jerk.
-    let u: Vec<Control> = (0..40)
-        .map(|k| Control { accel_mps2: if k % 2 == 0 { 9.0 } else { -9.0 }, yaw_rate_radps: 1.0 })
-        .collect();
+    let u: Vec<Control> =
+        (0..40).map(|k| Control { accel_mps2: if k % 2 == 0 { 9.0 } else { -9.0 }, yaw_rate_radps: 1.0 }).collect();
     let context = g0.context().clone();
     let all_on = Guidance::new(GuidanceConfig { clearance_radius_m: 30.0, ..*g0.config() }, context.clone()).unwrap();
     let mut ws = GuidanceWorkspace::new(&all_on);
@@ -231,8 +225,9 @@ fn zero_weights_switch_terms_off() {
         GuidanceWeights { clearance: 1.0, ..OFF },
         GuidanceWeights { kinematic: 1.0, ..OFF },
     ] {
-        let gi = Guidance::new(GuidanceConfig { weights: w, clearance_radius_m: 30.0, ..*g0.config() }, context.clone())
-            .unwrap();
+        let gi =
+            Guidance::new(GuidanceConfig { weights: w, clearance_radius_m: 30.0, ..*g0.config() }, context.clone())
+                .unwrap();
         sum += gi.energy_and_grad(&mut ws, &x0s, &u, &mut grad).unwrap().total;
     }
     assert!((sum - on.total).abs() <= 1e-9 * on.total);
@@ -245,7 +240,12 @@ fn conflict_window_switches_clearance_off_for_the_pair() {
         State { px: 0.0, py: 1.0, theta_rad: 0.0, speed_mps: 5.0 },
     ];
     let u = vec![Control::default(); 20];
-    let config = GuidanceConfig { agents: 2, steps: 10, weights: GuidanceWeights { clearance: 1.0, ..OFF }, ..Default::default() };
+    let config = GuidanceConfig {
+        agents: 2,
+        steps: 10,
+        weights: GuidanceWeights { clearance: 1.0, ..OFF },
+        ..Default::default()
+    };
     let mut grad = vec![Control::default(); 20];
     let open = Guidance::new(config, GuidanceContext::default()).unwrap();
     let mut ws = GuidanceWorkspace::new(&open);
@@ -385,9 +385,103 @@ fn guided_posterior_mean_matches_the_formula() {
     let mut out = [0.0; 2];
     guided_posterior_mean(ab_k, ab_prev, beta, &u0, &uk, &mut out).unwrap();
     for i in 0..2 {
-        let want = ab_prev.sqrt() * beta / (1.0 - ab_k) * u0[i] + (1.0 - beta).sqrt() * (1.0 - ab_prev) / (1.0 - ab_k) * uk[i];
+        let want =
+            ab_prev.sqrt() * beta / (1.0 - ab_k) * u0[i] + (1.0 - beta).sqrt() * (1.0 - ab_prev) / (1.0 - ab_k) * uk[i];
         assert!((out[i] - want).abs() < 1e-15);
     }
     assert!(guided_posterior_mean(1.0, ab_prev, beta, &u0, &uk, &mut out).is_err());
     assert!(guided_posterior_mean(ab_k, ab_prev, beta, &u0, &uk[..1], &mut out).is_err());
+}
+
+#[test]
+fn context_from_a_grounded_scenario() {
+    use v2t_diffusion::guidance::ConflictTiming;
+    use v2t_model::Style;
+    use v2t_model::grounded::{AgentRole, AnchorState, GroundedAgent, GroundedConflict, GroundedScenario};
+    use v2t_model::metrics::{ConflictKind, OccupancyInterval};
+    use v2t_model::semantics::InteractionType;
+    let anchor = |id: &str, x: f64, y: f64, t: Option<f64>| AnchorState {
+        anchor_id: id.into(),
+        position: Point2::new(x, y),
+        heading_rad: 0.0,
+        speed_mps: 10.0,
+        time_s: t,
+    };
+    let agent = |id: &str, role, y: f64, t_goal| GroundedAgent {
+        id: id.into(),
+        role,
+        route: vec![Point2::new(0.0, y), Point2::new(100.0, y)],
+        start: anchor("s", 0.0, y, Some(0.0)),
+        goal: anchor("g", 100.0, y, t_goal),
+    };
+    let conflict = |bv: &str| GroundedConflict {
+        bv_id: bv.into(),
+        kind: ConflictKind::Crossing,
+        anchor_id: "c".into(),
+        point: Point2::new(50.0, 0.0),
+        vut_interval: OccupancyInterval { enter_s_m: 48.0, exit_s_m: 52.0 },
+        bv_interval: OccupancyInterval { enter_s_m: 48.0, exit_s_m: 52.0 },
+    };
+    let scenario = GroundedScenario {
+        fragment_id: "f".into(),
+        interaction_type: InteractionType::Crossing,
+        agents: vec![
+            agent("bv1", AgentRole::Bv, 3.0, None),
+            agent("vut", AgentRole::Vut, 0.0, Some(10.0)),
+            agent("bv2", AgentRole::Bv, -3.0, None),
+        ],
+        conflicts: vec![conflict("bv1"), conflict("bv2")],
+        tau_s: 1.5,
+        style: Style::Rush,
+    };
+    let timing = ConflictTiming { bv_id: "bv1".into(), vut_time_s: 5.0, bv_time_s: 3.5 };
+    let ctx = GuidanceContext::from_grounded(&scenario, &[timing], 0.5, vec![]).unwrap();
+    // Three start anchors, the VUT's timed goal, and the conflict point for the VUT and bv1.
+    assert_eq!(ctx.anchors.len(), 6);
+    assert!(ctx.anchors.contains(&Anchor { agent: 1, position: Point2::new(100.0, 0.0), time_s: 10.0 }));
+    assert!(ctx.anchors.contains(&Anchor { agent: 1, position: Point2::new(50.0, 0.0), time_s: 5.0 }));
+    assert!(ctx.anchors.contains(&Anchor { agent: 0, position: Point2::new(50.0, 0.0), time_s: 3.5 }));
+    let w = ctx.conflict_windows[0];
+    assert!(w.covers(0, 1, 3.0) && w.covers(1, 0, 5.5) && !w.covers(0, 1, 5.6) && !w.covers(1, 2, 4.0));
+    // bv2 has no timing: its pair with the VUT is off over the whole horizon.
+    assert!(ctx.conflict_windows[1].covers(2, 1, 0.0) && ctx.conflict_windows[1].covers(1, 2, 1e6));
+    let config = GuidanceConfig { agents: 3, steps: 100, ..GuidanceConfig::default() };
+    assert!(Guidance::new(config, ctx).is_ok());
+    let unknown = GroundedScenario { conflicts: vec![conflict("bv9")], ..scenario };
+    assert_eq!(
+        GuidanceContext::from_grounded(&unknown, &[], 0.5, vec![]),
+        Err(GuidanceError::UnknownAgent("bv9".into()))
+    );
+}
+
+#[test]
+fn signed_distance_conventions_and_a_crossing_is_pushed_back() {
+    use v2t_diffusion::guidance::terms::signed_distance;
+    let line = [Point2::new(0.0, 0.0), Point2::new(10.0, 0.0)];
+    let (s, g) = signed_distance(&line, Point2::new(5.0, 2.0)).unwrap();
+    assert_eq!((s, g), (2.0, Point2::new(0.0, 1.0))); // left is positive
+    let (s, _) = signed_distance(&line, Point2::new(5.0, -2.0)).unwrap();
+    assert_eq!(s, -2.0);
+    let (s, g) = signed_distance(&line, Point2::new(13.0, -4.0)).unwrap();
+    assert!((s + 5.0).abs() < 1e-12 && (g.x + 0.6).abs() < 1e-12 && (g.y - 0.8).abs() < 1e-12);
+    assert!(signed_distance(&[Point2::new(1.0, 1.0); 3], Point2::new(0.0, 0.0)).is_none());
+    // An agent starting below y = 1 that turns left across it: the boundary gradient steers right.
+    let x0s = [State { px: 0.0, py: 0.0, theta_rad: 0.0, speed_mps: 10.0 }];
+    let u = vec![Control { accel_mps2: 0.0, yaw_rate_radps: 0.3 }; 20];
+    let config = GuidanceConfig {
+        agents: 1,
+        steps: 20,
+        weights: GuidanceWeights { boundary: 1.0, ..OFF },
+        ..Default::default()
+    };
+    let ctx = GuidanceContext {
+        boundaries: vec![vec![Point2::new(-10.0, 1.0), Point2::new(100.0, 1.0)]],
+        ..Default::default()
+    };
+    let g = Guidance::new(config, ctx).unwrap();
+    let mut ws = GuidanceWorkspace::new(&g);
+    let mut grad = vec![Control::default(); 20];
+    let e = g.energy_and_grad(&mut ws, &x0s, &u, &mut grad).unwrap();
+    assert!(e.boundary > 1.0);
+    assert!(grad[0].yaw_rate_radps > 0.0, "descending lowers the yaw rate: {:?}", grad[0]);
 }
