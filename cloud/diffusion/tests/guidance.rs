@@ -485,3 +485,38 @@ fn signed_distance_conventions_and_a_crossing_is_pushed_back() {
     assert!(e.boundary > 1.0);
     assert!(grad[0].yaw_rate_radps > 0.0, "descending lowers the yaw rate: {:?}", grad[0]);
 }
+
+fn wild() -> impl Strategy<Value = f64> {
+    prop_oneof![Just(0.0), Just(-0.0), Just(1e-300), -1e6f64..1e6, Just(1e200), Just(-1e300), -1.0f64..1.0]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+    /// Whatever finite input, the result is finite or an error, never NaN.
+    #[test]
+    fn never_nan_out(
+        xs in prop::collection::vec(prop::array::uniform4(wild()), 2),
+        us in prop::collection::vec(prop::array::uniform2(wild()), 2 * 6),
+        pts in prop::collection::vec(prop::array::uniform2(wild()), 0..4),
+    ) {
+        let x0s: Vec<State> = xs.iter().map(|x| State { px: x[0], py: x[1], theta_rad: x[2], speed_mps: x[3] }).collect();
+        let u: Vec<Control> = us.iter().map(|c| Control { accel_mps2: c[0], yaw_rate_radps: c[1] }).collect();
+        let boundary: Vec<Point2> = pts.iter().map(|p| Point2::new(p[0], p[1])).collect();
+        let config = GuidanceConfig { agents: 2, steps: 6, ..GuidanceConfig::default() };
+        let ctx = GuidanceContext {
+            anchors: vec![Anchor { agent: 1, position: boundary.first().copied().unwrap_or_default(), time_s: 0.33 }],
+            boundaries: vec![boundary],
+            conflict_windows: vec![],
+        };
+        let g = Guidance::new(config, ctx).unwrap();
+        let mut ws = GuidanceWorkspace::new(&g);
+        let mut grad = vec![Control::default(); u.len()];
+        match g.energy_and_grad(&mut ws, &x0s, &u, &mut grad) {
+            Ok(e) => {
+                prop_assert!(e.total.is_finite() && e.total >= 0.0, "{e:?}");
+                prop_assert!(grad.iter().all(Control::is_finite));
+            }
+            Err(e) => prop_assert_eq!(e, GuidanceError::NonFiniteResult),
+        }
+    }
+}
