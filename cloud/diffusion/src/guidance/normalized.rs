@@ -6,7 +6,10 @@
 //! denormalizes it, evaluates `E` and `∇_U E` on the rollout, takes the chain rule
 //! `∇_Z E = σ ⊙ ∇_U E`, and writes `Z̃0 = Ẑ0 − η ∇_Z E` where the step `η ∇_Z E` is scaled down, if
 //! needed, to an L2 norm of at most `max_step_norm` (direction kept). [`guided_posterior_mean`] is
-//! the guided reverse-process mean `μ̃` of the paper.
+//! the guided reverse-process mean `μ̃` of the paper and [`predicted_clean_sample`] the `Û0` of the
+//! noise estimate, so one step of Algorithm 1 (lines 3–9) is: `ε̂ = ε_θ(U_k, k, c)` (stage 2b),
+//! [`predicted_clean_sample`], [`Guidance::guide_clean_sample`], [`guided_posterior_mean`] (the
+//! result is `U_{k−1}`; the paper adds no noise).
 
 use v2t_model::kinematics::{Control, State};
 
@@ -176,6 +179,33 @@ pub fn guided_posterior_mean(
     let ck = (1.0 - beta_k).sqrt() * (1.0 - alpha_bar_prev) / (1.0 - alpha_bar_k);
     for ((o, a), b) in out.iter_mut().zip(u0_tilde).zip(u_k) {
         *o = c0 * a + ck * b;
+    }
+    if out.iter().all(|v| v.is_finite()) { Ok(()) } else { Err(GuidanceError::NonFiniteResult) }
+}
+
+/// The clean sample predicted from the noise estimate (Algorithm 1, line 3),
+/// `Û0 = (U_k − √(1 − ᾱ_k) ε̂) / √ᾱ_k`, written into `out` (all three slices the same length).
+/// Needs `0 < ᾱ_k ≤ 1`.
+pub fn predicted_clean_sample(
+    alpha_bar_k: f64,
+    u_k: &[f64],
+    eps_hat: &[f64],
+    out: &mut [f64],
+) -> Result<(), GuidanceError> {
+    if !(alpha_bar_k > 0.0 && alpha_bar_k <= 1.0) {
+        return Err(GuidanceError::InvalidConfig {
+            field: "schedule",
+            reason: format!("ᾱ_k {alpha_bar_k} outside (0, 1]"),
+        });
+    }
+    for (what, got) in [("eps_hat", eps_hat.len()), ("out", out.len())] {
+        if got != u_k.len() {
+            return Err(GuidanceError::Shape { what, expected: u_k.len(), got });
+        }
+    }
+    let (a, s) = (alpha_bar_k.sqrt(), (1.0 - alpha_bar_k).sqrt());
+    for ((o, u), e) in out.iter_mut().zip(u_k).zip(eps_hat) {
+        *o = (u - s * e) / a;
     }
     if out.iter().all(|v| v.is_finite()) { Ok(()) } else { Err(GuidanceError::NonFiniteResult) }
 }
