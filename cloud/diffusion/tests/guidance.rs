@@ -579,3 +579,27 @@ fn algorithm_1_with_an_oracle_denoiser() {
     assert!((e0 - (3.0f64 * 3.0 + 0.25).sqrt()).abs() < 1e-9, "{e0}");
     assert!(e1 < 0.25 * e0, "guided anchor error {e1} m, unguided {e0} m");
 }
+
+#[test]
+fn invalid_context_is_rejected() {
+    let config = GuidanceConfig { agents: 2, steps: 5, ..GuidanceConfig::default() };
+    let bad_boundary = GuidanceContext {
+        boundaries: vec![vec![Point2::new(0.0, 0.0), Point2::new(f64::NAN, 1.0)]],
+        ..Default::default()
+    };
+    assert!(matches!(
+        Guidance::new(config, bad_boundary),
+        Err(GuidanceError::InvalidConfig { field: "boundaries", .. })
+    ));
+    let bad_anchor = GuidanceContext {
+        anchors: vec![Anchor { agent: 2, position: Point2::new(0.0, 0.0), time_s: 1.0 }],
+        ..Default::default()
+    };
+    assert!(Guidance::new(config, bad_anchor).is_err());
+    let bad_window = GuidanceContext {
+        conflict_windows: vec![ConflictWindow { agent_a: 0, agent_b: 1, from_s: f64::NAN, to_s: 1.0 }],
+        ..Default::default()
+    };
+    assert!(Guidance::new(config, bad_window).is_err());
+    assert!(Guidance::new(GuidanceConfig { steps: 0, ..config }, GuidanceContext::default()).is_err());
+}

@@ -264,8 +264,13 @@ impl Guidance {
             let ok = a.position.is_finite() && a.time_s.is_finite();
             check("anchors.position/time_s", ok, a.time_s, "must be finite")?;
         }
-        for b in &context.boundaries {
-            check("boundaries", b.iter().all(|p| p.is_finite()), f64::NAN, "points must be finite")?;
+        for (i, b) in context.boundaries.iter().enumerate() {
+            if let Some(k) = b.iter().position(|p| !p.is_finite()) {
+                return Err(GuidanceError::InvalidConfig {
+                    field: "boundaries",
+                    reason: format!("point {k} of boundary {i} is not finite"),
+                });
+            }
         }
         for w in &context.conflict_windows {
             let ok = w.agent_a < c.agents && w.agent_b < c.agents && !w.from_s.is_nan() && !w.to_s.is_nan();
