@@ -11,7 +11,10 @@
 //! - [`mining`]: cut-ins, left turns / crossings and merges found in an episode, with PET;
 //! - [`synth`]: a **synthetic** human-driving corpus simulated on the topology library's fragments
 //!   with heterogeneous driver models, and its JSON-lines format;
-//! - [`stats`]: histograms and Wasserstein-1 distances for realism checks.
+//! - [`stats`]: histograms and Wasserstein-1 distances for realism checks;
+//! - [`guidance`]: stage 2a, the guidance energies (anchors, solid boundaries, clearance, kinematic
+//!   limits) on rolled-out joint controls with their gradients through the rollout adjoint, and the
+//!   guided correction of Algorithm 1 in the denoiser's normalized space.
 //!
 //! ```
 //! use v2t_diffusion::import::csv::{parse, CsvOptions};
@@ -26,6 +29,7 @@
 //! assert!(inv.rollout_gap_m < 1e-9);
 //! ```
 
+pub mod guidance;
 pub mod import;
 pub mod inverse;
 pub mod mining;
