@@ -43,7 +43,9 @@ fn the_demo_runs_both_scenarios_and_writes_what_it_promises() {
             .current_dir(repo_root())
             .output()
             .unwrap();
-        assert!(r.status.success(), "{name}: {}", String::from_utf8_lossy(&r.stdout));
+        let replay = String::from_utf8_lossy(&r.stdout);
+        assert!(r.status.success(), "{name}: {replay}");
+        assert!(replay.contains("/plans: ") && replay.contains("every metric identical"), "{name}: {replay}");
     }
     let report = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert!(report.contains("<svg") && report.contains("cut_in") && report.contains("left_turn"));

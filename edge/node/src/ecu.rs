@@ -12,9 +12,12 @@ use iceoryx2::service::Service;
 use v2t_can::codec::{CanFrame, DbwFeedback, Decoder, Encoder, Message};
 use v2t_can::transport::{CanTransport, SocketCanBus};
 use v2t_sim::plant::ActuationRequest;
+use v2t_sim::recording::PlanRecord;
 use v2t_sim::runner::{RunOutcome, Simulation};
 use v2t_sim::vut::VutModel;
-use v2t_wire::{ActivePrior, Code, DbwMode, Header, Localization, StyleCode, VutState, services};
+use v2t_wire::{
+    ActivePrior, Code, DbwMode, Header, Localization, PlanStatus, RegulatedPlan, StyleCode, VutState, services,
+};
 
 use crate::canbus::{End, IpcCanBus};
 use crate::clock::now_ns;
@@ -277,8 +280,14 @@ impl<S: Service + 'static> Io<S> {
 
 /// Runs the scenario of `opts` against the onboard stack of `cfg` in real time; returns the
 /// measured run and the ECU's statistics. Ends early (with `Ok`) on SIGINT/SIGTERM.
-pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<(RunOutcome, EcuStats), EdgeError> {
+pub fn run<S: Service + 'static>(
+    cfg: &Loaded,
+    opts: &EcuOptions,
+) -> Result<(RunOutcome, EcuStats, Vec<PlanRecord>), EdgeError> {
     let bus = Bus::<S>::new("sim-ecu", &cfg.edge.namespace)?;
+    // The regulator's decisions, for the recording.
+    let plan_in = bus.subscriber::<RegulatedPlan>(services::PLAN)?;
+    let mut plans = Vec::new();
     let (scenario, card_prior) = match &opts.source {
         EcuSource::Card(card) => {
             let mut scenario = v2t_sim::files::load_scenario(card).map_err(|e| EdgeError::Prior(e.to_string()))?;
@@ -378,7 +387,7 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<(Run
         }
         k += 1;
         if !io.bus.wait(Duration::from_nanos(step_ns)) {
-            return Ok((sim.finish(model.as_str(), "v2t-edge"), cmds.stats));
+            return Ok((sim.finish(model.as_str(), "v2t-edge"), cmds.stats, plans));
         }
     }
 
@@ -386,6 +395,20 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<(Run
     let mut i: usize = 0;
     while !sim.is_done() {
         io.drain(&mut cmds);
+        while let Some(p) = plan_in.receive().map_err(|e| EdgeError::ipc("receive", services::PLAN, e))? {
+            plans.push(PlanRecord {
+                t_s: i as f64 * dt,
+                prior_id: p.prior_id,
+                status: PlanStatus::from_code(p.status)
+                    .map_or_else(|_| format!("code {}", p.status), |s| format!("{s:?}")),
+                s_m: p.s0_m,
+                v_mps: p.v0_mps,
+                accel_mps2: p.accel_mps2,
+                predicted_pet_s: (p.has_predicted_pet != 0 && p.predicted_pet_s.is_finite())
+                    .then_some(p.predicted_pet_s),
+                solve_us: p.solve_ns as f64 * 1e-3,
+            });
+        }
         if (i as u64).is_multiple_of(prior_every) {
             send_prior()?;
         }
@@ -416,7 +439,7 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<(Run
             break;
         }
     }
-    Ok((sim.finish(model.as_str(), "v2t-edge"), cmds.stats))
+    Ok((sim.finish(model.as_str(), "v2t-edge"), cmds.stats, plans))
 }
 
 fn scenario_start_vut(scenario: &v2t_sim::scenario::Scenario) -> v2t_model::kinematics::State {

@@ -224,7 +224,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 (None, None) => EcuSource::Uplink { sim_settings, wait_s: prior_wait_s },
             };
             let opts = EcuOptions { source, vut, seed, engage_timeout_s, tau_s: tau, style };
-            let (outcome, stats) = v2t_edge::ecu::run::<ipc::Service>(&cfg, &opts)?;
+            let (outcome, stats, plans) = v2t_edge::ecu::run::<ipc::Service>(&cfg, &opts)?;
             let r = &outcome.result;
             let pet = r.pet_min_s.map_or_else(|| "none".to_owned(), |p| format!("{p:.2} s"));
             println!(
@@ -240,7 +240,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 stats.late_steps
             );
             if let Some(path) = mcap {
-                v2t_sim::recording::write(&outcome, &path)?;
+                v2t_sim::recording::write_with_plans(&outcome, &plans, &path)?;
             }
             if let Some(path) = out {
                 let mut doc = serde_json::to_value(&outcome).context("serializing the run")?;

@@ -8,7 +8,8 @@
 //!   delivered acceleration — what every metric is computed from;
 //! - `/scene` (`foxglove.SceneUpdate`, 10 Hz): each vehicle as a cube with its footprint, for the 3D panel;
 //! - `/commands` (`v2t.Commands`, 10 Hz): every vehicle's last actuation request (acceleration, steering);
-//! - `/pet` (`v2t.PredictedPet`, 10 Hz): the constant-velocity predicted PET of every conflict.
+//! - `/pet` (`v2t.PredictedPet`, 10 Hz): the constant-velocity predicted PET of every conflict;
+//! - `/plans` (`v2t.Plan`, 10 Hz, runs through the onboard runtime): every regulator decision.
 //!
 //! Metadata `video2track.run` holds the measurement setup (conflict zones, style, τ, seed, models)
 //! and the result the run reported.
@@ -93,8 +94,36 @@ fn stamp(t_s: f64) -> serde_json::Value {
     json!({"sec": n / 1_000_000_000, "nsec": n % 1_000_000_000})
 }
 
+/// One decision of the BV's regulator, as the onboard runtime published it (`/plans`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PlanRecord {
+    /// Simulated time it was seen, s.
+    pub t_s: f64,
+    /// The prior it regulates around.
+    pub prior_id: u64,
+    /// The regulator's status (`Regulating`, `Degraded`, `SafetyYield`, …).
+    pub status: String,
+    /// Where the plan starts along the BV's path, m.
+    pub s_m: f64,
+    /// The BV's speed it starts from, m/s.
+    pub v_mps: f64,
+    /// The acceleration it commands now, m/s².
+    pub accel_mps2: f64,
+    /// The PET it predicts, s.
+    pub predicted_pet_s: Option<f64>,
+    /// How long the decision took, µs.
+    pub solve_us: f64,
+}
+
+const PLAN_SCHEMA: &str = r#"{"type":"object","title":"v2t.Plan","properties":{"t_s":{"type":"number"},"prior_id":{"type":"integer"},"status":{"type":"string"},"s_m":{"type":"number"},"v_mps":{"type":"number"},"accel_mps2":{"type":"number"},"predicted_pet_s":{"type":["number","null"]},"solve_us":{"type":"number"}}}"#;
+
 /// Writes `run` as an MCAP file at `path`.
 pub fn write(run: &RunOutcome, path: &Path) -> Result<(), RecordingError> {
+    write_with_plans(run, &[], path)
+}
+
+/// [`write`] with the regulator's decisions on `/plans` (`v2t.Plan`), in time order with the rest.
+pub fn write_with_plans(run: &RunOutcome, plans: &[PlanRecord], path: &Path) -> Result<(), RecordingError> {
     let io = |source| RecordingError::Io { path: path.to_owned(), source };
     let mc = |e: mcap::McapError| RecordingError::Mcap { path: path.to_owned(), message: e.to_string() };
     let file = std::fs::File::create(path).map_err(io)?;
@@ -109,6 +138,7 @@ pub fn write(run: &RunOutcome, path: &Path) -> Result<(), RecordingError> {
     let scene_ch = channel("foxglove.SceneUpdate", SCENE_SCHEMA, "/scene")?;
     let cmd_ch = channel("v2t.Commands", COMMANDS_SCHEMA, "/commands")?;
     let pet_ch = channel("v2t.PredictedPet", PET_SCHEMA, "/pet")?;
+    let plan_ch = if plans.is_empty() { None } else { Some(channel("v2t.Plan", PLAN_SCHEMA, "/plans")?) };
     let mut seq = 0u32;
     let mut put = |w: &mut mcap::Writer<BufWriter<std::fs::File>>, ch: u16, t_s: f64, v: &serde_json::Value| {
         seq = seq.wrapping_add(1);
@@ -122,7 +152,14 @@ pub fn write(run: &RunOutcome, path: &Path) -> Result<(), RecordingError> {
     let bv_ids: Vec<String> = run.result.conflicts.iter().map(|c| c.bv_id.clone()).collect();
     // In time order: each 10 Hz sample's messages before the plant step at the same instant.
     let mut samples = run.trace.iter().peekable();
+    let mut decisions = plans.iter().peekable();
+    let plan_json = |p: &PlanRecord| serde_json::to_value(p).unwrap_or_default();
     for (k, t) in log.times.iter().enumerate() {
+        if let Some(ch) = plan_ch {
+            while let Some(p) = decisions.next_if(|p| p.t_s <= *t) {
+                put(&mut w, ch, p.t_s, &plan_json(p))?;
+            }
+        }
         while let Some(sample) = samples.next_if(|s| s.t_s <= *t) {
             for (ch, msg) in sample_messages(sample, &run.agent_ids, &dims, &bv_ids, run.result.tau_s)
                 .into_iter()
@@ -147,6 +184,11 @@ pub fn write(run: &RunOutcome, path: &Path) -> Result<(), RecordingError> {
         let msg = serde_json::to_value(TruthMessage { t_s: *t, agents })
             .map_err(|e| RecordingError::Content { path: path.to_owned(), message: e.to_string() })?;
         put(&mut w, truth_ch, *t, &msg)?;
+    }
+    if let Some(ch) = plan_ch {
+        for p in decisions {
+            put(&mut w, ch, p.t_s, &plan_json(p))?;
+        }
     }
     let agents: Vec<AgentInfo> = log
         .agents
