@@ -15,7 +15,6 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 use serde_json::Value;
-use v2t_model::prior::TrajectoryPrior;
 
 use crate::abstract_cmd::{AbstractArgs, abstract_video};
 
@@ -163,8 +162,7 @@ pub fn run(opts: &DemoOptions) -> Result<Summary, DemoError> {
         runs.push((run, grounded));
     }
     let summary = Summary { scenarios, wall_s: t0.elapsed().as_secs_f64() };
-    let text = serde_json::to_string_pretty(&summary).unwrap_or_default();
-    write(&opts.out.join("summary.json"), &(text + "\n"))?;
+    write(&opts.out.join("summary.json"), &pretty(&summary))?;
     write(&opts.out.join("report.html"), &report_html(&summary, &runs))?;
     Ok(summary)
 }
@@ -190,7 +188,6 @@ fn run_one(
         files.push(path.display().to_string());
         Ok(())
     };
-    let json = |v: &dyn erased::Json| v.pretty();
 
     // Semantics from the recorded exchange.
     let args = AbstractArgs {
@@ -203,7 +200,7 @@ fn run_one(
     };
     let abs = abstract_video(&args, |_| None).map_err(|e| fail("abstract")(e.to_string()))?;
     let sem = abs.semantics;
-    save("semantics.json", json(&sem))?;
+    save("semantics.json", pretty(&sem))?;
     let interaction = sem.interacting_bvs.first().map_or("?", |b| b.interaction_type.as_str());
     println!("  semantics   {interaction}, PET label {:.2} s (replayed cassette)", sem.pet_label_s);
 
@@ -211,19 +208,17 @@ fn run_one(
     let g =
         v2t_ground::ground(&inspection.map, &inspection.library, &sem).map_err(|e| fail("ground")(e.to_string()))?;
     let grounded = g.scenario;
-    save("grounded.json", json(&grounded))?;
+    save("grounded.json", pretty(&grounded))?;
     println!("  grounded    on {} (τ {:.2} s, {:?})", grounded.fragment_id, grounded.tau_s, grounded.style);
 
     // The prior.
-    let horizon = crate::link::grounded_horizon_s(&grounded);
-    let prior =
-        TrajectoryPrior::along_routes_at_start_speed(&grounded, horizon).map_err(|e| fail("prior")(e.to_string()))?;
-    save("prior.json", json(&prior))?;
+    let prior = crate::link::stand_in_prior(&grounded).map_err(fail("prior"))?;
+    save("prior.json", pretty(&prior))?;
     println!("  prior       {PRIOR_KIND}, {:.1} s", prior.duration_s());
 
     // OpenSCENARIO.
     let vehicles = Path::new("config/vehicles");
-    let exported = crate::export::export_xosc(&crate::export::XoscArgs {
+    crate::export::export_xosc(&crate::export::XoscArgs {
         input: &file("prior.json"),
         out: &file("xosc"),
         map: &opts.map,
@@ -231,7 +226,6 @@ fn run_one(
         bv_vehicle: &vehicles.join("bv_sedan.toml"),
     })
     .map_err(|e| fail("export xosc")(e.to_string()))?;
-    let _ = exported;
     files.push(file("xosc").display().to_string());
 
     // The closed loop through the onboard processes.
@@ -276,16 +270,9 @@ fn run_one(
     Ok((summary, run, grounded))
 }
 
-mod erased {
-    /// Pretty JSON of anything serializable (the demo's files).
-    pub trait Json {
-        fn pretty(&self) -> String;
-    }
-    impl<T: serde::Serialize> Json for T {
-        fn pretty(&self) -> String {
-            serde_json::to_string_pretty(self).unwrap_or_default() + "\n"
-        }
-    }
+/// Pretty JSON with a final newline (the demo's files).
+fn pretty<T: Serialize>(value: &T) -> String {
+    serde_json::to_string_pretty(value).unwrap_or_default() + "\n"
 }
 
 /// Stops a child with SIGTERM (the launcher stops its nodes on it), then kills it after 5 s.

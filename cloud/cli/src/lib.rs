@@ -19,6 +19,7 @@ pub mod render;
 pub use v2t_sim::files;
 /// MCAP recordings of runs (lives in `v2t-sim`, shared with the simulated ECU).
 pub use v2t_sim::recording;
+mod runfile;
 pub mod serve;
 pub mod sim;
 pub mod xosc;

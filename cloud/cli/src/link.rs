@@ -163,22 +163,11 @@ pub fn prior_from_file(
     let bad = |message: String| LinkError::Prior { path: path.to_owned(), message };
     let text = std::fs::read_to_string(path).map_err(|e| bad(format!("cannot read: {e}")))?;
     let value: serde_json::Value = serde_json::from_str(&text).map_err(|e| bad(format!("not JSON: {e}")))?;
-    let mut prior = if value.get("dt_s").is_some() {
-        let p: TrajectoryPrior =
-            serde_json::from_value(value).map_err(|e| bad(format!("not a trajectory prior: {e}")))?;
-        p.validate().map_err(|e| bad(e.to_string()))?;
-        p
-    } else if value.get("agents").is_some() && value.get("fragment_id").is_some() {
-        let g: GroundedScenario =
-            serde_json::from_value(value).map_err(|e| bad(format!("not a grounded scenario: {e}")))?;
-        g.validate().map_err(|e| bad(e.to_string()))?;
-        let horizon = grounded_horizon_s(&g);
-        TrajectoryPrior::along_routes_at_start_speed(&g, horizon.clamp(1.0, 120.0)).map_err(|e| bad(e.to_string()))?
-    } else {
-        return Err(
-            bad("neither a trajectory prior (`dt_s`) nor a grounded scenario (`fragment_id`, `agents`)".into()),
-        );
-    };
+    let (mut prior, _) = priors_document(&value)
+        .unwrap_or_else(|| {
+            Err("neither a trajectory prior (`dt_s`) nor a grounded scenario (`fragment_id`, `agents`)".into())
+        })
+        .map_err(bad)?;
     let bv_agent = match agent {
         Some(a) => prior
             .agents
@@ -207,6 +196,34 @@ pub fn prior_from_file(
     }
     let now = unix_ms();
     Ok(PriorUpload { prior_id, bv_agent, valid_from_ms: now, valid_until_ms: now + (valid_s * 1e3) as u64, prior })
+}
+
+/// Reads a priors document: a `TrajectoryPrior` (it has `dt_s`), or a `GroundedScenario` (it has
+/// `fragment_id` and `agents`), which becomes its [`stand_in_prior`] and comes back too. `None`:
+/// the document is neither.
+pub fn priors_document(
+    value: &serde_json::Value,
+) -> Option<Result<(TrajectoryPrior, Option<GroundedScenario>), String>> {
+    use serde::Deserialize as _;
+    if value.get("dt_s").is_some() {
+        let p = TrajectoryPrior::deserialize(value).map_err(|e| format!("not a trajectory prior: {e}"));
+        Some(p.and_then(|p| p.validate().map(|()| (p, None)).map_err(|e| e.to_string())))
+    } else if value.get("agents").is_some() && value.get("fragment_id").is_some() {
+        let g = GroundedScenario::deserialize(value).map_err(|e| format!("not a grounded scenario: {e}"));
+        Some(g.and_then(|g| {
+            g.validate().map_err(|e| e.to_string())?;
+            Ok((stand_in_prior(&g)?, Some(g)))
+        }))
+    } else {
+        None
+    }
+}
+
+/// The constant-speed prior along the grounded routes, keeping the grounded timing, over
+/// [`grounded_horizon_s`]: the predefined reference of the TroubleMaker-like baseline and the
+/// stand-in where no diffusion prior exists.
+pub fn stand_in_prior(g: &GroundedScenario) -> Result<TrajectoryPrior, String> {
+    TrajectoryPrior::along_routes_at_start_speed(g, grounded_horizon_s(g)).map_err(|e| e.to_string())
 }
 
 /// How long the constant-speed prior of `g` must run for every agent to reach its route's end,

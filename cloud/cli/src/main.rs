@@ -295,6 +295,14 @@ impl LinkArgs {
         Ok(Signer::new(key, &self.fleet)?)
     }
 
+    /// Signs `body` for `bv`, sends it through `broker` and reports the BV's verdict.
+    fn send_once(&self, broker: &str, bv: &str, body: CloudBody, wait_s: f64) -> anyhow::Result<()> {
+        let mut signer = self.signer()?;
+        let wait = wait_duration(wait_s)?;
+        let answer = video2track::link::send_once(&self.connection(broker)?, &mut signer, bv, body, wait)?;
+        verdict(bv, answer)
+    }
+
     fn connection(&self, broker: &str) -> anyhow::Result<Connection> {
         let tls = video2track::link::TlsFiles {
             ca: self.ca_file.as_deref(),
@@ -600,26 +608,13 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
                 bv,
                 up.bv_agent
             );
-            let mut signer = link.signer()?;
-            let wait = wait_duration(wait_s)?;
-            let answer =
-                video2track::link::send_once(&link.connection(&broker)?, &mut signer, &bv, CloudBody::Prior(up), wait)?;
-            verdict(&bv, answer)
+            link.send_once(&broker, &bv, CloudBody::Prior(up), wait_s)
         }
         Command::Send { action, bv, tau, style, link, broker, wait_s } => {
             let style = style.as_deref().map(video2track::link::parse_style).transpose()?;
             let cmd = video2track::link::command(&action, tau, style)?;
             let bv = if bv == "all" { ALL_BVS.to_owned() } else { bv };
-            let mut signer = link.signer()?;
-            let wait = wait_duration(wait_s)?;
-            let answer = video2track::link::send_once(
-                &link.connection(&broker)?,
-                &mut signer,
-                &bv,
-                CloudBody::Command(cmd),
-                wait,
-            )?;
-            verdict(&bv, answer)
+            link.send_once(&broker, &bv, CloudBody::Command(cmd), wait_s)
         }
         Command::Export { command: ExportCommand::Xosc { input, out, map, vut_vehicle, bv_vehicle } } => {
             let args = video2track::export::XoscArgs {

@@ -19,7 +19,7 @@ use std::io::{Read as _, Write as _};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-use serde::Deserialize;
+use crate::runfile::RunFile;
 use v2t_model::geometry::Point2;
 use v2t_model::kinematics::State;
 use v2t_sim::files::InputError;
@@ -164,31 +164,6 @@ impl RenderOptions {
     pub fn height(&self) -> u32 {
         (self.width.saturating_mul(9) / 16) & !1
     }
-}
-
-/// The part of `video2track sim --json` that is drawn. Other fields are ignored: this reads a
-/// subset of a document another command writes, not a configuration.
-#[derive(Debug, Deserialize)]
-struct RunFile {
-    result: RunFileResult,
-    agent_ids: Vec<String>,
-    trace: Vec<RunFileSample>,
-}
-
-#[derive(Debug, Deserialize)]
-struct RunFileResult {
-    scenario: String,
-}
-
-#[derive(Debug, Deserialize)]
-struct RunFileSample {
-    t_s: f64,
-    agents: Vec<RunFileAgent>,
-}
-
-#[derive(Debug, Deserialize)]
-struct RunFileAgent {
-    state: State,
 }
 
 /// A vehicle to draw.

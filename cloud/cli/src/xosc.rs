@@ -31,13 +31,12 @@
 
 use std::fmt::Write as _;
 
-use serde::Deserialize;
+use crate::runfile::RunFile;
 use v2t_model::Style;
 use v2t_model::geometry::Point2;
 use v2t_model::grounded::{AgentRole, GroundedScenario};
 use v2t_model::kinematics::State;
 use v2t_model::prior::TrajectoryPrior;
-use v2t_model::validate::Validate;
 use v2t_model::vehicle::VehicleConfig;
 
 /// Longest time between two trajectory vertices, s.
@@ -127,48 +126,16 @@ pub struct XoscOptions<'a> {
     pub bv_vehicle: &'a VehicleConfig,
 }
 
-/// The part of `video2track sim --json` that is exported; other fields are ignored (this reads a
-/// subset of a document another command writes, not a configuration).
-#[derive(Debug, Deserialize)]
-struct RunFile {
-    result: RunFileResult,
-    agent_ids: Vec<String>,
-    trace: Vec<RunFileSample>,
-}
-
-#[derive(Debug, Deserialize)]
-struct RunFileResult {
-    scenario: String,
-    tau_s: f64,
-    style: Style,
-}
-
-#[derive(Debug, Deserialize)]
-struct RunFileSample {
-    t_s: f64,
-    agents: Vec<RunFileAgent>,
-}
-
-#[derive(Debug, Deserialize)]
-struct RunFileAgent {
-    state: State,
-}
-
 /// Reads the text of an input file: a `TrajectoryPrior` (has `dt_s`), a `GroundedScenario` (has
 /// `fragment_id` and `agents`) or a run (has `trace`). The error says what is wrong, without the
 /// file's name.
 pub fn parse_input(text: &str) -> Result<ExportScenario, String> {
     let value: serde_json::Value = serde_json::from_str(text).map_err(|e| format!("not JSON: {e}"))?;
-    let scenario = if value.get("dt_s").is_some() {
-        let p: TrajectoryPrior = serde_json::from_value(value).map_err(|e| format!("not a trajectory prior: {e}"))?;
-        p.validate().map_err(|e| e.to_string())?;
-        from_prior(&p, SourceKind::Prior, None)
-    } else if value.get("agents").is_some() && value.get("fragment_id").is_some() {
-        let g: GroundedScenario = serde_json::from_value(value).map_err(|e| format!("not a grounded scenario: {e}"))?;
-        g.validate().map_err(|e| e.to_string())?;
-        let horizon = crate::link::grounded_horizon_s(&g);
-        let p = TrajectoryPrior::along_routes_at_start_speed(&g, horizon).map_err(|e| e.to_string())?;
-        from_prior(&p, SourceKind::Grounded, Some(&g))
+    let scenario = if let Some(doc) = crate::link::priors_document(&value) {
+        match doc? {
+            (p, None) => from_prior(&p, SourceKind::Prior, None),
+            (p, Some(g)) => from_prior(&p, SourceKind::Grounded, Some(&g)),
+        }
     } else if value.get("trace").is_some() {
         let run: RunFile =
             serde_json::from_value(value).map_err(|e| format!("not a run (`video2track sim --json`): {e}"))?;
@@ -204,6 +171,9 @@ fn from_prior(p: &TrajectoryPrior, kind: SourceKind, grounded: Option<&GroundedS
 }
 
 fn from_run(run: RunFile) -> Result<ExportScenario, String> {
+    let (Some(tau_s), Some(style)) = (run.result.tau_s, run.result.style) else {
+        return Err("not a run (`video2track sim --json`): result: missing field `tau_s` or `style`".into());
+    };
     if run.agent_ids.is_empty() {
         return Err("agent_ids: no agents".into());
     }
@@ -241,13 +211,7 @@ fn from_run(run: RunFile) -> Result<ExportScenario, String> {
     for a in &mut agents {
         a.route = path_of(&a.states);
     }
-    Ok(ExportScenario {
-        kind: SourceKind::Run,
-        name: run.result.scenario,
-        tau_s: run.result.tau_s,
-        style: run.result.style,
-        agents,
-    })
+    Ok(ExportScenario { kind: SourceKind::Run, name: run.result.scenario, tau_s, style, agents })
 }
 
 /// The positions of `states`, without repeats (a vehicle standing still).

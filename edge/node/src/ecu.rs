@@ -103,17 +103,7 @@ fn prior_from_file(
     let now = crate::uplink::unix_ms();
     let up =
         v2t_wire::link::PriorUpload { prior_id, bv_agent, valid_from_ms: now, valid_until_ms: now + 3_600_000, prior };
-    let dims = |v: &v2t_model::vehicle::VehicleConfig| v2t_model::metrics::Dimensions {
-        length_m: v.geometry.length_m,
-        width_m: v.geometry.width_m,
-    };
-    let checks = crate::prior::PriorChecks {
-        limits: cfg.vehicle.limits,
-        bv: dims(&cfg.vehicle),
-        vut: dims(&cfg.vut_vehicle),
-        area: None,
-        geofence_margin_m: 0.0,
-    };
+    let checks = crate::prior::PriorChecks::for_vehicles(&cfg.vehicle, &cfg.vut_vehicle, None, 0.0);
     crate::prior::from_upload(&up, now, &checks, now_ns()).map_err(|e| bad(e.to_string()))
 }
 

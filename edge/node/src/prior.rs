@@ -92,6 +92,23 @@ pub struct PriorChecks {
     pub geofence_margin_m: f64,
 }
 
+impl PriorChecks {
+    /// The checks for a BV `bv` meeting a VUT `vut` (their limits and footprints), on `area` when
+    /// given.
+    pub fn for_vehicles(
+        bv: &v2t_model::vehicle::VehicleConfig,
+        vut: &v2t_model::vehicle::VehicleConfig,
+        area: Option<DrivableArea>,
+        geofence_margin_m: f64,
+    ) -> Self {
+        let dims = |v: &v2t_model::vehicle::VehicleConfig| Dimensions {
+            length_m: v.geometry.length_m,
+            width_m: v.geometry.width_m,
+        };
+        Self { limits: bv.limits, bv: dims(bv), vut: dims(vut), area, geofence_margin_m }
+    }
+}
+
 /// Relative slack on the vehicle limits (the generator works to them; rounding must not refuse).
 const LIMIT_SLACK: f64 = 1.01;
 
@@ -325,6 +342,43 @@ impl PriorContext {
     }
 }
 
+/// Grounded scenarios on the proving ground and their checks, for the tests of this crate.
+#[cfg(test)]
+pub(crate) mod fixtures {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    fn root() -> std::path::PathBuf {
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+    }
+
+    /// The example semantics `config/examples/<semantics>` grounded on the proving ground, and the map.
+    pub(crate) fn grounded(semantics: &str) -> (v2t_map::Map, GroundedScenario) {
+        let map = v2t_map::Map::load(&root().join("config/maps/proving_ground.xodr")).unwrap();
+        let lib = v2t_map::library::TopologyLibrary::build(&map);
+        let text = std::fs::read_to_string(root().join("config/examples").join(semantics)).unwrap();
+        let sem = v2t_model::semantics::parse_semantics_json(&text).unwrap();
+        let scenario = v2t_ground::ground(&map, &lib, &sem).unwrap().scenario;
+        (map, scenario)
+    }
+
+    /// Its stand-in prior upload (25 s) and the checks of the bundled sedans on the proving ground.
+    pub(crate) fn upload(semantics: &str, prior_id: u64, valid_ms: (u64, u64)) -> (PriorUpload, PriorChecks) {
+        let (map, sc) = grounded(semantics);
+        let up = upload_along_routes(&sc, prior_id, 25.0, valid_ms).unwrap();
+        let load = |f: &str| -> v2t_model::vehicle::VehicleConfig {
+            v2t_sim::files::load_toml(&root().join("config/vehicles").join(f)).unwrap()
+        };
+        let checks = PriorChecks::for_vehicles(
+            &load("bv_sedan.toml"),
+            &load("vut_sedan.toml"),
+            Some(DrivableArea::from_map(&map)),
+            0.5,
+        );
+        (up, checks)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -354,34 +408,9 @@ mod tests {
 
     mod upload {
         use super::super::*;
-        use v2t_model::grounded::GroundedScenario;
-
-        fn root() -> std::path::PathBuf {
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-        }
-
-        /// The left turn grounded on the proving ground, and its map.
-        fn grounded() -> (v2t_map::Map, GroundedScenario) {
-            let map = v2t_map::Map::load(&root().join("config/maps/proving_ground.xodr")).unwrap();
-            let lib = v2t_map::library::TopologyLibrary::build(&map);
-            let text = std::fs::read_to_string(root().join("config/examples/semantics_left_turn.json")).unwrap();
-            let sem = v2t_model::semantics::parse_semantics_json(&text).unwrap();
-            let g = v2t_ground::ground(&map, &lib, &sem).unwrap();
-            (map, g.scenario)
-        }
 
         fn upload() -> (PriorUpload, PriorChecks) {
-            let (map, sc) = grounded();
-            let up = upload_along_routes(&sc, 77, 25.0, (1_000, 61_000)).unwrap();
-            let vehicle: v2t_model::vehicle::VehicleConfig =
-                v2t_sim::files::load_toml(&root().join("config/vehicles/bv_sedan.toml")).unwrap();
-            let checks = PriorChecks {
-                limits: vehicle.limits,
-                bv: Dimensions { length_m: 4.8, width_m: 1.85 },
-                vut: Dimensions { length_m: 4.7, width_m: 1.85 },
-                area: Some(DrivableArea::from_map(&map)),
-                geofence_margin_m: 0.5,
-            };
+            let (up, checks) = fixtures::upload("semantics_left_turn.json", 77, (1_000, 61_000));
             (up, checks)
         }
 

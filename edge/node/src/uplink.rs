@@ -14,7 +14,6 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use iceoryx2::service::Service;
 use serde::{Deserialize, Serialize};
 use v2t_map::drivable::DrivableArea;
-use v2t_model::metrics::Dimensions;
 use v2t_model::validate::{Validate, ValidationError, in_range};
 use v2t_wire::link::{self, CloudBody, Command, Receiver, Window, topics};
 use v2t_wire::mqtt::{BrokerUrl, LinkEvent, MqttLink, MqttSettings};
@@ -319,17 +318,8 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
     let gates = bus.subscriber::<GateReport>(services::GATE)?;
     let t = cfg.edge.timing;
     let mut heart = Heart::new(&bus, NodeKind::Uplink, t.heartbeat_period_s)?;
-    let dims = |v: &v2t_model::vehicle::VehicleConfig| Dimensions {
-        length_m: v.geometry.length_m,
-        width_m: v.geometry.width_m,
-    };
-    let checks = PriorChecks {
-        limits: cfg.vehicle.limits,
-        bv: dims(&cfg.vehicle),
-        vut: dims(&cfg.vut_vehicle),
-        area: Some(settings.area.clone()),
-        geofence_margin_m: u.geofence_margin_m,
-    };
+    let checks =
+        PriorChecks::for_vehicles(&cfg.vehicle, &cfg.vut_vehicle, Some(settings.area.clone()), u.geofence_margin_m);
     let window = Window { max_age_ms: (u.max_age_s * 1e3) as u64, max_skew_ms: (u.max_skew_s * 1e3) as u64 };
     let mut logic = UplinkLogic::new(settings.cloud_key, &u.bv_id, window, checks);
     let state_file = u.state_file.as_deref().map(|w| v2t_sim::files::relative_to(&cfg.path, w));
@@ -513,26 +503,8 @@ mod tests {
     use super::*;
     use link::{CloudMessage, SigningKey};
 
-    fn root() -> PathBuf {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-    }
-
     fn setup() -> (UplinkLogic, SigningKey, link::PriorUpload) {
-        let map = v2t_map::Map::load(&root().join("config/maps/proving_ground.xodr")).unwrap();
-        let lib = v2t_map::library::TopologyLibrary::build(&map);
-        let text = std::fs::read_to_string(root().join("config/examples/semantics_cut_in.json")).unwrap();
-        let sem = v2t_model::semantics::parse_semantics_json(&text).unwrap();
-        let sc = v2t_ground::ground(&map, &lib, &sem).unwrap().scenario;
-        let up = crate::prior::upload_along_routes(&sc, 5, 25.0, (0, 100_000)).unwrap();
-        let vehicle: v2t_model::vehicle::VehicleConfig =
-            v2t_sim::files::load_toml(&root().join("config/vehicles/bv_sedan.toml")).unwrap();
-        let checks = PriorChecks {
-            limits: vehicle.limits,
-            bv: Dimensions { length_m: 4.8, width_m: 1.85 },
-            vut: Dimensions { length_m: 4.7, width_m: 1.85 },
-            area: Some(DrivableArea::from_map(&map)),
-            geofence_margin_m: 0.5,
-        };
+        let (up, checks) = crate::prior::fixtures::upload("semantics_cut_in.json", 5, (0, 100_000));
         let key = SigningKey::from_bytes(&[3; 32]);
         let logic = UplinkLogic::new(key.verifying_key(), "bv1", Window::default(), checks);
         (logic, key, up)
