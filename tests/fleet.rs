@@ -11,7 +11,9 @@ use std::time::{Duration, Instant};
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::ipc;
 use v2t_edge::ports::Bus;
-use v2t_tests::harness::{Proc, bin, edge_config, free_port, left_turn_grounded, signal, tempdir, write_keys};
+use v2t_tests::harness::{
+    Proc, bin, edge_config, free_port, left_turn_grounded, signal, tempdir, uplink_node, write_keys,
+};
 use v2t_tests::repo_root;
 use v2t_wire::{ActivePrior, Code, SafetyAction, SafetyCommand, StyleCode, services};
 
@@ -26,11 +28,7 @@ impl Bv {
     fn start(dir: &std::path::Path, port: u16, public: &std::path::Path, id: &str) -> Self {
         let cfg = edge_config(dir, port, public, id);
         let ns = format!("v2t/test/fleet{}/{id}", std::process::id());
-        let node = Proc::start(
-            &bin("v2t-edge"),
-            &["node", "uplink", "--config", cfg.to_str().unwrap(), "--namespace", &ns],
-            id,
-        );
+        let node = uplink_node(&cfg, &ns, id, &[]);
         let bus = Bus::<ipc::Service>::new("test-fleet", &ns).unwrap();
         let priors = bus.subscriber::<ActivePrior>(services::PRIOR).unwrap();
         let safety = bus.subscriber::<SafetyCommand>(services::SAFETY).unwrap();

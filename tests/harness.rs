@@ -166,6 +166,13 @@ impl Drop for Proc {
     }
 }
 
+/// `v2t-edge node uplink` with the configuration `cfg` in the iceoryx2 namespace `ns`, and extra
+/// environment variables.
+pub fn uplink_node(cfg: &Path, ns: &str, tag: &str, env: &[(&str, &str)]) -> Proc {
+    let args = ["node", "uplink", "--config", cfg.to_str().unwrap(), "--namespace", ns];
+    Proc::start_env(&bin("v2t-edge"), &args, tag, env)
+}
+
 /// Which broker a test runs against.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BrokerKind {
@@ -183,13 +190,36 @@ pub struct Broker {
     pub port: u16,
     dir: PathBuf,
     key: PathBuf,
+    /// Mosquitto's settings after its `listener` line (default: anonymous, with persistence).
+    mosquitto_conf: Option<String>,
     proc: Option<Proc>,
 }
 
 impl Broker {
     /// Starts a broker of `kind` keeping its files in `dir`; the embedded one signs with `key`.
     pub fn start(kind: BrokerKind, dir: &Path, key: &Path) -> Self {
-        let mut b = Self { kind, port: free_port(), dir: dir.to_owned(), key: key.to_owned(), proc: None };
+        let mut b = Self {
+            kind,
+            port: free_port(),
+            dir: dir.to_owned(),
+            key: key.to_owned(),
+            mosquitto_conf: None,
+            proc: None,
+        };
+        b.restart();
+        b
+    }
+
+    /// A Mosquitto with `conf` after its `listener` line (TLS, passwords, …).
+    pub fn mosquitto_with(dir: &Path, conf: &str) -> Self {
+        let mut b = Self {
+            kind: BrokerKind::Mosquitto,
+            port: free_port(),
+            dir: dir.to_owned(),
+            key: PathBuf::new(),
+            mosquitto_conf: Some(conf.to_owned()),
+            proc: None,
+        };
         b.restart();
         b
     }
@@ -203,14 +233,13 @@ impl Broker {
                 use std::os::unix::fs::PermissionsExt as _;
                 std::fs::set_permissions(&self.dir, std::fs::Permissions::from_mode(0o777)).unwrap();
                 let conf = self.dir.join("mosquitto.conf");
-                std::fs::write(
-                    &conf,
+                let rest = self.mosquitto_conf.clone().unwrap_or_else(|| {
                     format!(
-                        "listener {port} 127.0.0.1\nallow_anonymous true\nset_tcp_nodelay true\npersistence true\npersistence_location {}/\n",
+                        "allow_anonymous true\nset_tcp_nodelay true\npersistence true\npersistence_location {}/\n",
                         self.dir.display()
-                    ),
-                )
-                .unwrap();
+                    )
+                });
+                std::fs::write(&conf, format!("listener {port} 127.0.0.1\n{rest}")).unwrap();
                 let exe = ["/usr/sbin/mosquitto", "/usr/bin/mosquitto"]
                     .into_iter()
                     .map(Path::new)

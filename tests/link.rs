@@ -10,7 +10,9 @@ use std::time::{Duration, Instant};
 use iceoryx2::prelude::ipc;
 use v2t_edge::clock::now_ns;
 use v2t_edge::ports::Bus;
-use v2t_tests::harness::{Broker, BrokerKind, Cloud, Proc, bin, edge_config, left_turn_upload, tempdir, write_keys};
+use v2t_tests::harness::{
+    Broker, BrokerKind, Cloud, bin, edge_config, left_turn_upload, tempdir, uplink_node, write_keys,
+};
 use v2t_tests::repo_root;
 use v2t_wire::link::{self, CloudBody, CloudMessage, Command as CloudCommand, SigningKey, topics};
 use v2t_wire::{ActivePrior, Code, SafetyAction, SafetyCommand, services};
@@ -35,11 +37,7 @@ fn priors_and_commands_cross_the_broker(kind: BrokerKind) {
     let mut broker = Broker::start(kind, &dir, &secret);
     let cfg = edge_config(&dir, broker.port, &public, "bv1");
     let ns = format!("v2t/test/uplink{:?}{}", kind, std::process::id());
-    let node = Proc::start(
-        &bin("v2t-edge"),
-        &["node", "uplink", "--config", cfg.to_str().unwrap(), "--namespace", &ns],
-        "uplink",
-    );
+    let node = uplink_node(&cfg, &ns, "uplink", &[]);
     v2t_tests::harness::iceoryx2_config();
     let bus = Bus::<ipc::Service>::new("test-cloud", &ns).unwrap();
     let priors = bus.subscriber::<ActivePrior>(services::PRIOR).unwrap();
@@ -157,7 +155,7 @@ fn priors_and_commands_cross_the_embedded_broker_bad_ones_are_refused_and_a_brok
 /// certificate and a password; a wrong password or a missing certificate keeps a client out.
 #[test]
 fn bvs_and_the_supervisor_log_in_with_tls_client_certificates_and_passwords() {
-    use v2t_tests::harness::{edge_config_with, free_port, make_pki};
+    use v2t_tests::harness::{edge_config_with, make_pki};
     let dir = tempdir("tls");
     make_pki(&dir, &["bv1", "supervisor"]);
     let (_key, secret, public) = write_keys(&dir, 12);
@@ -170,37 +168,23 @@ fn bvs_and_the_supervisor_log_in_with_tls_client_certificates_and_passwords() {
         let ok = cmd.arg("-b").arg(&passwd).args([user, pw]).status().unwrap().success();
         assert!(ok, "mosquitto_passwd");
     }
-    let port = free_port();
     let d = dir.display();
-    let conf = dir.join("mosquitto.conf");
-    std::fs::write(
-        &conf,
-        format!(
-            "listener {port} 127.0.0.1\nallow_anonymous false\npassword_file {d}/passwd\ncafile {d}/ca.pem\n\
-             certfile {d}/server.pem\nkeyfile {d}/server.key\nrequire_certificate true\nset_tcp_nodelay true\n"
-        ),
-    )
-    .unwrap();
     std::fs::set_permissions(&passwd, std::os::unix::fs::PermissionsExt::from_mode(0o644)).unwrap();
-    let mosquitto = ["/usr/sbin/mosquitto", "/usr/bin/mosquitto"]
-        .into_iter()
-        .map(std::path::Path::new)
-        .find(|p| p.exists())
-        .expect("mosquitto is not installed");
-    let _broker = Proc::start(mosquitto, &["-c", conf.to_str().unwrap()], "mosquitto");
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
-        assert!(Instant::now() < deadline, "mosquitto did not listen");
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let mosquitto = Broker::mosquitto_with(
+        &dir,
+        &format!(
+            "allow_anonymous false\npassword_file {d}/passwd\ncafile {d}/ca.pem\ncertfile {d}/server.pem\n\
+             keyfile {d}/server.key\nrequire_certificate true\nset_tcp_nodelay true\n"
+        ),
+    );
+    let port = mosquitto.port;
     let broker = format!("mqtts://127.0.0.1:{port}");
     let tls = format!(
         "username = \"bv1\"\npassword_env = \"V2T_TEST_MQTT_PASSWORD\"\nca_file = \"{d}/ca.pem\"\nclient_cert = \"{d}/bv1.pem\"\nclient_key = \"{d}/bv1.key\"\n"
     );
     let cfg = edge_config_with(&dir, &broker, &public, "bv1", "config/edge/bv1.toml", &tls);
     let ns = format!("v2t/test/tls{}", std::process::id());
-    let args = ["node", "uplink", "--config", cfg.to_str().unwrap(), "--namespace", &ns];
-    let node = Proc::start_env(&bin("v2t-edge"), &args, "uplink", &[("V2T_TEST_MQTT_PASSWORD", "bv1-secret")]);
+    let node = uplink_node(&cfg, &ns, "uplink", &[("V2T_TEST_MQTT_PASSWORD", "bv1-secret")]);
     node.expect_line("connected", Duration::from_secs(10));
 
     // The supervisor's tool over the same broker: TLS, its own certificate and password.
@@ -240,7 +224,7 @@ fn bvs_and_the_supervisor_log_in_with_tls_client_certificates_and_passwords() {
     assert!(!out.status.success(), "a client without a certificate got in");
 
     // A BV with the wrong password stays out and says so; it keeps trying.
-    let node2 = Proc::start_env(&bin("v2t-edge"), &args, "uplink-wrong-pw", &[("V2T_TEST_MQTT_PASSWORD", "nope")]);
+    let node2 = uplink_node(&cfg, &ns, "uplink-wrong-pw", &[("V2T_TEST_MQTT_PASSWORD", "nope")]);
     let line = node2.expect_line("cannot reach the broker", Duration::from_secs(10));
     assert!(line.contains("NotAuthorized") || line.contains("BadUserNamePassword"), "{line}");
 }
@@ -263,11 +247,7 @@ fn a_lost_broker_brings_the_minimal_risk_stop_when_the_policy_says_so() {
         extra,
     );
     let ns = format!("v2t/test/linkloss{}", std::process::id());
-    let node = Proc::start(
-        &bin("v2t-edge"),
-        &["node", "uplink", "--config", cfg.to_str().unwrap(), "--namespace", &ns],
-        "uplink",
-    );
+    let node = uplink_node(&cfg, &ns, "uplink", &[]);
     v2t_tests::harness::iceoryx2_config();
     let bus = Bus::<ipc::Service>::new("test-linkloss", &ns).unwrap();
     let safety = bus.subscriber::<SafetyCommand>(services::SAFETY).unwrap();
@@ -307,8 +287,7 @@ fn a_restarted_uplink_still_refuses_replays() {
         &extra,
     );
     let ns = format!("v2t/test/restart{}", std::process::id());
-    let args = ["node", "uplink", "--config", cfg.to_str().unwrap(), "--namespace", &ns];
-    let node = Proc::start(&bin("v2t-edge"), &args, "uplink");
+    let node = uplink_node(&cfg, &ns, "uplink", &[]);
     node.expect_line("connected", Duration::from_secs(10));
     let mut cloud = Cloud::connect(broker.port, key);
     cloud.telemetry("bv1", Duration::from_secs(5));
@@ -316,7 +295,7 @@ fn a_restarted_uplink_still_refuses_replays() {
     cloud.send("bv1", topics::CMD, arm.clone());
     assert_eq!(cloud.event("bv1", Duration::from_secs(5))["verdict"], "accepted");
     drop(node);
-    let node = Proc::start(&bin("v2t-edge"), &args, "uplink-again");
+    let node = uplink_node(&cfg, &ns, "uplink-again", &[]);
     node.expect_line("resuming after sequence number", Duration::from_secs(10));
     node.expect_line("connected", Duration::from_secs(10));
     cloud.send("bv1", topics::CMD, arm);
