@@ -223,13 +223,7 @@ enum Command {
         #[arg(long, default_value_t = 600.0)]
         valid_s: f64,
         #[command(flatten)]
-        link: LinkArgs,
-        /// The broker.
-        #[arg(long, default_value = "mqtt://127.0.0.1:1883")]
-        broker: String,
-        /// Wait this long for the BV's verdict, s (0: do not wait).
-        #[arg(long, default_value_t = 3.0)]
-        wait_s: f64,
+        shot: OneShotArgs,
     },
     /// Send one signed supervision command: arm, start, abort or target (with --tau and --style).
     Send {
@@ -246,14 +240,31 @@ enum Command {
         #[arg(long, value_parser = ["rush", "yield"])]
         style: Option<String>,
         #[command(flatten)]
-        link: LinkArgs,
-        /// The broker.
-        #[arg(long, default_value = "mqtt://127.0.0.1:1883")]
-        broker: String,
-        /// Wait this long for the BV's verdict, s (0 or `--bv all`: do not wait).
-        #[arg(long, default_value_t = 3.0)]
-        wait_s: f64,
+        shot: OneShotArgs,
     },
+}
+
+/// One signed frame sent to a broker, waiting for the BV's verdict (`upload`, `send`).
+#[derive(Debug, clap::Args)]
+struct OneShotArgs {
+    #[command(flatten)]
+    link: LinkArgs,
+    /// The broker.
+    #[arg(long, default_value = "mqtt://127.0.0.1:1883")]
+    broker: String,
+    /// Wait this long for the BV's verdict, s (0, or `--bv all`: do not wait).
+    #[arg(long, default_value_t = 3.0)]
+    wait_s: f64,
+}
+
+impl OneShotArgs {
+    /// Signs `body` for `bv`, sends it and reports the BV's verdict.
+    fn send(&self, bv: &str, body: CloudBody) -> anyhow::Result<()> {
+        let mut signer = self.link.signer()?;
+        let wait = wait_duration(self.wait_s)?;
+        let answer = video2track::link::send_once(&self.link.connection(&self.broker)?, &mut signer, bv, body, wait)?;
+        verdict(bv, answer)
+    }
 }
 
 /// Who signs, for which fleet, and how to log in to the broker.
@@ -293,14 +304,6 @@ impl LinkArgs {
             );
         }
         Ok(Signer::new(key, &self.fleet)?)
-    }
-
-    /// Signs `body` for `bv`, sends it through `broker` and reports the BV's verdict.
-    fn send_once(&self, broker: &str, bv: &str, body: CloudBody, wait_s: f64) -> anyhow::Result<()> {
-        let mut signer = self.signer()?;
-        let wait = wait_duration(wait_s)?;
-        let answer = video2track::link::send_once(&self.connection(broker)?, &mut signer, bv, body, wait)?;
-        verdict(bv, answer)
     }
 
     fn connection(&self, broker: &str) -> anyhow::Result<Connection> {
@@ -595,7 +598,7 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             };
             Ok(video2track::serve::serve(opts, &stop)?)
         }
-        Command::Upload { priors, bv, agent, tau, style, prior_id, valid_s, link, broker, wait_s } => {
+        Command::Upload { priors, bv, agent, tau, style, prior_id, valid_s, shot } => {
             let style = style.as_deref().map(video2track::link::parse_style).transpose()?;
             let id = prior_id.unwrap_or_else(|| (video2track::link::unix_ms() % 1_000_000_000).max(1));
             let up = video2track::link::prior_from_file(&priors, agent.as_deref(), (tau, style), valid_s, id)?;
@@ -608,13 +611,13 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
                 bv,
                 up.bv_agent
             );
-            link.send_once(&broker, &bv, CloudBody::Prior(up), wait_s)
+            shot.send(&bv, CloudBody::Prior(up))
         }
-        Command::Send { action, bv, tau, style, link, broker, wait_s } => {
+        Command::Send { action, bv, tau, style, shot } => {
             let style = style.as_deref().map(video2track::link::parse_style).transpose()?;
             let cmd = video2track::link::command(&action, tau, style)?;
             let bv = if bv == "all" { ALL_BVS.to_owned() } else { bv };
-            link.send_once(&broker, &bv, CloudBody::Command(cmd), wait_s)
+            shot.send(&bv, CloudBody::Command(cmd))
         }
         Command::Export { command: ExportCommand::Xosc { input, out, map, vut_vehicle, bv_vehicle } } => {
             let args = video2track::export::XoscArgs {
