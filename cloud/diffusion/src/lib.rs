@@ -29,10 +29,15 @@
 //! assert!(inv.rollout_gap_m < 1e-9);
 //! ```
 
+pub mod condition;
+pub mod denoiser;
 pub mod guidance;
 pub mod import;
 pub mod inverse;
 pub mod mining;
+pub mod schedule;
 pub mod stats;
 pub mod synth;
 pub mod tracks;
+pub mod train;
+pub mod weights;
