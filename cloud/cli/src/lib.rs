@@ -22,4 +22,5 @@ pub use v2t_sim::recording;
 mod runfile;
 pub mod serve;
 pub mod sim;
+pub mod train;
 pub mod xosc;

@@ -220,29 +220,10 @@ pub fn priors_document(
 }
 
 /// The constant-speed prior along the grounded routes, keeping the grounded timing, over
-/// [`grounded_horizon_s`]: the predefined reference of the TroubleMaker-like baseline and the
+/// [`TrajectoryPrior::stand_in_horizon_s`]: the predefined reference of the TroubleMaker-like baseline and the
 /// stand-in where no diffusion prior exists.
 pub fn stand_in_prior(g: &GroundedScenario) -> Result<TrajectoryPrior, String> {
-    TrajectoryPrior::along_routes_at_start_speed(g, grounded_horizon_s(g)).map_err(|e| e.to_string())
-}
-
-/// How long the constant-speed prior of `g` must run for every agent to reach its route's end,
-/// counting the grounded start times (clamped to 1–120 s).
-pub fn grounded_horizon_s(g: &GroundedScenario) -> f64 {
-    let t_first = g.agents.iter().filter_map(|a| a.start.time_s).fold(f64::INFINITY, f64::min);
-    g.agents
-        .iter()
-        .map(|a| {
-            let lead = a.start.time_s.map_or(0.0, |t| if t > t_first { t - t_first } else { 0.0 });
-            route_time_s(&a.route, a.start.speed_mps) + lead
-        })
-        .fold(0.0, f64::max)
-        .clamp(1.0, 120.0)
-}
-
-pub(crate) fn route_time_s(route: &[v2t_model::geometry::Point2], speed_mps: f64) -> f64 {
-    let length: f64 = route.windows(2).map(|w| w.first().zip(w.get(1)).map_or(0.0, |(a, b)| a.dist(*b))).sum();
-    if speed_mps > 0.1 { length / speed_mps } else { 0.0 }
+    TrajectoryPrior::along_routes_at_start_speed(g, TrajectoryPrior::stand_in_horizon_s(g)).map_err(|e| e.to_string())
 }
 
 /// Where the cloud's client connects and how it logs in.

@@ -140,6 +140,50 @@ enum Command {
         #[arg(long, value_enum)]
         sampling: Option<Sampling>,
     },
+    /// Train the trajectory-prior denoiser (default: on the synthetic corpus generated on the
+    /// proving ground); writes OUT/denoiser.safetensors, OUT/metrics.jsonl, OUT/checkpoints/.
+    Train {
+        /// A corpus file (JSON lines, as the synthetic corpus writer makes it); default: generate
+        /// the synthetic corpus on --map.
+        #[arg(long)]
+        data: Option<PathBuf>,
+        /// The corpus's map (routes come from its topology library).
+        #[arg(long, default_value = video2track::ground::DEFAULT_MAP)]
+        map: PathBuf,
+        /// Episodes of the generated corpus.
+        #[arg(long, default_value_t = video2track::train::DEFAULT_EPISODES)]
+        episodes: usize,
+        /// Seed of the generated corpus.
+        #[arg(long, default_value_t = video2track::train::DEFAULT_CORPUS_SEED)]
+        corpus_seed: u64,
+        /// Optimizer steps.
+        #[arg(long, default_value_t = 4000)]
+        steps: usize,
+        /// Windows per step.
+        #[arg(long, default_value_t = 64)]
+        batch: usize,
+        /// Peak learning rate.
+        #[arg(long, default_value_t = 1e-3)]
+        lr: f64,
+        /// Seed of initialization, batches and noise.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Channels of the network.
+        #[arg(long, default_value_t = 64)]
+        hidden: usize,
+        /// Residual blocks.
+        #[arg(long, default_value_t = 4)]
+        blocks: usize,
+        /// Held-out loss (and a metrics line) every this many steps.
+        #[arg(long, default_value_t = 250)]
+        eval_every: usize,
+        /// A checkpoint every this many steps (0: none).
+        #[arg(long, default_value_t = 1000)]
+        checkpoint_every: usize,
+        /// Output directory.
+        #[arg(long, default_value = "target/train")]
+        out: PathBuf,
+    },
     /// Place a video's semantics on the proving ground: rank the map's fragments, ground the VUT,
     /// the BVs and their conflict on the best that fits, write the grounded scenario.
     Ground {
@@ -467,6 +511,56 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
                 std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
                 println!("wrote {}", path.display());
             }
+            Ok(())
+        }
+        Command::Train {
+            data,
+            map,
+            episodes,
+            corpus_seed,
+            steps,
+            batch,
+            lr,
+            seed,
+            hidden,
+            blocks,
+            eval_every,
+            checkpoint_every,
+            out,
+        } => {
+            let command = std::env::args().collect::<Vec<_>>().join(" ");
+            let args = video2track::train::TrainArgs {
+                data,
+                map,
+                episodes,
+                corpus_seed,
+                options: v2t_diffusion::train::TrainOptions {
+                    steps,
+                    batch,
+                    learning_rate: lr,
+                    seed,
+                    eval_every,
+                    ..v2t_diffusion::train::TrainOptions::default()
+                },
+                config: v2t_diffusion::denoiser::DenoiserConfig {
+                    hidden,
+                    blocks,
+                    ..v2t_diffusion::denoiser::DenoiserConfig::default()
+                },
+                stride: 5,
+                out,
+                checkpoint_every,
+                command,
+            };
+            let done = video2track::train::train(&args)?;
+            println!(
+                "trained {} parameters in {:.0} s, held-out loss {:.4}; wrote {} and {}",
+                done.parameters,
+                done.elapsed_s,
+                done.heldout_loss,
+                done.weights.display(),
+                done.metrics.display()
+            );
             Ok(())
         }
         Command::Abstract { video, pet_label, labels, out, record, replay, frames, sampling } => {

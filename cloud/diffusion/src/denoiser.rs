@@ -107,7 +107,14 @@ struct TemporalConv {
 }
 
 impl TemporalConv {
-    fn new(cin: usize, cout: usize, kernel: usize, dilation: usize, zero: bool, vb: VarBuilder) -> candle_core::Result<Self> {
+    fn new(
+        cin: usize,
+        cout: usize,
+        kernel: usize,
+        dilation: usize,
+        zero: bool,
+        vb: VarBuilder,
+    ) -> candle_core::Result<Self> {
         let linear = if zero {
             let w = vb.get_with_hints((cout, kernel * cin), "weight", candle_nn::Init::Const(0.0))?;
             let b = vb.get_with_hints(cout, "bias", candle_nn::Init::Const(0.0))?;
@@ -232,7 +239,13 @@ impl Denoiser {
 
     /// `ε̂` for a batch: `z` `[B, 2S, T]`, `steps` the diffusion step of each sample (1..=K),
     /// `cond` `[B, C]`, `time_features` `[B, F, T/P]`. Returns `[B, 2S, T]`.
-    pub fn forward(&self, z: &Tensor, steps: &[usize], cond: &Tensor, time_features: &Tensor) -> candle_core::Result<Tensor> {
+    pub fn forward(
+        &self,
+        z: &Tensor,
+        steps: &[usize],
+        cond: &Tensor,
+        time_features: &Tensor,
+    ) -> candle_core::Result<Tensor> {
         let (b, ch, t) = z.dims3()?;
         let p = self.cfg.patch;
         let l = t / p;

@@ -35,6 +35,7 @@ pub mod guidance;
 pub mod import;
 pub mod inverse;
 pub mod mining;
+pub mod sample;
 pub mod schedule;
 pub mod stats;
 pub mod synth;

@@ -166,14 +166,16 @@ pub fn episode_windows(
     let mut w0 = 0;
     while w0 + cfg.steps <= n {
         let t0 = w0 as f64 * dt;
-        let inside = pass.iter().all(|p| p.is_some_and(|t| t - t0 >= WINDOW_MARGIN_S && t - t0 <= horizon - WINDOW_MARGIN_S));
+        let inside =
+            pass.iter().all(|p| p.is_some_and(|t| t - t0 >= WINDOW_MARGIN_S && t - t0 <= horizon - WINDOW_MARGIN_S));
         if inside {
             let mut z0 = vec![0.0f32; cfg.sample_len()];
             let mut mask = vec![0.0f32; cfg.sample_len()];
             let mut slots = vec![None; cfg.slots];
             for (slot, &i) in order.iter().enumerate() {
                 let Some(agent) = episode.agents.get(i) else { continue };
-                let (Some(start), Some(controls)) = (agent.states.get(w0), agent.controls.get(w0..w0 + cfg.steps)) else {
+                let (Some(start), Some(controls)) = (agent.states.get(w0), agent.controls.get(w0..w0 + cfg.steps))
+                else {
                     continue;
                 };
                 let Some(route) = routes.get(&agent.route_id) else { continue };
@@ -182,13 +184,20 @@ pub fn episode_windows(
                     *v = 1.0;
                 }
                 let anchor = pass.get(slot).copied().flatten().map(|t| (mined.conflict_point, t - t0));
-                let order = (slot < 2).then(|| if agent.id == mined.first { PassingOrder::First } else { PassingOrder::Second });
+                let order = (slot < 2)
+                    .then(|| if agent.id == mined.first { PassingOrder::First } else { PassingOrder::Second });
                 if let Some(s) = slots.get_mut(slot) {
                     *s = Some(SlotCondition { start: *start, route_local: route_ahead(route, start), anchor, order });
                 }
             }
             let condition = Condition { slots, kind: KindClass::of_mined(mined.kind) };
-            out.push(Window { episode: index, z0, mask, cond: condition.features(cfg), time: condition.time_features(cfg) });
+            out.push(Window {
+                episode: index,
+                z0,
+                mask,
+                cond: condition.features(cfg),
+                time: condition.time_features(cfg),
+            });
         }
         w0 += stride.max(1);
     }
@@ -503,11 +512,7 @@ impl Trainer {
 
     /// Trains for the configured steps; `report` gets a metrics line every `eval_every` steps
     /// (with the held-out loss) and may save a checkpoint. Returns the last held-out loss.
-    pub fn run(
-        &mut self,
-        data: &Dataset,
-        mut report: impl FnMut(&Trainer, &TrainMetrics),
-    ) -> Result<f64, TrainError> {
+    pub fn run(&mut self, data: &Dataset, mut report: impl FnMut(&Trainer, &TrainMetrics)) -> Result<f64, TrainError> {
         let started = std::time::Instant::now();
         let mut sum = 0.0;
         let mut count = 0usize;

@@ -185,12 +185,14 @@ pub fn to_bytes(varmap: &VarMap, meta: &ModelMeta) -> Result<Vec<u8>, WeightsErr
 /// Writes the weights of `varmap` to `path`.
 pub fn save(varmap: &VarMap, meta: &ModelMeta, path: &std::path::Path) -> Result<(), WeightsError> {
     let bytes = to_bytes(varmap, meta)?;
-    std::fs::write(path, bytes).map_err(|e| WeightsError::Io { path: path.display().to_string(), message: e.to_string() })
+    std::fs::write(path, bytes)
+        .map_err(|e| WeightsError::Io { path: path.display().to_string(), message: e.to_string() })
 }
 
 /// The metadata of a weights file (format and version checked first).
 pub fn read_meta(bytes: &[u8]) -> Result<ModelMeta, WeightsError> {
-    let (_, header) = safetensors::SafeTensors::read_metadata(bytes).map_err(|e| WeightsError::NotSafetensors(e.to_string()))?;
+    let (_, header) =
+        safetensors::SafeTensors::read_metadata(bytes).map_err(|e| WeightsError::NotSafetensors(e.to_string()))?;
     let empty = HashMap::new();
     let md = header.metadata().as_ref().unwrap_or(&empty);
     let format = md.get("format").cloned().unwrap_or_default();
@@ -201,7 +203,10 @@ pub fn read_meta(bytes: &[u8]) -> Result<ModelMeta, WeightsError> {
     if version != VERSION.to_string() {
         return Err(WeightsError::Version { found: version });
     }
-    fn field<T: serde::de::DeserializeOwned>(md: &HashMap<String, String>, field: &'static str) -> Result<T, WeightsError> {
+    fn field<T: serde::de::DeserializeOwned>(
+        md: &HashMap<String, String>,
+        field: &'static str,
+    ) -> Result<T, WeightsError> {
         let text = md.get(field).ok_or(WeightsError::Metadata { field, message: "missing".into() })?;
         serde_json::from_str(text).map_err(|e| WeightsError::Metadata { field, message: e.to_string() })
     }
@@ -217,7 +222,10 @@ pub fn read_meta(bytes: &[u8]) -> Result<ModelMeta, WeightsError> {
         && n.yaw_rate_scale_radps > 0.0
         && n.yaw_rate_scale_radps.is_finite())
     {
-        return Err(WeightsError::Metadata { field: "normalization", message: "needs finite means and scales > 0".into() });
+        return Err(WeightsError::Metadata {
+            field: "normalization",
+            message: "needs finite means and scales > 0".into(),
+        });
     }
     let training: TrainingRecord = field(md, "training")?;
     Ok(ModelMeta { config, normalization, training })
@@ -243,7 +251,8 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Model, WeightsError> {
                 return Err(WeightsError::Shape { name: name.clone(), expected, found: t.dims().to_vec() });
             }
             let t = t.to_dtype(DType::F32).map_err(tensor_err)?;
-            let finite = t.flatten_all().and_then(|f| f.to_vec1::<f32>()).map_err(tensor_err)?.iter().all(|v| v.is_finite());
+            let finite =
+                t.flatten_all().and_then(|f| f.to_vec1::<f32>()).map_err(tensor_err)?.iter().all(|v| v.is_finite());
             if !finite {
                 return Err(WeightsError::NonFinite(name.clone()));
             }
@@ -260,7 +269,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Model, WeightsError> {
 
 /// A model from a weights file.
 pub fn load(path: &std::path::Path) -> Result<Model, WeightsError> {
-    let bytes =
-        std::fs::read(path).map_err(|e| WeightsError::Io { path: path.display().to_string(), message: e.to_string() })?;
+    let bytes = std::fs::read(path)
+        .map_err(|e| WeightsError::Io { path: path.display().to_string(), message: e.to_string() })?;
     from_bytes(&bytes)
 }

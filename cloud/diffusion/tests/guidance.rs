@@ -112,6 +112,8 @@ fn guidance_for(p: &Problem, weights: GuidanceWeights) -> Guidance {
         } else {
             vec![]
         },
+        // The first step's jerk counts against a previous acceleration (a stitched prior).
+        previous_accel_mps2: (0..n).map(|i| 0.8 - 0.7 * i as f64).collect(),
     };
     Guidance::new(config, context).unwrap()
 }
@@ -184,6 +186,7 @@ fn satisfied() -> (Guidance, Vec<State>, Vec<Control>) {
             vec![Point2::new(-10.0, -1.75), Point2::new(100.0, -1.75)],
         ],
         conflict_windows: vec![],
+        previous_accel_mps2: Vec::new(),
     };
     (Guidance::new(config, context).unwrap(), x0s, u)
 }
@@ -303,6 +306,7 @@ fn degenerate_input_gives_finite_results() {
             vec![Point2::new(3.0, 3.0)],
         ],
         conflict_windows: vec![],
+        previous_accel_mps2: Vec::new(),
     };
     let g = Guidance::new(config, context).unwrap();
     let mut ws = GuidanceWorkspace::new(&g);
@@ -506,8 +510,7 @@ proptest! {
         let ctx = GuidanceContext {
             anchors: vec![Anchor { agent: 1, position: boundary.first().copied().unwrap_or_default(), time_s: 0.33 }],
             boundaries: vec![boundary],
-            conflict_windows: vec![],
-        };
+            conflict_windows: vec![], previous_accel_mps2: Vec::new() };
         let g = Guidance::new(config, ctx).unwrap();
         let mut ws = GuidanceWorkspace::new(&g);
         let mut grad = vec![Control::default(); u.len()];

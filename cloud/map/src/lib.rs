@@ -23,6 +23,7 @@
 //! ```
 
 pub mod annotate;
+pub mod boundaries;
 pub mod drivable;
 pub mod error;
 pub mod geometry;

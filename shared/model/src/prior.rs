@@ -104,6 +104,22 @@ impl TrajectoryPrior {
         Ok(prior)
     }
 
+    /// How long [`Self::along_routes_at_start_speed`] must run for every agent of `g` to reach its
+    /// route's end, counting the grounded start times (clamped to 1–120 s).
+    pub fn stand_in_horizon_s(g: &GroundedScenario) -> f64 {
+        let t_first = g.agents.iter().filter_map(|a| a.start.time_s).fold(f64::INFINITY, f64::min);
+        g.agents
+            .iter()
+            .map(|a| {
+                let lead = a.start.time_s.map_or(0.0, |t| if t > t_first { t - t_first } else { 0.0 });
+                let length: f64 = a.route.windows(2).map(|w| w.first().zip(w.get(1)).map_or(0.0, |(p, q)| p.dist(*q))).sum();
+                let drive = if a.start.speed_mps > 0.1 { length / a.start.speed_mps } else { 0.0 };
+                drive + lead
+            })
+            .fold(0.0, f64::max)
+            .clamp(1.0, 120.0)
+    }
+
     /// Duration covered, s.
     pub fn duration_s(&self) -> f64 {
         self.agents.iter().map(|a| a.controls.len()).max().unwrap_or(0) as f64 * self.dt_s

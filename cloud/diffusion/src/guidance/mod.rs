@@ -207,6 +207,9 @@ pub struct GuidanceContext {
     pub boundaries: Vec<Vec<Point2>>,
     /// Pairs and windows where the clearance term is off.
     pub conflict_windows: Vec<ConflictWindow>,
+    /// Each agent's acceleration just before the horizon (a prior stitched after a lead-in): the
+    /// jerk of the first step is counted against it. Empty: not counted.
+    pub previous_accel_mps2: Vec<f64>,
 }
 
 /// Raw (unweighted) energies and the weighted total.
@@ -275,6 +278,11 @@ impl Guidance {
         for w in &context.conflict_windows {
             let ok = w.agent_a < c.agents && w.agent_b < c.agents && !w.from_s.is_nan() && !w.to_s.is_nan();
             check("conflict_windows", ok, w.from_s, "need agent indices and non-NaN times")?;
+        }
+        let n_prev = context.previous_accel_mps2.len();
+        check("previous_accel_mps2", n_prev == 0 || n_prev == c.agents, n_prev as f64, "needs none or one per agent")?;
+        for a in &context.previous_accel_mps2 {
+            check("previous_accel_mps2", a.is_finite(), *a, "must be finite")?;
         }
         Ok(Self { config, context })
     }
@@ -354,13 +362,15 @@ impl Guidance {
             kinematic: 0.0,
             total: 0.0,
         };
-        for ((xs, g), (u, ug)) in ws
+        for (agent, ((xs, g), (u, ug))) in ws
             .states
             .iter()
             .zip(ws.state_grads.iter_mut())
             .zip(controls.chunks_exact(t_len).zip(out_grad.chunks_exact_mut(t_len)))
+            .enumerate()
         {
-            e.kinematic += terms::kinematic_energy(&self.config.limits, dt, xs, u, g, ug, w.kinematic);
+            let previous = ctx.previous_accel_mps2.get(agent).copied();
+            e.kinematic += terms::kinematic_energy(&self.config.limits, dt, xs, u, g, ug, w.kinematic, previous);
         }
         for ((xs, g), (u, ug)) in ws
             .states

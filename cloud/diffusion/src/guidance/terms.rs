@@ -178,8 +178,8 @@ fn range_hinge(z: f64, lo: f64, hi: f64) -> (f64, f64) {
 ///
 /// where `φ(z ∉ [lo, hi])` is the squared distance of `z` to the interval. The lateral term's speed
 /// part goes into the state gradient (`v_t`, through the adjoint), its yaw rate part and the
-/// acceleration and jerk terms into `ctrl_grads` directly. The jerk of the first step (against the
-/// unknown previous acceleration) is not counted.
+/// acceleration and jerk terms into `ctrl_grads` directly. The jerk of the first step counts against
+/// `previous_accel_mps2` when it is known (`φ(|a_0 − a_prev|/dt − j_max)`), not at all otherwise.
 pub fn kinematic_energy(
     limits: &KinematicLimits,
     dt_s: f64,
@@ -188,8 +188,14 @@ pub fn kinematic_energy(
     state_grads: &mut [State],
     ctrl_grads: &mut [Control],
     w: f64,
+    previous_accel_mps2: Option<f64>,
 ) -> f64 {
     let mut e = 0.0;
+    if let (Some(a_prev), Some(u0), Some(g0)) = (previous_accel_mps2, controls.first(), ctrl_grads.first_mut()) {
+        let (ej, dj) = abs_hinge((u0.accel_mps2 - a_prev) / dt_s, limits.jerk_max_mps3);
+        e += ej;
+        g0.accel_mps2 += w * dj / dt_s;
+    }
     for ((x, u), (gx, gu)) in states.iter().zip(controls).zip(state_grads.iter_mut().zip(ctrl_grads.iter_mut())) {
         let (ea, da) = range_hinge(u.accel_mps2, limits.accel_min_mps2, limits.accel_max_mps2);
         let (el, dl) = abs_hinge(x.speed_mps * u.yaw_rate_radps, limits.lat_accel_max_mps2);

@@ -1,0 +1,154 @@
+//! `video2track train`: the denoiser of `v2t-diffusion` trained on a corpus (by default the
+//! **synthetic** corpus generated on the proving ground), with a progress bar, checkpoints, a
+//! held-out split and a metrics file.
+
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+use v2t_diffusion::denoiser::DenoiserConfig;
+use v2t_diffusion::synth::{SyntheticCorpus, generate_corpus, read_jsonl_file};
+use v2t_diffusion::train::{Dataset, TrainMetrics, TrainOptions, Trainer};
+use v2t_diffusion::weights;
+
+/// Default corpus: episodes and seed of the synthetic corpus the shipped weights were trained on.
+pub const DEFAULT_EPISODES: usize = 1000;
+/// … its seed.
+pub const DEFAULT_CORPUS_SEED: u64 = 1;
+/// Where the shipped weights live.
+pub const SHIPPED_WEIGHTS: &str = "config/diffusion/denoiser.safetensors";
+
+/// What `train` needs.
+#[derive(Debug, Clone)]
+pub struct TrainArgs {
+    /// A corpus file (JSON lines); `None`: generate the synthetic corpus on `map`.
+    pub data: Option<PathBuf>,
+    /// Map of the generated corpus and of the routes (the corpus's map).
+    pub map: PathBuf,
+    /// Episodes of the generated corpus.
+    pub episodes: usize,
+    /// Seed of the generated corpus.
+    pub corpus_seed: u64,
+    /// Optimizer settings.
+    pub options: TrainOptions,
+    /// Architecture.
+    pub config: DenoiserConfig,
+    /// Window stride, steps.
+    pub stride: usize,
+    /// Output directory: `denoiser.safetensors`, `metrics.jsonl`, `checkpoints/`.
+    pub out: PathBuf,
+    /// A checkpoint every this many steps (0: none).
+    pub checkpoint_every: usize,
+    /// The command line, recorded in the weights.
+    pub command: String,
+}
+
+/// What training produced.
+#[derive(Debug, Clone)]
+pub struct TrainOutcome {
+    /// The weights file.
+    pub weights: PathBuf,
+    /// The metrics file.
+    pub metrics: PathBuf,
+    /// Last held-out loss.
+    pub heldout_loss: f64,
+    /// Trainable numbers.
+    pub parameters: usize,
+    /// Wall time, s.
+    pub elapsed_s: f64,
+}
+
+fn load_corpus(args: &TrainArgs, map: &v2t_map::Map) -> anyhow::Result<(SyntheticCorpus, String)> {
+    match &args.data {
+        Some(path) => {
+            let corpus = read_jsonl_file(path)?;
+            let source = format!("{} ({} episodes, seed {}, map {})", path.display(), corpus.episodes.len(), corpus.seed, corpus.map);
+            Ok((corpus, source))
+        }
+        None => {
+            eprintln!("generating the synthetic corpus: {} episodes, seed {} …", args.episodes, args.corpus_seed);
+            let corpus = generate_corpus(map, args.episodes, args.corpus_seed)?;
+            let source = format!(
+                "synthetic corpus generated on {} ({} episodes, corpus seed {})",
+                args.map.display(),
+                corpus.episodes.len(),
+                args.corpus_seed
+            );
+            Ok((corpus, source))
+        }
+    }
+}
+
+fn progress(m: &TrainMetrics, total: usize) {
+    let width = 30;
+    let done = (m.step * width / total.max(1)).min(width);
+    let eta = if m.step > 0 { m.elapsed_s / m.step as f64 * (total - m.step.min(total)) as f64 } else { 0.0 };
+    eprint!(
+        "\r[{}{}] {}/{} train {:.4} held-out {} lr {:.1e} {:.0} s, eta {:.0} s   ",
+        "#".repeat(done),
+        ".".repeat(width - done),
+        m.step,
+        total,
+        m.train_loss,
+        m.heldout_loss.map_or("-".to_owned(), |l| format!("{l:.4}")),
+        m.learning_rate,
+        m.elapsed_s,
+        eta
+    );
+    let _ = std::io::stderr().flush();
+}
+
+/// Trains and writes the weights, checkpoints and metrics under `args.out`.
+pub fn train(args: &TrainArgs) -> anyhow::Result<TrainOutcome> {
+    let started = std::time::Instant::now();
+    let map = v2t_map::Map::load(&args.map)?;
+    let library = v2t_map::library::TopologyLibrary::build(&map);
+    let (corpus, source) = load_corpus(args, &map)?;
+    let data = Dataset::build(&corpus.episodes, &library, args.config, args.stride)?;
+    eprintln!(
+        "{} training windows, {} held-out windows ({} held-out episodes)",
+        data.train.len(),
+        data.heldout.len(),
+        data.heldout_episodes.len()
+    );
+    std::fs::create_dir_all(args.out.join("checkpoints"))?;
+    let metrics_path = args.out.join("metrics.jsonl");
+    let mut metrics_file = std::fs::File::create(&metrics_path)?;
+    let mut trainer = Trainer::new(args.config, args.options)?;
+    let parameters = trainer.parameters();
+    eprintln!("denoiser: {parameters} parameters, {:?}", args.config);
+    let mut io_error: Option<anyhow::Error> = None;
+    let heldout = trainer.run(&data, |t, m| {
+        progress(m, args.options.steps);
+        let line = serde_json::to_string(m).map_err(anyhow::Error::from);
+        let written = line.and_then(|l| writeln!(metrics_file, "{l}").map_err(anyhow::Error::from));
+        let checkpoint = if args.checkpoint_every > 0 && m.step % args.checkpoint_every == 0 {
+            let meta = t.meta(&data, args.command.clone(), source.clone(), m.heldout_loss.unwrap_or(f64::NAN));
+            let path = args.out.join("checkpoints").join(format!("step-{:06}.safetensors", m.step));
+            weights::save(t.varmap(), &meta, &path).map_err(anyhow::Error::from)
+        } else {
+            Ok(())
+        };
+        if let Err(e) = written.and(checkpoint) {
+            io_error.get_or_insert(e);
+        }
+    })?;
+    eprintln!();
+    if let Some(e) = io_error {
+        return Err(e.context("writing metrics or a checkpoint"));
+    }
+    let meta = trainer.meta(&data, args.command.clone(), source, heldout);
+    let weights_path = args.out.join("denoiser.safetensors");
+    weights::save(trainer.varmap(), &meta, &weights_path)?;
+    Ok(TrainOutcome {
+        weights: weights_path,
+        metrics: metrics_path,
+        heldout_loss: heldout,
+        parameters,
+        elapsed_s: started.elapsed().as_secs_f64(),
+    })
+}
+
+/// The default weights path, relative to the working directory (the repository root).
+pub fn shipped_weights() -> &'static Path {
+    Path::new(SHIPPED_WEIGHTS)
+}
