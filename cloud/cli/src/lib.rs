@@ -11,6 +11,7 @@ pub mod abstract_cmd;
 pub mod demo;
 pub mod experiment;
 pub mod export;
+pub mod generate;
 pub mod ground;
 pub mod link;
 pub mod map;

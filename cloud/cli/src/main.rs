@@ -26,6 +26,17 @@ struct Cli {
     command: Command,
 }
 
+/// Guidance terms of `generate`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum GuidanceArg {
+    /// Anchors, solid boundaries, clearance, kinematic limits.
+    Full,
+    /// Anchors only.
+    Anchor,
+    /// None: the bare denoiser.
+    None,
+}
+
 #[derive(Debug, Subcommand)]
 enum Command {
     /// The whole pipeline on embedded defaults: the paper's two scenarios from their recorded VLM
@@ -139,6 +150,45 @@ enum Command {
         /// Where the frames are taken: uniform, or half of them where the picture changes most.
         #[arg(long, value_enum)]
         sampling: Option<Sampling>,
+    },
+    /// Trajectory priors for a grounded scenario from the guided diffusion model.
+    Generate {
+        /// Grounded scenario (JSON, as `ground --out` writes it).
+        grounded: PathBuf,
+        /// Variants to generate (seeded, one batch).
+        #[arg(long, default_value_t = 1)]
+        variants: usize,
+        /// Write the best variant (no boundary crossing, within limits, order as asked, smallest
+        /// anchor error) as a trajectory prior (JSON) here.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Write every variant as DIR/variant-NNN.json.
+        #[arg(long)]
+        all: Option<PathBuf>,
+        /// Write per-variant metrics and their summary (JSON) here.
+        #[arg(long)]
+        json_metrics: Option<PathBuf>,
+        /// Denoiser weights (safetensors).
+        #[arg(long, default_value = video2track::train::SHIPPED_WEIGHTS)]
+        weights: PathBuf,
+        /// The map the scenario is grounded on.
+        #[arg(long, default_value = video2track::ground::DEFAULT_MAP)]
+        map: PathBuf,
+        /// Seed of the noise.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// DDIM with this many steps instead of DDPM over all K.
+        #[arg(long)]
+        ddim: Option<usize>,
+        /// Guidance terms (ablation): full, anchor, none.
+        #[arg(long, value_enum, default_value_t = GuidanceArg::Full)]
+        guidance: GuidanceArg,
+        /// Guidance scale η of every denoising step.
+        #[arg(long, default_value_t = v2t_diffusion::sample::GuidanceSchedule::default().scale)]
+        guidance_scale: f64,
+        /// Guided corrections of the final sample (0: the paper's algorithm alone).
+        #[arg(long, default_value_t = v2t_diffusion::sample::GuidanceSchedule::default().final_iterations)]
+        final_iterations: usize,
     },
     /// Train the trajectory-prior denoiser (default: on the synthetic corpus generated on the
     /// proving ground); writes OUT/denoiser.safetensors, OUT/metrics.jsonl, OUT/checkpoints/.
@@ -509,6 +559,76 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             if let Some(path) = json {
                 let text = serde_json::to_string_pretty(&outcome).context("serializing the run")?;
                 std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
+                println!("wrote {}", path.display());
+            }
+            Ok(())
+        }
+        Command::Generate {
+            grounded,
+            variants,
+            out,
+            all,
+            json_metrics,
+            weights,
+            map,
+            seed,
+            ddim,
+            guidance,
+            guidance_scale,
+            final_iterations,
+        } => {
+            use video2track::generate as g;
+            let scenario = g::read_grounded(&grounded)?;
+            let model = g::load_model(&weights)?;
+            let map_data = v2t_map::Map::load(&map)?;
+            let mode = match guidance {
+                GuidanceArg::Full => g::GuidanceMode::Full,
+                GuidanceArg::Anchor => g::GuidanceMode::AnchorOnly,
+                GuidanceArg::None => g::GuidanceMode::None,
+            };
+            let method = match ddim {
+                Some(steps) => v2t_diffusion::sample::Method::Ddim { steps },
+                None => v2t_diffusion::sample::Method::Ddpm { noise: true },
+            };
+            let schedule = v2t_diffusion::sample::GuidanceSchedule {
+                scale: guidance_scale,
+                final_iterations,
+                ..v2t_diffusion::sample::GuidanceSchedule::default()
+            };
+            let args = g::GenerateArgs {
+                grounded,
+                map,
+                weights: weights.clone(),
+                variants,
+                seed,
+                method,
+                guidance: mode,
+                schedule,
+            };
+            let (generated, summary) = g::run(&model, &map_data, &scenario, &args)?;
+            print!("{}{}", g::REPORT_HEADER, g::report(&summary, mode));
+            if let Some(dir) = &all {
+                std::fs::create_dir_all(dir)?;
+                for (i, v) in generated.iter().enumerate() {
+                    g::write_prior(&dir.join(format!("variant-{i:03}.json")), &v.prior)?;
+                }
+                println!("wrote {} variants to {}", generated.len(), dir.display());
+            }
+            if let Some(path) = &out {
+                let chosen = g::best(&generated).ok_or_else(|| anyhow::anyhow!("no variant generated"))?;
+                g::write_prior(path, &chosen.prior)?;
+                println!("wrote {}", path.display());
+            }
+            if let Some(path) = &json_metrics {
+                let file = g::MetricsFile {
+                    fragment_id: scenario.fragment_id.clone(),
+                    guidance: mode.name().to_owned(),
+                    sampler: format!("{method:?}"),
+                    weights: format!("{} ({})", weights.display(), model.meta.training.command),
+                    summary,
+                    variants: generated.iter().map(|v| v.metrics.clone()).collect(),
+                };
+                std::fs::write(path, serde_json::to_string_pretty(&file)?)?;
                 println!("wrote {}", path.display());
             }
             Ok(())

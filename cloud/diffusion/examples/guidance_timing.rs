@@ -28,6 +28,7 @@ fn main() -> anyhow::Result<()> {
         anchors,
         boundaries: vec![boundary(-5.5), boundary(5.5)],
         conflict_windows: vec![ConflictWindow { agent_a: 0, agent_b: 1, from_s: 3.0, to_s: 5.0 }],
+        boundary_sides: Vec::new(),
         previous_accel_mps2: Vec::new(),
     };
     let g = Guidance::new(config, context)?;

@@ -59,7 +59,7 @@ pub struct GuidanceSchedule {
 
 impl Default for GuidanceSchedule {
     fn default() -> Self {
-        Self { scale: 0.05, max_step_norm: 2.0, final_iterations: 40 }
+        Self { scale: 0.05, max_step_norm: 2.0, final_iterations: 300 }
     }
 }
 

@@ -112,6 +112,8 @@ fn guidance_for(p: &Problem, weights: GuidanceWeights) -> Guidance {
         } else {
             vec![]
         },
+        // Agent 0 belongs below the first boundary, the others where they first come alongside.
+        boundary_sides: (0..n).map(|i| if i == 0 { vec![-1, 0] } else { vec![] }).collect(),
         // The first step's jerk counts against a previous acceleration (a stitched prior).
         previous_accel_mps2: (0..n).map(|i| 0.8 - 0.7 * i as f64).collect(),
     };
@@ -186,6 +188,7 @@ fn satisfied() -> (Guidance, Vec<State>, Vec<Control>) {
             vec![Point2::new(-10.0, -1.75), Point2::new(100.0, -1.75)],
         ],
         conflict_windows: vec![],
+        boundary_sides: Vec::new(),
         previous_accel_mps2: Vec::new(),
     };
     (Guidance::new(config, context).unwrap(), x0s, u)
@@ -306,6 +309,7 @@ fn degenerate_input_gives_finite_results() {
             vec![Point2::new(3.0, 3.0)],
         ],
         conflict_windows: vec![],
+        boundary_sides: Vec::new(),
         previous_accel_mps2: Vec::new(),
     };
     let g = Guidance::new(config, context).unwrap();
@@ -462,12 +466,20 @@ fn context_from_a_grounded_scenario() {
 fn signed_distance_conventions_and_a_crossing_is_pushed_back() {
     use v2t_diffusion::guidance::terms::signed_distance;
     let line = [Point2::new(0.0, 0.0), Point2::new(10.0, 0.0)];
-    let (s, g) = signed_distance(&line, Point2::new(5.0, 2.0)).unwrap();
-    assert_eq!((s, g), (2.0, Point2::new(0.0, 1.0))); // left is positive
-    let (s, _) = signed_distance(&line, Point2::new(5.0, -2.0)).unwrap();
-    assert_eq!(s, -2.0);
-    let (s, g) = signed_distance(&line, Point2::new(13.0, -4.0)).unwrap();
-    assert!((s + 5.0).abs() < 1e-12 && (g.x + 0.6).abs() < 1e-12 && (g.y - 0.8).abs() < 1e-12);
+    let d = signed_distance(&line, Point2::new(5.0, 2.0)).unwrap();
+    assert_eq!((d.signed_m, d.gradient, d.alongside), (2.0, Point2::new(0.0, 1.0), true)); // left is positive
+    let d = signed_distance(&line, Point2::new(5.0, -2.0)).unwrap();
+    assert_eq!((d.signed_m, d.alongside), (-2.0, true));
+    // Beyond the last point there is no side: the distance to the end point, positive.
+    let d = signed_distance(&line, Point2::new(13.0, -4.0)).unwrap();
+    assert!(!d.alongside);
+    assert!(
+        (d.signed_m - 5.0).abs() < 1e-12 && (d.gradient.x - 0.6).abs() < 1e-12 && (d.gradient.y + 0.8).abs() < 1e-12
+    );
+    // At a joint between two segments the side is kept (the outside of a corner).
+    let corner = [Point2::new(0.0, 0.0), Point2::new(10.0, 0.0), Point2::new(10.0, 10.0)];
+    let d = signed_distance(&corner, Point2::new(12.0, -2.0)).unwrap();
+    assert!(d.alongside && d.signed_m < 0.0, "{d:?}");
     assert!(signed_distance(&[Point2::new(1.0, 1.0); 3], Point2::new(0.0, 0.0)).is_none());
     // An agent starting below y = 1 that turns left across it: the boundary gradient steers right.
     let x0s = [State { px: 0.0, py: 0.0, theta_rad: 0.0, speed_mps: 10.0 }];
@@ -490,6 +502,32 @@ fn signed_distance_conventions_and_a_crossing_is_pushed_back() {
     assert!(grad[0].yaw_rate_radps > 0.0, "descending lowers the yaw rate: {:?}", grad[0]);
 }
 
+#[test]
+fn a_boundary_ending_at_a_junction_does_not_reach_across_it() {
+    // A road edge along y = 1 ending at x = 0; an agent crosses the line's extension (x < 0) far
+    // from its end: no energy. One that drives alongside and crosses it: energy.
+    let config = GuidanceConfig {
+        agents: 1,
+        steps: 20,
+        weights: GuidanceWeights { boundary: 1.0, ..OFF },
+        ..Default::default()
+    };
+    let ctx = GuidanceContext {
+        boundaries: vec![vec![Point2::new(0.0, 1.0), Point2::new(100.0, 1.0)]],
+        ..Default::default()
+    };
+    let g = Guidance::new(config, ctx).unwrap();
+    let mut ws = GuidanceWorkspace::new(&g);
+    let mut grad = vec![Control::default(); 20];
+    let north = [State { px: -20.0, py: -10.0, theta_rad: std::f64::consts::FRAC_PI_2, speed_mps: 10.0 }];
+    let straight = vec![Control::default(); 20];
+    let e = g.energy_and_grad(&mut ws, &north, &straight, &mut grad).unwrap();
+    assert_eq!(e.boundary, 0.0, "{e:?}");
+    let along = [State { px: 10.0, py: -3.0, theta_rad: 0.3, speed_mps: 10.0 }];
+    let e = g.energy_and_grad(&mut ws, &along, &straight, &mut grad).unwrap();
+    assert!(e.boundary > 1.0, "{e:?}");
+}
+
 fn wild() -> impl Strategy<Value = f64> {
     prop_oneof![Just(0.0), Just(-0.0), Just(1e-300), -1e6f64..1e6, Just(1e200), Just(-1e300), -1.0f64..1.0]
 }
@@ -510,7 +548,7 @@ proptest! {
         let ctx = GuidanceContext {
             anchors: vec![Anchor { agent: 1, position: boundary.first().copied().unwrap_or_default(), time_s: 0.33 }],
             boundaries: vec![boundary],
-            conflict_windows: vec![], previous_accel_mps2: Vec::new() };
+            conflict_windows: vec![], boundary_sides: Vec::new(), previous_accel_mps2: Vec::new() };
         let g = Guidance::new(config, ctx).unwrap();
         let mut ws = GuidanceWorkspace::new(&g);
         let mut grad = vec![Control::default(); u.len()];

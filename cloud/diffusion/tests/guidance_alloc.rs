@@ -45,6 +45,7 @@ fn energy_and_grad_and_the_guided_correction_do_not_allocate() {
         ],
         boundaries: vec![vec![Point2::new(-50.0, 1.0), Point2::new(50.0, 1.5), Point2::new(90.0, 3.0)]],
         conflict_windows: vec![ConflictWindow { agent_a: 0, agent_b: 2, from_s: 1.0, to_s: 2.0 }],
+        boundary_sides: vec![vec![1], vec![], vec![-1]],
         previous_accel_mps2: vec![0.0, 0.5, -1.0],
     };
     let g = Guidance::new(config, context).unwrap();

@@ -73,6 +73,6 @@ impl GuidanceContext {
                 }),
             }
         }
-        Ok(Self { anchors, boundaries, conflict_windows, previous_accel_mps2: Vec::new() })
+        Ok(Self { anchors, boundaries, conflict_windows, boundary_sides: Vec::new(), previous_accel_mps2: Vec::new() })
     }
 }

@@ -207,6 +207,11 @@ pub struct GuidanceContext {
     pub boundaries: Vec<Vec<Point2>>,
     /// Pairs and windows where the clearance term is off.
     pub conflict_windows: Vec<ConflictWindow>,
+    /// The side of each boundary each agent belongs on, `[agent][boundary]`: `+1` left of the
+    /// boundary's direction, `-1` right, `0` (or missing) the side it is on the first time it is
+    /// alongside the boundary. A planner that knows the agents' routes sets it, so that an agent
+    /// that starts or strays on the wrong side is pushed back rather than kept there.
+    pub boundary_sides: Vec<Vec<i8>>,
     /// Each agent's acceleration just before the horizon (a prior stitched after a lead-in): the
     /// jerk of the first step is counted against it. Empty: not counted.
     pub previous_accel_mps2: Vec<f64>,
@@ -279,6 +284,13 @@ impl Guidance {
             let ok = w.agent_a < c.agents && w.agent_b < c.agents && !w.from_s.is_nan() && !w.to_s.is_nan();
             check("conflict_windows", ok, w.from_s, "need agent indices and non-NaN times")?;
         }
+        let n_sides = context.boundary_sides.len();
+        check(
+            "boundary_sides",
+            n_sides == 0 || n_sides == c.agents,
+            n_sides as f64,
+            "needs none or one row per agent",
+        )?;
         let n_prev = context.previous_accel_mps2.len();
         check("previous_accel_mps2", n_prev == 0 || n_prev == c.agents, n_prev as f64, "needs none or one per agent")?;
         for a in &context.previous_accel_mps2 {
@@ -346,6 +358,7 @@ impl Guidance {
             anchor: terms::anchor_energy(&ctx.anchors, dt, &ws.states, &mut ws.state_grads, w.anchor),
             boundary: terms::boundary_energy(
                 &ctx.boundaries,
+                &ctx.boundary_sides,
                 self.config.boundary_margin_m,
                 &ws.states,
                 &mut ws.state_grads,

@@ -47,65 +47,91 @@ pub fn anchor_energy(anchors: &[Anchor], dt_s: f64, states: &[Vec<State>], grads
     e
 }
 
-/// Signed distance from `p` to the polyline (positive on the left of its direction) and its
-/// gradient with respect to `p`, from the nearest non-degenerate segment. Inside a segment's span
-/// the distance is to the segment's line (gradient: its left normal); beyond an end it is the
-/// distance to the end point with the side of that segment. `None` when every segment has zero
-/// length.
-pub fn signed_distance(polyline: &[Point2], p: Point2) -> Option<(f64, Point2)> {
-    let mut best: Option<(f64, f64, Point2)> = None; // (unsigned, signed, gradient)
-    for seg in polyline.windows(2) {
-        let (Some(&a), Some(&b)) = (seg.first(), seg.get(1)) else { continue };
+/// Distance from a point to a boundary polyline, from its nearest non-degenerate segment.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SideDistance {
+    /// Alongside the polyline: the distance to the nearest segment's line inside its span, or to a
+    /// joint between two segments, signed positive on the left of the polyline's direction.
+    /// Beyond one of the polyline's two ends: the (positive) distance to that end point.
+    pub signed_m: f64,
+    /// Gradient of `signed_m` with respect to the point.
+    pub gradient: Point2,
+    /// Whether the point is alongside the polyline (false beyond its first or last point, where it
+    /// has no side).
+    pub alongside: bool,
+}
+
+/// [`SideDistance`] from `p` to the polyline; `None` when every segment has zero length.
+pub fn signed_distance(polyline: &[Point2], p: Point2) -> Option<SideDistance> {
+    let long = |i: &usize| match (polyline.get(*i), polyline.get(*i + 1)) {
+        (Some(a), Some(b)) => a.dist(*b) > TINY_M,
+        _ => false,
+    };
+    let n = polyline.len().saturating_sub(1);
+    let first = (0..n).find(long)?;
+    let last = (0..n).rev().find(long)?;
+    let mut best: Option<(f64, SideDistance)> = None;
+    for i in (first..=last).filter(long) {
+        let (Some(&a), Some(&b)) = (polyline.get(i), polyline.get(i + 1)) else { continue };
         let ab = b.sub(a);
         let len2 = ab.dot(ab);
-        if len2 <= TINY_M * TINY_M {
-            continue;
-        }
         let len = len2.sqrt();
         let normal = Point2::new(-ab.y / len, ab.x / len);
         let ap = p.sub(a);
         let tau = ap.dot(ab) / len2;
-        let (unsigned, signed, grad) = if (0.0..=1.0).contains(&tau) {
+        let (unsigned, d) = if (0.0..=1.0).contains(&tau) {
             let sd = ap.dot(normal);
-            (sd.abs(), sd, normal)
+            (sd.abs(), SideDistance { signed_m: sd, gradient: normal, alongside: true })
         } else {
             let q = if tau < 0.0 { a } else { b };
             let r = p.sub(q);
-            let d = r.norm();
-            let side = if ap.cross(ab) <= 0.0 { 1.0 } else { -1.0 };
-            let grad = if d > TINY_M { r.scale(side / d) } else { normal };
-            (d, side * d, grad)
+            let dist = r.norm();
+            let beyond_end = (tau < 0.0 && i == first) || (tau > 1.0 && i == last);
+            let side = if beyond_end || ap.cross(ab) <= 0.0 { 1.0 } else { -1.0 };
+            let gradient = if dist > TINY_M { r.scale(side / dist) } else { normal };
+            (dist, SideDistance { signed_m: side * dist, gradient, alongside: !beyond_end })
         };
-        if best.is_none_or(|(u, _, _)| unsigned < u) {
-            best = Some((unsigned, signed, grad));
+        if best.is_none_or(|(u, _)| unsigned < u) {
+            best = Some((unsigned, d));
         }
     }
-    best.map(|(_, s, g)| (s, g))
+    best.map(|(_, d)| d)
 }
 
 /// `E_bound = Σ_i Σ_b Σ_{t=1..T} φ(d_safe − σ_{i,b} s_b(p_tⁱ))`, `s_b` the signed distance to
-/// boundary `b` ([`signed_distance`]) and `σ_{i,b} = ±1` the side of `b` on which agent `i` starts
-/// (`x_0`; `+1` on the line). Approaching a boundary within `d_safe` and crossing it (a negative
-/// side distance) are penalised alike, growing quadratically with the depth.
+/// boundary `b` ([`signed_distance`]) and `σ_{i,b} = ±1` the side of `b` agent `i` belongs on:
+/// given in `sides[i][b]`, else the side it is on the first time it is alongside `b` (`+1` on the
+/// line). Approaching a boundary within `d_safe` and
+/// crossing it (a negative side distance) are penalised alike, growing quadratically with the depth.
+/// Beyond a boundary's ends there is no side: only coming within `d_safe` of the end point counts,
+/// so a boundary that ends at a junction does not reach across it.
 pub fn boundary_energy(
     boundaries: &[Vec<Point2>],
+    sides: &[Vec<i8>],
     margin_m: f64,
     states: &[Vec<State>],
     grads: &mut [Vec<State>],
     w: f64,
 ) -> f64 {
     let mut e = 0.0;
-    for (xs, gs) in states.iter().zip(grads.iter_mut()) {
-        let Some(start) = xs.first() else { continue };
-        for b in boundaries {
-            let Some((s0, _)) = signed_distance(b, start.position()) else { continue };
-            let side = if s0 >= 0.0 { 1.0 } else { -1.0 };
-            for (x, g) in xs.iter().zip(gs.iter_mut()).skip(1) {
-                let Some((s, grad)) = signed_distance(b, x.position()) else { continue };
-                let h = margin_m - side * s;
+    for (agent, (xs, gs)) in states.iter().zip(grads.iter_mut()).enumerate() {
+        for (bi, b) in boundaries.iter().enumerate() {
+            let mut side: Option<f64> = match sides.get(agent).and_then(|row| row.get(bi)) {
+                Some(1) => Some(1.0),
+                Some(-1) => Some(-1.0),
+                _ => None,
+            };
+            for (k, (x, g)) in xs.iter().zip(gs.iter_mut()).enumerate() {
+                let Some(d) = signed_distance(b, x.position()) else { break };
+                let sigma =
+                    if d.alongside { *side.get_or_insert(if d.signed_m >= 0.0 { 1.0 } else { -1.0 }) } else { 1.0 };
+                if k == 0 {
+                    continue;
+                }
+                let h = margin_m - sigma * d.signed_m;
                 if h > 0.0 {
                     e += h * h;
-                    add_pos(g, -w * 2.0 * h * side, grad);
+                    add_pos(g, -w * 2.0 * h * sigma, d.gradient);
                 }
             }
         }

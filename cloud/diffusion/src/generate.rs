@@ -1,0 +1,523 @@
+//! A grounded scenario → trajectory priors: the diffusion model generates the interaction window,
+//! guided toward the grounded conflict timing and away from solid boundaries, and the prior is
+//! completed before and after it.
+//!
+//! 1. **Timing.** The grounded scenario places the conflict but not when each vehicle passes it;
+//!    the constant-speed prior along the routes that keeps the grounded start times
+//!    ([`TrajectoryPrior::along_routes_at_start_speed`], the planned PET) gives each vehicle's
+//!    passage time at each conflict point.
+//! 2. **Window.** `T` steps (8 s) centred on the first conflict's two passages (clamped to the
+//!    prior). Slot 0 is the BV of the first conflict, slot 1 the VUT, slot 2 a second BV. Initial
+//!    states are the constant-speed prior's at the window start.
+//! 3. **Guidance.** Conflict anchors for both vehicles of every conflict at their passage times,
+//!    each agent's place on the grounded timeline at the window's end (the goal anchor brought
+//!    into the window: it leaves the window in its lane and on time), the
+//!    solid boundaries within 40 m of the routes (`v2t_map::boundaries`), clearance outside the
+//!    intended conflicts, kinematic limits, and the first step's jerk against the lead-in
+//!    (acceleration 0).
+//! 4. **Stitching.** Before the window: the constant-speed lead-in; the window: the rollout of the
+//!    sampled controls, each first brought within the vehicle limits (jerk, acceleration range, no
+//!    reversing, lateral acceleration, at 99 % of each: a projection after guidance, which only
+//!    acts where the soft kinematic term left an excess); after it: a pure-pursuit follower of the route that eases the acceleration
+//!    to zero within the jerk limit and holds the speed. States are rollouts of the controls
+//!    throughout, so the prior is dynamically consistent.
+
+use v2t_map::Map;
+use v2t_map::boundaries::{first_crossing, solid_boundaries};
+use v2t_model::Style;
+use v2t_model::geometry::{Point2, wrap_angle};
+use v2t_model::grounded::{AgentRole, GroundedScenario};
+use v2t_model::kinematics::{Control, State, step};
+use v2t_model::metrics::{Side, passage, pet};
+use v2t_model::path::ReferencePath;
+use v2t_model::prior::{AgentTrajectory, TrajectoryPrior};
+use v2t_model::validate::Validate as _;
+
+use crate::condition::{Condition, KindClass, PassingOrder, SlotCondition, route_ahead};
+use crate::guidance::{
+    Anchor, ConflictWindow, Guidance, GuidanceConfig, GuidanceContext, GuidanceWeights, KinematicLimits,
+};
+use crate::sample::{Problem, SampleError, SamplerOptions, sample};
+use crate::train::passage_time_s;
+use crate::weights::Model;
+
+/// Boundaries farther than this from every route point are left out of the guidance, m.
+const BOUNDARY_RADIUS_M: f64 = 40.0;
+/// The clearance term is off this long around an intended conflict's passages, s.
+const WINDOW_PAD_S: f64 = 1.5;
+
+/// What can keep a scenario from being generated.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GenerateError {
+    /// The grounded scenario is invalid (no route, NaN anchors, …).
+    #[error("grounded scenario: {0}")]
+    Scenario(String),
+    /// More agents than the model has slots.
+    #[error("the scenario has {agents} agents, the model takes at most {slots}")]
+    TooManyAgents {
+        /// In the scenario.
+        agents: usize,
+        /// Model slots.
+        slots: usize,
+    },
+    /// Guidance setup failed.
+    #[error(transparent)]
+    Guidance(#[from] crate::guidance::GuidanceError),
+    /// Sampling failed.
+    #[error(transparent)]
+    Sample(#[from] SampleError),
+}
+
+/// Settings of [`generate`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GenerateOptions {
+    /// Variants.
+    pub variants: usize,
+    /// Seed of the first variant's noise (the batch shares one stream).
+    pub seed: u64,
+    /// Sampler.
+    pub sampler: SamplerOptions,
+    /// Guidance weights (a zero switches a term off).
+    pub weights: GuidanceWeights,
+    /// Limits of the kinematic term and of the metrics.
+    pub limits: KinematicLimits,
+}
+
+impl Default for GenerateOptions {
+    fn default() -> Self {
+        Self {
+            variants: 1,
+            seed: 1,
+            sampler: SamplerOptions::default(),
+            weights: GuidanceWeights::default(),
+            limits: KinematicLimits {
+                accel_min_mps2: -6.0,
+                accel_max_mps2: 3.0,
+                lat_accel_max_mps2: 4.0,
+                jerk_max_mps3: 6.0,
+                speed_max_mps: 40.0,
+            },
+        }
+    }
+}
+
+/// How well one generated prior meets its scenario.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PriorMetrics {
+    /// Distance to each anchor at its time, m: VUT and BV of every conflict, then every agent's
+    /// window-end anchor.
+    pub anchor_errors_m: Vec<f64>,
+    /// Agents whose path crosses a solid boundary.
+    pub boundary_crossings: usize,
+    /// Agents whose acceleration, lateral acceleration and jerk stay within the limits (1 mm/s²
+    /// of tolerance), and agents in all.
+    pub agents_within_limits: usize,
+    /// Agents.
+    pub agents: usize,
+    /// Largest |acceleration|, lateral acceleration and jerk of any agent.
+    pub max_accel_mps2: f64,
+    /// … lateral acceleration, m/s².
+    pub max_lat_accel_mps2: f64,
+    /// … jerk, m/s³.
+    pub max_jerk_mps3: f64,
+    /// Conflicts whose passing order is the style's.
+    pub order_ok: usize,
+    /// Conflicts.
+    pub conflicts: usize,
+    /// PET of every conflict, s (`None` if a vehicle does not pass).
+    pub pet_s: Vec<Option<f64>>,
+}
+
+/// One generated prior and its metrics.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Generated {
+    /// The prior (all agents, the whole scenario).
+    pub prior: TrajectoryPrior,
+    /// Its metrics.
+    pub metrics: PriorMetrics,
+}
+
+/// Everything fixed for one scenario: the constant-speed timeline, the window, the condition and
+/// the guidance.
+#[derive(Debug)]
+pub struct Setup {
+    /// The constant-speed prior with the grounded timing.
+    pub base: TrajectoryPrior,
+    /// Window start, steps.
+    pub window_start: usize,
+    /// Scenario agent index of each used slot, in slot order.
+    pub slot_agents: Vec<usize>,
+    /// The condition.
+    pub condition: Condition,
+    /// The guidance (window-relative times).
+    pub guidance: Guidance,
+    /// Initial states of the used slots.
+    pub x0s: Vec<State>,
+    /// The solid boundaries near the routes.
+    pub boundaries: Vec<Vec<Point2>>,
+    /// Routes by scenario agent index.
+    pub routes: Vec<ReferencePath>,
+    /// Anchors by scenario agent: (agent, point, time from the scenario start).
+    pub anchors: Vec<(usize, Point2, f64)>,
+}
+
+/// Prepares `scenario` for a model with `cfg`.
+pub fn setup(
+    model: &Model,
+    map: &Map,
+    scenario: &GroundedScenario,
+    options: &GenerateOptions,
+) -> Result<Setup, GenerateError> {
+    scenario.validate().map_err(|e| GenerateError::Scenario(e.to_string()))?;
+    let cfg = *model.denoiser.config();
+    if scenario.agents.len() > cfg.slots {
+        return Err(GenerateError::TooManyAgents { agents: scenario.agents.len(), slots: cfg.slots });
+    }
+    let dt = crate::synth::DT_S;
+    let horizon = TrajectoryPrior::stand_in_horizon_s(scenario).max(cfg.steps as f64 * dt);
+    let base = TrajectoryPrior::along_routes_at_start_speed(scenario, horizon)
+        .map_err(|e| GenerateError::Scenario(e.to_string()))?;
+    let routes = scenario
+        .agents
+        .iter()
+        .map(|a| {
+            ReferencePath::from_points(&a.route).map_err(|e| GenerateError::Scenario(format!("{}.route: {e}", a.id)))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let index_of = |id: &str| scenario.agents.iter().position(|a| a.id == id);
+    let vut = scenario
+        .agents
+        .iter()
+        .position(|a| a.role == AgentRole::Vut)
+        .ok_or_else(|| GenerateError::Scenario("no VUT".into()))?;
+    // Passage times of every conflict on the constant-speed timeline.
+    let mut anchors = Vec::new();
+    let mut timings = Vec::new();
+    for c in &scenario.conflicts {
+        let bv = index_of(&c.bv_id)
+            .ok_or_else(|| GenerateError::Scenario(format!("conflict names unknown BV `{}`", c.bv_id)))?;
+        let time_of = |i: usize| base.agents.get(i).and_then(|a| passage_time_s(&a.states, c.point, dt));
+        let (Some(tv), Some(tb)) = (time_of(vut), time_of(bv)) else {
+            return Err(GenerateError::Scenario(format!("conflict `{}` is not on both routes", c.anchor_id)));
+        };
+        anchors.push((vut, c.point, tv));
+        anchors.push((bv, c.point, tb));
+        timings.push((bv, tv, tb));
+    }
+    let n = base.agents.iter().map(|a| a.controls.len()).min().unwrap_or(0);
+    let window_start = match timings.first() {
+        Some((_, tv, tb)) => {
+            let mid = 0.5 * (tv + tb);
+            (((mid - 0.5 * cfg.steps as f64 * dt) / dt).round().max(0.0) as usize).min(n.saturating_sub(cfg.steps))
+        }
+        None => 0,
+    };
+    let t0 = window_start as f64 * dt;
+    // Slots: the first conflict's BV, the VUT, the other BV.
+    let first_bv = timings.first().map(|(bv, _, _)| *bv);
+    let mut slot_agents: Vec<usize> = first_bv.into_iter().collect();
+    slot_agents.push(vut);
+    slot_agents.extend((0..scenario.agents.len()).filter(|i| Some(*i) != first_bv && *i != vut));
+    let bv_first = scenario.style == Style::Rush;
+    let mut slots = Vec::with_capacity(slot_agents.len());
+    let mut x0s = Vec::with_capacity(slot_agents.len());
+    for &i in &slot_agents {
+        let (Some(traj), Some(route)) = (base.agents.get(i), routes.get(i)) else { continue };
+        let start = traj.states.get(window_start).copied().unwrap_or_default();
+        // The slot's own conflict anchor (the VUT's is that of the first conflict).
+        let own = anchors.iter().find(|(a, _, _)| *a == i).map(|(_, p, t)| (*p, t - t0));
+        let order = own.map(|_| if (i == vut) != bv_first { PassingOrder::First } else { PassingOrder::Second });
+        slots.push(Some(SlotCondition { start, route_local: route_ahead(route, &start), anchor: own, order }));
+        x0s.push(start);
+    }
+    let condition = Condition { slots, kind: KindClass::of_interaction(scenario.interaction_type) };
+    let slot_of = |agent: usize| slot_agents.iter().position(|a| *a == agent);
+    let horizon_s = cfg.steps as f64 * dt;
+    // Goal anchors brought into the window: where the grounded timeline puts each agent at the
+    // window's end (on its route, on time), so that every agent leaves the window in its lane and
+    // the route-following tail has nothing to catch up.
+    for &i in &slot_agents {
+        if let Some(x) = base.agents.get(i).and_then(|a| a.states.get(window_start + cfg.steps)) {
+            anchors.push((i, x.position(), t0 + horizon_s));
+        }
+    }
+    let guidance_anchors = anchors
+        .iter()
+        .filter(|(_, _, t)| *t - t0 >= 0.0 && *t - t0 <= horizon_s)
+        .filter_map(|(a, p, t)| slot_of(*a).map(|agent| Anchor { agent, position: *p, time_s: t - t0 }))
+        .collect();
+    let conflict_windows = timings
+        .iter()
+        .filter_map(|(bv, tv, tb)| {
+            Some(ConflictWindow {
+                agent_a: slot_of(vut)?,
+                agent_b: slot_of(*bv)?,
+                from_s: tv.min(*tb) - t0 - WINDOW_PAD_S,
+                to_s: tv.max(*tb) - t0 + WINDOW_PAD_S,
+            })
+        })
+        .collect();
+    let near: Vec<Point2> = slot_agents
+        .iter()
+        .filter_map(|&i| base.agents.get(i))
+        .flat_map(|a| a.states.iter().skip(window_start).take(cfg.steps + 1).step_by(5).map(State::position))
+        .collect();
+    let boundaries = solid_boundaries(map, &near, BOUNDARY_RADIUS_M, 0.05);
+    let boundary_sides = slot_agents
+        .iter()
+        .map(|&i| boundaries.iter().map(|b| routes.get(i).map_or(0, |r| route_side(r, b))).collect())
+        .collect();
+    let context = GuidanceContext {
+        anchors: guidance_anchors,
+        boundaries: boundaries.clone(),
+        boundary_sides,
+        conflict_windows,
+        previous_accel_mps2: vec![0.0; slot_agents.len()],
+    };
+    let config = GuidanceConfig {
+        agents: slot_agents.len(),
+        steps: cfg.steps,
+        dt_s: dt,
+        weights: options.weights,
+        limits: options.limits,
+        ..GuidanceConfig::default()
+    };
+    let guidance = Guidance::new(config, context)?;
+    Ok(Setup { base, window_start, slot_agents, condition, guidance, x0s, boundaries, routes, anchors })
+}
+
+/// The side of `boundary` the route runs on where it runs alongside it within 6 m (a majority of
+/// its points every 2 m): `+1` left, `-1` right, `0` never alongside.
+fn route_side(route: &ReferencePath, boundary: &[Point2]) -> i8 {
+    let mut votes = 0i64;
+    let mut s = 0.0;
+    while s <= route.length() {
+        if let Some(d) = crate::guidance::terms::signed_distance(boundary, route.point_at(s)) {
+            if d.alongside && d.signed_m.abs() <= 6.0 {
+                votes += if d.signed_m >= 0.0 { 1 } else { -1 };
+            }
+        }
+        s += 2.0;
+    }
+    votes.signum() as i8
+}
+
+/// Pure pursuit of `route` from `x` for `steps` steps: acceleration eased from `a_start` to zero
+/// within `jerk_max`, yaw rate toward a look-ahead point, lateral acceleration within `lat_max`.
+fn follow_route(
+    route: &ReferencePath,
+    x: State,
+    a_start: f64,
+    steps: usize,
+    dt: f64,
+    limits: &KinematicLimits,
+) -> (Vec<State>, Vec<Control>) {
+    let mut states = Vec::with_capacity(steps + 1);
+    let mut controls = Vec::with_capacity(steps);
+    let mut state = x;
+    let mut a = a_start;
+    let mut s_hint = route.project(x.position()).map_or(0.0, |f| f.s_m);
+    states.push(state);
+    let da = 0.9 * limits.jerk_max_mps3 * dt;
+    for _ in 0..steps {
+        a = if a > 0.0 { (a - da).max(0.0) } else { (a + da).min(0.0) };
+        if state.speed_mps + a * dt < 0.0 {
+            a = -state.speed_mps / dt;
+        }
+        let foot = route.project_near(state.position(), s_hint, 20.0).map_or(s_hint, |f| f.s_m);
+        s_hint = foot;
+        let look = (1.0 * state.speed_mps).max(6.0);
+        let s_target = foot + look;
+        let target = if s_target <= route.length() {
+            route.point_at(s_target)
+        } else {
+            let len = route.length();
+            route.point_at(len).add(Point2::from_heading(route.heading_at(len)).scale(s_target - len))
+        };
+        let d = target.sub(state.position());
+        let alpha = wrap_angle(d.y.atan2(d.x) - state.theta_rad);
+        let mut omega = 2.0 * state.speed_mps * alpha.sin() / d.norm().max(1.0);
+        if state.speed_mps > 0.5 {
+            let cap = 0.9 * limits.lat_accel_max_mps2 / state.speed_mps;
+            omega = omega.clamp(-cap, cap);
+        }
+        let u = Control { accel_mps2: a, yaw_rate_radps: omega };
+        state = step(state, u, dt);
+        controls.push(u);
+        states.push(state);
+    }
+    (states, controls)
+}
+
+/// `u` brought within the limits from state `x` after acceleration `a_prev`: jerk first, then the
+/// acceleration range, no reversing, then the yaw rate for the lateral acceleration (all at 99 %
+/// of the limit).
+fn within_limits(x: State, u: Control, a_prev: f64, dt: f64, limits: &KinematicLimits) -> Control {
+    let m = 0.99;
+    let dj = m * limits.jerk_max_mps3 * dt;
+    let mut a = u.accel_mps2.clamp(a_prev - dj, a_prev + dj);
+    a = a.clamp(m * limits.accel_min_mps2, m * limits.accel_max_mps2);
+    a = a.max(-x.speed_mps / dt);
+    let mut omega = u.yaw_rate_radps;
+    if x.speed_mps > 1e-6 {
+        let cap = m * limits.lat_accel_max_mps2 / x.speed_mps;
+        omega = omega.clamp(-cap, cap);
+    }
+    Control { accel_mps2: a, yaw_rate_radps: omega }
+}
+
+/// The prior of one sampled variant: lead-in, window, route-following tail.
+fn stitch(
+    scenario: &GroundedScenario,
+    setup: &Setup,
+    window: &[Vec<Control>],
+    limits: &KinematicLimits,
+) -> TrajectoryPrior {
+    let dt = setup.base.dt_s;
+    let total = setup.base.agents.iter().map(|a| a.controls.len()).min().unwrap_or(0);
+    let w0 = setup.window_start;
+    let mut agents = setup.base.agents.clone();
+    for (slot, &i) in setup.slot_agents.iter().enumerate() {
+        let (Some(agent), Some(u), Some(route)) = (agents.get_mut(i), window.get(slot), setup.routes.get(i)) else {
+            continue;
+        };
+        let mut states: Vec<State> = agent.states.iter().take(w0 + 1).copied().collect();
+        let mut controls: Vec<Control> = agent.controls.iter().take(w0).copied().collect();
+        let mut x = states.last().copied().unwrap_or_default();
+        let mut a_prev = controls.last().map_or(0.0, |c| c.accel_mps2);
+        for c in u {
+            let c = within_limits(x, *c, a_prev, dt, limits);
+            a_prev = c.accel_mps2;
+            x = step(x, c, dt);
+            controls.push(c);
+            states.push(x);
+        }
+        let a_last = controls.last().map_or(0.0, |c| c.accel_mps2);
+        let (tail_states, tail_controls) =
+            follow_route(route, x, a_last, total.saturating_sub(controls.len()), dt, limits);
+        states.extend(tail_states.into_iter().skip(1));
+        controls.extend(tail_controls);
+        *agent = AgentTrajectory { id: agent.id.clone(), role: agent.role, states, controls };
+    }
+    TrajectoryPrior {
+        fragment_id: scenario.fragment_id.clone(),
+        dt_s: dt,
+        agents,
+        conflicts: scenario.conflicts.clone(),
+        tau_s: scenario.tau_s,
+        style: scenario.style,
+    }
+}
+
+/// Position at time `t` (linear between states).
+fn position_at(states: &[State], t: f64, dt: f64) -> Option<Point2> {
+    let k = (t / dt).floor().max(0.0) as usize;
+    let f = t / dt - k as f64;
+    match (states.get(k), states.get(k + 1)) {
+        (Some(a), Some(b)) => Some(a.position().lerp(b.position(), f.clamp(0.0, 1.0))),
+        (Some(a), None) => Some(a.position()),
+        _ => states.last().map(State::position),
+    }
+}
+
+/// The metrics of `prior` against its scenario and setup.
+pub fn measure(
+    scenario: &GroundedScenario,
+    setup: &Setup,
+    prior: &TrajectoryPrior,
+    limits: &KinematicLimits,
+) -> PriorMetrics {
+    let dt = prior.dt_s;
+    let anchor_errors_m = setup
+        .anchors
+        .iter()
+        .map(|(i, p, t)| {
+            prior.agents.get(*i).and_then(|a| position_at(&a.states, *t, dt)).map_or(f64::INFINITY, |q| q.dist(*p))
+        })
+        .collect();
+    let mut boundary_crossings = 0;
+    let (mut within, mut max_a, mut max_lat, mut max_j) = (0, 0.0f64, 0.0f64, 0.0f64);
+    for a in &prior.agents {
+        let path: Vec<Point2> = a.states.iter().map(State::position).collect();
+        if first_crossing(&path, &setup.boundaries).is_some() {
+            boundary_crossings += 1;
+        }
+        let mut ok = true;
+        let tol = 1e-3;
+        for (k, (x, u)) in a.states.iter().zip(&a.controls).enumerate() {
+            let lat = (x.speed_mps * u.yaw_rate_radps).abs();
+            max_a = max_a.max(u.accel_mps2.abs());
+            max_lat = max_lat.max(lat);
+            ok &= u.accel_mps2 >= limits.accel_min_mps2 - tol && u.accel_mps2 <= limits.accel_max_mps2 + tol;
+            ok &= lat <= limits.lat_accel_max_mps2 + tol;
+            if let Some(prev) = k.checked_sub(1).and_then(|j| a.controls.get(j)) {
+                let jerk = ((u.accel_mps2 - prev.accel_mps2) / dt).abs();
+                max_j = max_j.max(jerk);
+                ok &= jerk <= limits.jerk_max_mps3 + tol;
+            }
+        }
+        if ok {
+            within += 1;
+        }
+    }
+    let vut = scenario.agents.iter().position(|a| a.role == AgentRole::Vut);
+    let mut order_ok = 0;
+    let mut pets = Vec::new();
+    for c in &scenario.conflicts {
+        let bv = scenario.agents.iter().position(|a| a.id == c.bv_id);
+        let series = |i: Option<usize>| -> Option<(Vec<f64>, Vec<f64>)> {
+            let i = i?;
+            let (a, route) = (prior.agents.get(i)?, setup.routes.get(i)?);
+            let mut hint = 0.0;
+            let mut s = Vec::with_capacity(a.states.len());
+            for x in &a.states {
+                hint = route.project_near(x.position(), hint, 30.0).map_or(hint, |f| f.s_m);
+                s.push(hint);
+            }
+            Some(((0..a.states.len()).map(|k| k as f64 * dt).collect(), s))
+        };
+        let (Some((tv, sv)), Some((tb, sb))) = (series(vut), series(bv)) else {
+            pets.push(None);
+            continue;
+        };
+        let t_end = tv.last().copied().unwrap_or(0.0);
+        let outcome = pet(passage(&tv, &sv, &c.vut_interval), passage(&tb, &sb, &c.bv_interval), t_end);
+        let wanted = if scenario.style == Style::Rush { Side::B } else { Side::A };
+        if outcome.first() == Some(wanted) {
+            order_ok += 1;
+        }
+        pets.push(outcome.pet_s());
+    }
+    PriorMetrics {
+        anchor_errors_m,
+        boundary_crossings,
+        agents_within_limits: within,
+        agents: prior.agents.len(),
+        max_accel_mps2: max_a,
+        max_lat_accel_mps2: max_lat,
+        max_jerk_mps3: max_j,
+        order_ok,
+        conflicts: scenario.conflicts.len(),
+        pet_s: pets,
+    }
+}
+
+/// `options.variants` priors for `scenario`.
+pub fn generate(
+    model: &Model,
+    map: &Map,
+    scenario: &GroundedScenario,
+    options: &GenerateOptions,
+) -> Result<Vec<Generated>, GenerateError> {
+    let setup = setup(model, map, scenario, options)?;
+    let problem = Problem { condition: &setup.condition, guidance: Some(&setup.guidance), x0s: &setup.x0s };
+    let variants = sample(model, &problem, options.variants, options.seed, &options.sampler)?;
+    let mut out = Vec::with_capacity(variants.len());
+    for v in variants {
+        let prior = stitch(scenario, &setup, &v.controls, &options.limits);
+        prior.validate().map_err(|e| GenerateError::Scenario(format!("generated prior invalid: {e}")))?;
+        let metrics = measure(scenario, &setup, &prior, &options.limits);
+        out.push(Generated { prior, metrics });
+    }
+    Ok(out)
+}
