@@ -14,7 +14,8 @@ use v2t_model::validate::Validate as _;
 
 /// The weights of full guidance: the kinematic term counts four times, so that guidance trades
 /// anchor precision for the vehicle limits before the final projection has to.
-pub const FULL_WEIGHTS: GuidanceWeights = GuidanceWeights { anchor: 1.0, boundary: 1.0, clearance: 1.0, kinematic: 4.0 };
+pub const FULL_WEIGHTS: GuidanceWeights =
+    GuidanceWeights { anchor: 1.0, boundary: 1.0, clearance: 1.0, kinematic: 4.0 };
 
 /// Which guidance terms are on (the ablation of the crate README).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -62,6 +63,8 @@ pub struct Summary {
     pub within_limits_frac: f64,
     /// Fraction of conflicts passed in the style's order.
     pub order_ok_frac: f64,
+    /// Variants drawn again because they crossed a boundary, left the limits or the order.
+    pub redrawn: usize,
     /// Wall time of the sampling (all variants), s.
     pub sampling_s: f64,
 }
@@ -94,7 +97,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// Summary of generated variants.
-pub fn summarize(generated: &[Generated], sampling_s: f64) -> Summary {
+pub fn summarize(generated: &[Generated], redrawn: usize, sampling_s: f64) -> Summary {
     let errors: Vec<f64> = generated.iter().flat_map(|g| g.metrics.anchor_errors_m.iter().copied()).collect();
     let agents: usize = generated.iter().map(|g| g.metrics.agents).sum();
     let conflicts: usize = generated.iter().map(|g| g.metrics.conflicts).sum();
@@ -103,8 +106,10 @@ pub fn summarize(generated: &[Generated], sampling_s: f64) -> Summary {
         max_anchor_error_m: errors.iter().copied().fold(0.0, f64::max),
         median_anchor_error_m: median(errors),
         boundary_crossings: generated.iter().map(|g| g.metrics.boundary_crossings).sum(),
-        within_limits_frac: generated.iter().map(|g| g.metrics.agents_within_limits).sum::<usize>() as f64 / agents.max(1) as f64,
+        within_limits_frac: generated.iter().map(|g| g.metrics.agents_within_limits).sum::<usize>() as f64
+            / agents.max(1) as f64,
         order_ok_frac: generated.iter().map(|g| g.metrics.order_ok).sum::<usize>() as f64 / conflicts.max(1) as f64,
+        redrawn,
         sampling_s,
     }
 }
@@ -128,6 +133,8 @@ pub struct GenerateArgs {
     pub guidance: GuidanceMode,
     /// Guidance step sizes.
     pub schedule: GuidanceSchedule,
+    /// Draws per variant (1: hand on the first draw whatever it is).
+    pub draws: u64,
 }
 
 /// Reads and checks a grounded scenario file.
@@ -159,11 +166,12 @@ pub fn run(
         seed: args.seed,
         sampler: SamplerOptions { method: args.method, guidance: args.schedule },
         weights: args.guidance.weights(),
+        draws: args.draws,
         ..GenerateOptions::default()
     };
     let started = std::time::Instant::now();
-    let generated = generate(model, map, scenario, &options)?;
-    let summary = summarize(&generated, started.elapsed().as_secs_f64());
+    let (generated, redrawn) = generate(model, map, scenario, &options)?;
+    let summary = summarize(&generated, redrawn, started.elapsed().as_secs_f64());
     Ok((generated, summary))
 }
 
@@ -172,7 +180,9 @@ pub fn run(
 pub fn best(generated: &[Generated]) -> Option<&Generated> {
     let worst = |g: &Generated| g.metrics.anchor_errors_m.iter().copied().fold(0.0, f64::max);
     let clean = |g: &&Generated| {
-        g.metrics.boundary_crossings == 0 && g.metrics.agents_within_limits == g.metrics.agents && g.metrics.order_ok == g.metrics.conflicts
+        g.metrics.boundary_crossings == 0
+            && g.metrics.agents_within_limits == g.metrics.agents
+            && g.metrics.order_ok == g.metrics.conflicts
     };
     let by_worst = |a: &&Generated, b: &&Generated| worst(a).total_cmp(&worst(b));
     generated.iter().filter(clean).min_by(by_worst).or_else(|| generated.iter().min_by(by_worst))
@@ -186,7 +196,7 @@ pub fn write_prior(path: &Path, prior: &TrajectoryPrior) -> anyhow::Result<()> {
 /// A markdown line for the summary.
 pub fn report(summary: &Summary, guidance: GuidanceMode) -> String {
     format!(
-        "| {} | {} | {:.3} m | {:.3} m | {} | {:.1} % | {:.1} % | {:.2} s |\n",
+        "| {} | {} | {:.3} m | {:.3} m | {} | {:.1} % | {:.1} % | {} | {:.2} s |\n",
         guidance.name(),
         summary.variants,
         summary.median_anchor_error_m,
@@ -194,9 +204,10 @@ pub fn report(summary: &Summary, guidance: GuidanceMode) -> String {
         summary.boundary_crossings,
         100.0 * summary.within_limits_frac,
         100.0 * summary.order_ok_frac,
+        summary.redrawn,
         summary.sampling_s
     )
 }
 
 /// The report's table header.
-pub const REPORT_HEADER: &str = "| guidance | variants | median anchor error | max anchor error | boundary crossings | within limits | order as asked | sampling |\n|---|---|---|---|---|---|---|---|\n";
+pub const REPORT_HEADER: &str = "| guidance | variants | median anchor error | max anchor error | boundary crossings | within limits | order as asked | redrawn | sampling |\n|---|---|---|---|---|---|---|---|---|\n";

@@ -189,6 +189,39 @@ enum Command {
         /// Guided corrections of the final sample (0: the paper's algorithm alone).
         #[arg(long, default_value_t = v2t_diffusion::sample::GuidanceSchedule::default().final_iterations)]
         final_iterations: usize,
+        /// Draws per variant: one that crosses a solid boundary, leaves the limits or the order is
+        /// drawn again up to this many times in all (1: no redraw, for ablations).
+        #[arg(long, default_value_t = v2t_diffusion::generate::GenerateOptions::default().draws)]
+        draws: u64,
+    },
+    /// Realism of trained weights: Wasserstein-1 distances between the controls they generate for
+    /// held-out windows of the corpus and the recorded ones, without guidance, with anchors only
+    /// and with full guidance.
+    Realism {
+        /// Denoiser weights (safetensors).
+        #[arg(long, default_value = video2track::train::SHIPPED_WEIGHTS)]
+        weights: PathBuf,
+        /// A corpus file; default: the synthetic corpus the shipped weights were trained on.
+        #[arg(long)]
+        data: Option<PathBuf>,
+        /// The corpus's map.
+        #[arg(long, default_value = video2track::ground::DEFAULT_MAP)]
+        map: PathBuf,
+        /// Episodes of the generated corpus.
+        #[arg(long, default_value_t = video2track::train::DEFAULT_EPISODES)]
+        episodes: usize,
+        /// Seed of the generated corpus.
+        #[arg(long, default_value_t = video2track::train::DEFAULT_CORPUS_SEED)]
+        corpus_seed: u64,
+        /// Held-out windows compared (one per held-out episode).
+        #[arg(long, default_value_t = 100)]
+        windows: usize,
+        /// Sampling seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Write the rows as JSON here.
+        #[arg(long)]
+        json: Option<PathBuf>,
     },
     /// Train the trajectory-prior denoiser (default: on the synthetic corpus generated on the
     /// proving ground); writes OUT/denoiser.safetensors, OUT/metrics.jsonl, OUT/checkpoints/.
@@ -576,6 +609,7 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             guidance,
             guidance_scale,
             final_iterations,
+            draws,
         } => {
             use video2track::generate as g;
             let scenario = g::read_grounded(&grounded)?;
@@ -604,6 +638,7 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
                 method,
                 guidance: mode,
                 schedule,
+                draws,
             };
             let (generated, summary) = g::run(&model, &map_data, &scenario, &args)?;
             print!("{}{}", g::REPORT_HEADER, g::report(&summary, mode));
@@ -629,6 +664,16 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
                     variants: generated.iter().map(|v| v.metrics.clone()).collect(),
                 };
                 std::fs::write(path, serde_json::to_string_pretty(&file)?)?;
+                println!("wrote {}", path.display());
+            }
+            Ok(())
+        }
+        Command::Realism { weights, data, map, episodes, corpus_seed, windows, seed, json } => {
+            let args = video2track::train::RealismArgs { weights, data, map, episodes, corpus_seed, windows, seed };
+            let rows = video2track::train::realism(&args)?;
+            print!("{}", video2track::train::realism_table(&rows));
+            if let Some(path) = json {
+                std::fs::write(&path, serde_json::to_string_pretty(&rows)?)?;
                 println!("wrote {}", path.display());
             }
             Ok(())

@@ -61,7 +61,13 @@ fn load_corpus(args: &TrainArgs, map: &v2t_map::Map) -> anyhow::Result<(Syntheti
     match &args.data {
         Some(path) => {
             let corpus = read_jsonl_file(path)?;
-            let source = format!("{} ({} episodes, seed {}, map {})", path.display(), corpus.episodes.len(), corpus.seed, corpus.map);
+            let source = format!(
+                "{} ({} episodes, seed {}, map {})",
+                path.display(),
+                corpus.episodes.len(),
+                corpus.seed,
+                corpus.map
+            );
             Ok((corpus, source))
         }
         None => {
@@ -151,4 +157,79 @@ pub fn train(args: &TrainArgs) -> anyhow::Result<TrainOutcome> {
 /// The default weights path, relative to the working directory (the repository root).
 pub fn shipped_weights() -> &'static Path {
     Path::new(SHIPPED_WEIGHTS)
+}
+
+/// What `realism` needs.
+#[derive(Debug, Clone)]
+pub struct RealismArgs {
+    /// Weights to evaluate.
+    pub weights: PathBuf,
+    /// Corpus (as for training).
+    pub data: Option<PathBuf>,
+    /// Map of the corpus.
+    pub map: PathBuf,
+    /// Episodes of the generated corpus.
+    pub episodes: usize,
+    /// Its seed.
+    pub corpus_seed: u64,
+    /// Held-out windows compared (one per episode).
+    pub windows: usize,
+    /// Sampling seed.
+    pub seed: u64,
+}
+
+/// The realism table (W₁ against the held-out split of the corpus the weights were trained on)
+/// for no guidance, anchors only and full guidance.
+pub fn realism(args: &RealismArgs) -> anyhow::Result<Vec<v2t_diffusion::realism::RealismRow>> {
+    use v2t_diffusion::guidance::GuidanceWeights;
+    let model = crate::generate::load_model(&args.weights)?;
+    let map = v2t_map::Map::load(&args.map)?;
+    let library = v2t_map::library::TopologyLibrary::build(&map);
+    let targs = TrainArgs {
+        data: args.data.clone(),
+        map: args.map.clone(),
+        episodes: args.episodes,
+        corpus_seed: args.corpus_seed,
+        options: TrainOptions::default(),
+        config: model.meta.config,
+        stride: 5,
+        out: PathBuf::new(),
+        checkpoint_every: 0,
+        command: String::new(),
+    };
+    let (corpus, _) = load_corpus(&targs, &map)?;
+    let data = Dataset::build(&corpus.episodes, &library, model.meta.config, 5)?;
+    let anchor_only = GuidanceWeights { anchor: 1.0, boundary: 0.0, clearance: 0.0, kinematic: 0.0 };
+    let modes =
+        [("no guidance", None), ("anchor only", Some(anchor_only)), ("full", Some(crate::generate::FULL_WEIGHTS))];
+    let rows = v2t_diffusion::realism::realism(
+        &model,
+        &data,
+        Some(&map),
+        &modes,
+        args.windows,
+        args.seed,
+        &v2t_diffusion::sample::SamplerOptions::default(),
+    )?;
+    Ok(rows)
+}
+
+/// The realism rows as a markdown table.
+pub fn realism_table(rows: &[v2t_diffusion::realism::RealismRow]) -> String {
+    let f = |v: Option<f64>, unit: &str| v.map_or("-".to_owned(), |x| format!("{x:.3} {unit}"));
+    let mut out = String::from(
+        "| vs held-out | windows | W1 acceleration | W1 jerk | W1 yaw rate | median anchor error |\n|---|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        out.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {} |\n",
+            r.name,
+            r.windows,
+            f(r.distances.accel_mps2, "m/s²"),
+            f(r.distances.jerk_mps3, "m/s³"),
+            f(r.distances.yaw_rate_radps, "rad/s"),
+            f(r.median_anchor_error_m, "m")
+        ));
+    }
+    out
 }

@@ -81,6 +81,8 @@ pub struct GenerateOptions {
     pub weights: GuidanceWeights,
     /// Limits of the kinematic term and of the metrics.
     pub limits: KinematicLimits,
+    /// Draws a variant is given before it is handed on as it is (1: no redraw).
+    pub draws: u64,
 }
 
 impl Default for GenerateOptions {
@@ -97,6 +99,7 @@ impl Default for GenerateOptions {
                 jerk_max_mps3: 6.0,
                 speed_max_mps: 40.0,
             },
+            draws: 4,
         }
     }
 }
@@ -502,22 +505,52 @@ pub fn measure(
     }
 }
 
-/// `options.variants` priors for `scenario`.
+/// Whether a generated prior may be handed on: no solid boundary crossed, every agent within the
+/// limits, every conflict in the style's order.
+pub fn acceptable(m: &PriorMetrics) -> bool {
+    m.boundary_crossings == 0 && m.agents_within_limits == m.agents && m.order_ok == m.conflicts
+}
+
+/// `options.variants` priors for `scenario`, with the number of variants drawn again.
+///
+/// A variant that is not [`acceptable`] is drawn again with new noise (the whole batch of such
+/// variants at once, up to `options.draws` draws in all); one still unacceptable after that is
+/// returned as it is, its metrics say why. The count of redraws is returned so that reports can
+/// say how often the guided sampler alone fell short.
 pub fn generate(
     model: &Model,
     map: &Map,
     scenario: &GroundedScenario,
     options: &GenerateOptions,
-) -> Result<Vec<Generated>, GenerateError> {
+) -> Result<(Vec<Generated>, usize), GenerateError> {
     let setup = setup(model, map, scenario, options)?;
     let problem = Problem { condition: &setup.condition, guidance: Some(&setup.guidance), x0s: &setup.x0s };
-    let variants = sample(model, &problem, options.variants, options.seed, &options.sampler)?;
-    let mut out = Vec::with_capacity(variants.len());
-    for v in variants {
-        let prior = stitch(scenario, &setup, &v.controls, &options.limits);
-        prior.validate().map_err(|e| GenerateError::Scenario(format!("generated prior invalid: {e}")))?;
-        let metrics = measure(scenario, &setup, &prior, &options.limits);
-        out.push(Generated { prior, metrics });
+    let mut out: Vec<Option<Generated>> = vec![None; options.variants.max(1)];
+    let mut todo: Vec<usize> = (0..out.len()).collect();
+    let mut redrawn = 0;
+    let draws = options.draws.max(1);
+    for draw in 0..draws {
+        if todo.is_empty() {
+            break;
+        }
+        if draw > 0 {
+            redrawn += todo.len();
+        }
+        let seed = options.seed.wrapping_add(draw.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        let variants = sample(model, &problem, todo.len(), seed, &options.sampler)?;
+        let mut still = Vec::new();
+        for (&slot, v) in todo.iter().zip(variants) {
+            let prior = stitch(scenario, &setup, &v.controls, &options.limits);
+            prior.validate().map_err(|e| GenerateError::Scenario(format!("generated prior invalid: {e}")))?;
+            let metrics = measure(scenario, &setup, &prior, &options.limits);
+            if !acceptable(&metrics) && draw + 1 < draws {
+                still.push(slot);
+            }
+            if let Some(o) = out.get_mut(slot) {
+                *o = Some(Generated { prior, metrics });
+            }
+        }
+        todo = still;
     }
-    Ok(out)
+    Ok((out.into_iter().flatten().collect(), redrawn))
 }

@@ -36,6 +36,7 @@ pub mod guidance;
 pub mod import;
 pub mod inverse;
 pub mod mining;
+pub mod realism;
 pub mod sample;
 pub mod schedule;
 pub mod stats;

@@ -50,6 +50,12 @@ pub struct Window {
     pub cond: Vec<f32>,
     /// Time-aligned features `[channel][patch]`.
     pub time: Vec<f32>,
+    /// The condition the features encode.
+    pub condition: Condition,
+    /// The recorded controls of the used slots, in slot order.
+    pub controls: Vec<Vec<Control>>,
+    /// Where each used slot is at the window's end.
+    pub end_positions: Vec<Point2>,
 }
 
 /// What can go wrong preparing data or training.
@@ -172,6 +178,8 @@ pub fn episode_windows(
             let mut z0 = vec![0.0f32; cfg.sample_len()];
             let mut mask = vec![0.0f32; cfg.sample_len()];
             let mut slots = vec![None; cfg.slots];
+            let mut recorded = Vec::new();
+            let mut end_positions = Vec::new();
             for (slot, &i) in order.iter().enumerate() {
                 let Some(agent) = episode.agents.get(i) else { continue };
                 let (Some(start), Some(controls)) = (agent.states.get(w0), agent.controls.get(w0..w0 + cfg.steps))
@@ -180,6 +188,8 @@ pub fn episode_windows(
                 };
                 let Some(route) = routes.get(&agent.route_id) else { continue };
                 write_slot(&mut z0, slot, cfg.steps, controls, norm);
+                recorded.push(controls.to_vec());
+                end_positions.push(agent.states.get(w0 + cfg.steps).map_or(start.position(), State::position));
                 for v in mask.iter_mut().skip(2 * slot * cfg.steps).take(2 * cfg.steps) {
                     *v = 1.0;
                 }
@@ -197,6 +207,9 @@ pub fn episode_windows(
                 mask,
                 cond: condition.features(cfg),
                 time: condition.time_features(cfg),
+                condition,
+                controls: recorded,
+                end_positions,
             });
         }
         w0 += stride.max(1);

@@ -123,7 +123,8 @@ mod tests {
 
     #[test]
     fn simplify_keeps_corners_and_drops_collinear_points() {
-        let pts: Vec<Point2> = (0..=10).map(|i| Point2::new(f64::from(i), 0.0)).chain([Point2::new(10.0, 5.0)]).collect();
+        let pts: Vec<Point2> =
+            (0..=10).map(|i| Point2::new(f64::from(i), 0.0)).chain([Point2::new(10.0, 5.0)]).collect();
         let s = simplify(&pts, 0.01);
         assert_eq!(s, vec![Point2::new(0.0, 0.0), Point2::new(10.0, 0.0), Point2::new(10.0, 5.0)]);
     }

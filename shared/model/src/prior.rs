@@ -112,7 +112,8 @@ impl TrajectoryPrior {
             .iter()
             .map(|a| {
                 let lead = a.start.time_s.map_or(0.0, |t| if t > t_first { t - t_first } else { 0.0 });
-                let length: f64 = a.route.windows(2).map(|w| w.first().zip(w.get(1)).map_or(0.0, |(p, q)| p.dist(*q))).sum();
+                let length: f64 =
+                    a.route.windows(2).map(|w| w.first().zip(w.get(1)).map_or(0.0, |(p, q)| p.dist(*q))).sum();
                 let drive = if a.start.speed_mps > 0.1 { length / a.start.speed_mps } else { 0.0 };
                 drive + lead
             })
