@@ -172,11 +172,9 @@ pub fn to_bytes(varmap: &VarMap, meta: &ModelMeta) -> Result<Vec<u8>, WeightsErr
     ]
     .into_iter()
     .collect();
-    let vars = varmap.all_vars();
     let data = varmap.data().lock().map_err(|_| WeightsError::Tensor("variable map lock poisoned".into()))?;
     let mut named: Vec<(String, Tensor)> = data.iter().map(|(k, v)| (k.clone(), v.as_tensor().clone())).collect();
     drop(data);
-    drop(vars);
     named.sort_by(|a, b| a.0.cmp(&b.0));
     safetensors::tensor::serialize(named.iter().map(|(k, v)| (k.as_str(), v)), &Some(metadata))
         .map_err(|e| WeightsError::Tensor(e.to_string()))
@@ -272,4 +270,89 @@ pub fn load(path: &std::path::Path) -> Result<Model, WeightsError> {
     let bytes = std::fs::read(path)
         .map_err(|e| WeightsError::Io { path: path.display().to_string(), message: e.to_string() })?;
     from_bytes(&bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tiny() -> (VarMap, ModelMeta) {
+        let config = DenoiserConfig { slots: 2, steps: 8, patch: 2, hidden: 8, blocks: 1, embed: 8, diffusion_steps: 10 };
+        let varmap = VarMap::new();
+        Denoiser::new(config, VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu)).unwrap();
+        let meta = ModelMeta {
+            config,
+            normalization: ControlNormalization::default(),
+            training: TrainingRecord {
+                command: "test".into(),
+                data: "none".into(),
+                synthetic: true,
+                train_windows: 0,
+                heldout_windows: 0,
+                steps: 0,
+                batch: 1,
+                seed: 0,
+                heldout_loss: 1.0,
+            },
+        };
+        (varmap, meta)
+    }
+
+    /// The bytes of a file with metadata entry `key` replaced (tensors kept).
+    fn with_metadata(varmap: &VarMap, meta: &ModelMeta, key: &str, value: &str) -> Vec<u8> {
+        let bytes = to_bytes(varmap, meta).unwrap();
+        let (_, header) = safetensors::SafeTensors::read_metadata(&bytes).unwrap();
+        let mut md = header.metadata().clone().unwrap();
+        md.insert(key.to_owned(), value.to_owned());
+        let loaded = candle_core::safetensors::load_buffer(&bytes, &Device::Cpu).unwrap();
+        let mut named: Vec<(String, Tensor)> = loaded.into_iter().collect();
+        named.sort_by(|a, b| a.0.cmp(&b.0));
+        safetensors::tensor::serialize(named.iter().map(|(k, v)| (k.as_str(), v)), &Some(md)).unwrap()
+    }
+
+    #[test]
+    fn round_trip_keeps_weights_and_metadata() {
+        let (varmap, meta) = tiny();
+        let bytes = to_bytes(&varmap, &meta).unwrap();
+        let model = from_bytes(&bytes).unwrap();
+        assert_eq!(model.meta, meta);
+        let z = Tensor::ones((1, 4, 8), DType::F32, &Device::Cpu).unwrap();
+        let cond = Tensor::ones((1, meta.config.condition_len()), DType::F32, &Device::Cpu).unwrap();
+        let time = Tensor::ones((1, meta.config.time_channels(), meta.config.patches()), DType::F32, &Device::Cpu).unwrap();
+        let fresh = Denoiser::new(meta.config, VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu)).unwrap();
+        let a: Vec<f32> = fresh.forward(&z, &[3], &cond, &time).unwrap().flatten_all().unwrap().to_vec1().unwrap();
+        let b: Vec<f32> = model.denoiser.forward(&z, &[3], &cond, &time).unwrap().flatten_all().unwrap().to_vec1().unwrap();
+        assert_eq!(a, b);
+    }
+
+    #[test]
+    fn wrong_files_are_named_errors() {
+        let (varmap, meta) = tiny();
+        assert!(matches!(from_bytes(b"not a safetensors file"), Err(WeightsError::NotSafetensors(_))));
+        let other = with_metadata(&varmap, &meta, "format", "something-else");
+        assert_eq!(from_bytes(&other).unwrap_err(), WeightsError::Format("something-else".into()));
+        let newer = with_metadata(&varmap, &meta, "version", "2");
+        assert!(from_bytes(&newer).unwrap_err().to_string().contains("version 2"));
+        // Metadata announcing another architecture than the tensors: a shape error naming the tensor.
+        let wider = DenoiserConfig { hidden: 16, ..meta.config };
+        let reshaped = with_metadata(&varmap, &meta, "config", &serde_json::to_string(&wider).unwrap());
+        assert!(matches!(from_bytes(&reshaped), Err(WeightsError::Shape { .. })), "{:?}", from_bytes(&reshaped).err());
+        let bad_config = with_metadata(&varmap, &meta, "config", r#"{"slots": 1}"#);
+        assert!(matches!(from_bytes(&bad_config), Err(WeightsError::Metadata { field: "config", .. })));
+        let bad_norm = with_metadata(
+            &varmap,
+            &meta,
+            "normalization",
+            r#"{"accel_mean_mps2":0,"accel_scale_mps2":0,"yaw_rate_mean_radps":0,"yaw_rate_scale_radps":1}"#,
+        );
+        assert!(matches!(from_bytes(&bad_norm), Err(WeightsError::Metadata { field: "normalization", .. })));
+        // A NaN weight.
+        let nan_map = VarMap::new();
+        Denoiser::new(meta.config, VarBuilder::from_varmap(&nan_map, DType::F32, &Device::Cpu)).unwrap();
+        for v in nan_map.all_vars() {
+            v.set(&(v.as_tensor().ones_like().unwrap() * f64::NAN).unwrap()).unwrap();
+        }
+        assert!(matches!(from_bytes(&to_bytes(&nan_map, &meta).unwrap()), Err(WeightsError::NonFinite(_))));
+        assert!(matches!(load(std::path::Path::new("/nonexistent/w.safetensors")), Err(WeightsError::Io { .. })));
+    }
 }
