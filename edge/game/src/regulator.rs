@@ -491,7 +491,11 @@ impl Regulator {
             return self.fallback(RegulatorStatus::Stale, inp.bv.v_mps);
         }
         if inp.vut.s_m >= inp.zone_vut.exit_s_m && self.vut_exit_t_s.is_none() {
-            self.vut_exit_t_s = Some(inp.t_s);
+            // Seen out at this cycle: it left between cycles. Back-date the exit by the distance
+            // beyond it at the measured speed (at most one step), so the yield target carries no
+            // bias of half a control period.
+            let beyond_s = (inp.vut.s_m - inp.zone_vut.exit_s_m) / inp.vut.v_mps.max(0.1);
+            self.vut_exit_t_s = Some(inp.t_s - beyond_s.min(self.params.dt_s));
         }
         let bv_key = match inp.style {
             Style::Rush => inp.zone_bv.exit_s_m,
