@@ -254,11 +254,18 @@ pub struct Regulator {
     vut_exit_t_s: Option<f64>,
     /// Key time of the previous decision, absolute.
     last_key_t_s: Option<f64>,
+    /// Absolute time at which the BV was seen leaving the zone.
+    bv_exit_t_s: Option<f64>,
 }
 
 const SLACK_TOL_M: f64 = 0.05;
 /// A follower key time this far from its constraint's time means the constraint did not bind, s.
 const BINDING_TOL_S: f64 = 0.05;
+/// A rushing BV inside a merge zone plans to leave it at no less than this speed, m/s.
+const IN_ZONE_MIN_MPS: f64 = 2.0;
+/// A rushing cut-in arrives at least this much faster than the VUT drives, m/s: a VUT that closes
+/// in on the BV that just cut in brakes for it (car following), and the PET grows.
+const MERGE_SPEED_MARGIN_MPS: f64 = 2.0;
 /// How far behind the zone entry the BV holds when it gives way, m.
 const HOLD_BACK_M: f64 = 0.5;
 
@@ -284,6 +291,7 @@ impl Regulator {
             leader_upper: LongitudinalQp::new(QpShape { event: EventKind::Upper, ..leader })?,
             vut_exit_t_s: None,
             last_key_t_s: None,
+            bv_exit_t_s: None,
         })
     }
 
@@ -296,6 +304,7 @@ impl Regulator {
     pub fn reset(&mut self) {
         self.vut_exit_t_s = None;
         self.last_key_t_s = None;
+        self.bv_exit_t_s = None;
     }
 
     fn fallback(&self, status: RegulatorStatus, v: f64) -> Decision {
@@ -370,10 +379,13 @@ impl Regulator {
                 let v_avg = ((station - inp.bv.s_m) / t).clamp(0.0, v_max);
                 // A rushing cut-in must arrive fast enough that the VUT, keeping its headway behind
                 // it, does not brake before reaching the encroachment point: the BV's rear must be
-                // `h · v_VUT` ahead within τ, so its speed there should reach `h · v_VUT / τ`. The
+                // `h · v_VUT` ahead within τ, so its speed there should reach `h · v_VUT / τ`, and
+                // never below the VUT's own speed plus a margin (a VUT closing in brakes too). The
                 // reference ramps through the average so the key time stays the same.
                 let v_arrive = if inp.style == Style::Rush && inp.zone_kind == ConflictKind::Merge {
-                    (self.params.vut_headway_s * inp.vut.v_mps / inp.tau_s).clamp(v_avg, v_max)
+                    (self.params.vut_headway_s * inp.vut.v_mps / inp.tau_s)
+                        .max(inp.vut.v_mps + MERGE_SPEED_MARGIN_MPS)
+                        .clamp(v_avg, v_max)
                 } else {
                     v_avg
                 };
@@ -497,6 +509,10 @@ impl Regulator {
             let beyond_s = (inp.vut.s_m - inp.zone_vut.exit_s_m) / inp.vut.v_mps.max(0.1);
             self.vut_exit_t_s = Some(inp.t_s - beyond_s.min(self.params.dt_s));
         }
+        if inp.bv.s_m >= inp.zone_bv.exit_s_m && self.bv_exit_t_s.is_none() {
+            let beyond_s = (inp.bv.s_m - inp.zone_bv.exit_s_m) / inp.bv.v_mps.max(0.1);
+            self.bv_exit_t_s = Some(inp.t_s - beyond_s.min(self.params.dt_s));
+        }
         let bv_key = match inp.style {
             Style::Rush => inp.zone_bv.exit_s_m,
             Style::Yield => inp.zone_bv.enter_s_m,
@@ -507,7 +523,8 @@ impl Regulator {
             || (inp.style == Style::Rush && vut_gone)
             || (inp.style == Style::Yield && inp.bv.s_m >= inp.zone_bv.enter_s_m)
         {
-            return match self.lead(inp, None, 0.0) {
+            let after = self.after_merge(inp);
+            return match self.lead(&after, None, 0.0) {
                 QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
                 _ => self.decision_from(&self.leader_equal, RegulatorStatus::Passed, None, None, 0.0),
             };
@@ -574,6 +591,13 @@ impl Regulator {
                 pull(t_v + tau, self.params.w_adv, self.params.w_real).max(t_v + self.params.safety_margin_s).max(0.0);
         }
 
+        // Rushing into a merge and already inside the zone: clear it, never slow down in it for a
+        // VUT that comes later than predicted (the VUT follows the BV from here on: a BV that
+        // slows in front of it brakes it more, which only makes the PET longer still).
+        if inp.style == Style::Rush && inp.zone_kind == ConflictKind::Merge && inp.bv.s_m >= inp.zone_bv.enter_s_m {
+            key_t = key_t.min((bv_key - inp.bv.s_m) / inp.bv.v_mps.max(IN_ZONE_MIN_MPS));
+        }
+
         // 3: the leader's plan.
         if self.lead(inp, Some(key_t), bv_key) == QpStatus::Failed {
             return self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps);
@@ -615,6 +639,24 @@ impl Regulator {
         self.last_key_t_s = planned_key.map(|t| t + inp.t_s);
         let status = if lslack > SLACK_TOL_M { RegulatorStatus::Degraded } else { RegulatorStatus::Regulating };
         self.decision_from(&self.leader_equal, status, planned_key, pet, fslack)
+    }
+
+    /// The input of the plan after a rushing cut-in: the BV is now the VUT's lead vehicle, and
+    /// the VUT has yet to reach the encroachment point. If it is predicted (at its measured speed)
+    /// to get there later than τ after the BV's observed exit — it eases off behind the BV — the
+    /// BV pulls away at its top speed (within its caps), so the VUT brakes less: feedback on the
+    /// PET that is still to be measured. Anything else: the input as it is.
+    fn after_merge(&self, inp: &RegulatorInput) -> RegulatorInput {
+        let mut after = *inp;
+        if inp.style != Style::Rush || inp.zone_kind != ConflictKind::Merge || inp.vut.s_m >= inp.zone_vut.enter_s_m {
+            return after;
+        }
+        let Some(bv_exit) = self.bv_exit_t_s else { return after };
+        let vut_in = inp.t_s + (inp.zone_vut.enter_s_m - inp.vut.s_m) / inp.vut.v_mps.max(0.1);
+        if vut_in - bv_exit > inp.tau_s {
+            after.reference_speed_mps = after.reference_speed_mps.max(self.params.bv.max_speed_mps);
+        }
+        after
     }
 
     /// The BV stays behind its zone entry until the VUT is predicted out of the zone plus the margin.
