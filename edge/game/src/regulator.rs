@@ -266,6 +266,9 @@ const IN_ZONE_MIN_MPS: f64 = 2.0;
 /// A rushing cut-in arrives at least this much faster than the VUT drives, m/s: a VUT that closes
 /// in on the BV that just cut in brakes for it (car following), and the PET grows.
 const MERGE_SPEED_MARGIN_MPS: f64 = 2.0;
+/// How steeply the speed reference of a rushing cut-in ramps through its average, as a multiple
+/// of the ramp that would end exactly at the arrival speed.
+const MERGE_RAMP_GAIN: f64 = 2.5;
 /// How far behind the zone entry the BV holds when it gives way, m.
 const HOLD_BACK_M: f64 = 0.5;
 
@@ -381,7 +384,9 @@ impl Regulator {
                 // it, does not brake before reaching the encroachment point: the BV's rear must be
                 // `h · v_VUT` ahead within τ, so its speed there should reach `h · v_VUT / τ`, and
                 // never below the VUT's own speed plus a margin (a VUT closing in brakes too). The
-                // reference ramps through the average so the key time stays the same.
+                // reference ramps through the average so the key time stays the same; it overshoots
+                // the arrival speed by `MERGE_RAMP_GAIN`, because the plan follows its reference
+                // loosely (speed weight 0.2 against effort and jerk) and would arrive well below it.
                 let v_arrive = if inp.style == Style::Rush && inp.zone_kind == ConflictKind::Merge {
                     (self.params.vut_headway_s * inp.vut.v_mps / inp.tau_s)
                         .max(inp.vut.v_mps + MERGE_SPEED_MARGIN_MPS)
@@ -389,7 +394,7 @@ impl Regulator {
                 } else {
                     v_avg
                 };
-                let ramp = v_arrive - v_avg;
+                let ramp = if v_arrive > v_avg { MERGE_RAMP_GAIN * (v_arrive - v_avg) } else { 0.0 };
                 for (k, v) in self.leader_equal.v_ref_mut().iter_mut().enumerate() {
                     let frac = ((k + 1) as f64 * dt / t).min(1.0);
                     *v = (v_avg + ramp * (2.0 * frac - 1.0)).clamp(0.0, v_max);
