@@ -26,7 +26,13 @@
 //! measured states every cycle; the event may lie beyond the horizon (the QP extrapolates at the
 //! terminal speed), so the plan never pushes its waiting past the horizon, and the target tracks the
 //! VUT's actual progress (feedback on the predicted PET). When the VUT has already left the zone in
-//! yield, the observed exit time is used instead of a prediction.
+//! yield, the observed exit time is used instead of a prediction (back-dated to between cycles).
+//!
+//! **Cut-ins.** After a rushing merge the BV is the VUT's lead vehicle, and a VUT that closes in on
+//! it brakes, which lengthens the PET. So a rushing cut-in arrives faster than the VUT, never slows
+//! down inside the merge zone, and afterwards, while the VUT is predicted to reach the encroachment
+//! point later than τ after the BV's observed exit, pulls away (see `docs/BENCHMARKS.md` for what
+//! each step is worth).
 //!
 //! Every outcome is a [`RegulatorStatus`] with a defined plan; the acceleration returned is always
 //! finite and within the BV's limits.
