@@ -26,7 +26,13 @@
 //! measured states every cycle; the event may lie beyond the horizon (the QP extrapolates at the
 //! terminal speed), so the plan never pushes its waiting past the horizon, and the target tracks the
 //! VUT's actual progress (feedback on the predicted PET). When the VUT has already left the zone in
-//! yield, the observed exit time is used instead of a prediction.
+//! yield, the observed exit time is used instead of a prediction (back-dated to between cycles).
+//!
+//! **Cut-ins.** After a rushing merge the BV is the VUT's lead vehicle, and a VUT that closes in on
+//! it brakes, which lengthens the PET. So a rushing cut-in arrives faster than the VUT, never slows
+//! down inside the merge zone, and afterwards, while the VUT is predicted to reach the encroachment
+//! point later than τ after the BV's observed exit, pulls away (see `docs/BENCHMARKS.md` for what
+//! each step is worth).
 //!
 //! Every outcome is a [`RegulatorStatus`] with a defined plan; the acceleration returned is always
 //! finite and within the BV's limits.
@@ -254,11 +260,21 @@ pub struct Regulator {
     vut_exit_t_s: Option<f64>,
     /// Key time of the previous decision, absolute.
     last_key_t_s: Option<f64>,
+    /// Absolute time at which the BV was seen leaving the zone.
+    bv_exit_t_s: Option<f64>,
 }
 
 const SLACK_TOL_M: f64 = 0.05;
 /// A follower key time this far from its constraint's time means the constraint did not bind, s.
 const BINDING_TOL_S: f64 = 0.05;
+/// A rushing BV inside a merge zone plans to leave it at no less than this speed, m/s.
+const IN_ZONE_MIN_MPS: f64 = 2.0;
+/// A rushing cut-in arrives at least this much faster than the VUT drives, m/s: a VUT that closes
+/// in on the BV that just cut in brakes for it (car following), and the PET grows.
+const MERGE_SPEED_MARGIN_MPS: f64 = 2.0;
+/// How steeply the speed reference of a rushing cut-in ramps through its average, as a multiple
+/// of the ramp that would end exactly at the arrival speed.
+const MERGE_RAMP_GAIN: f64 = 2.5;
 /// How far behind the zone entry the BV holds when it gives way, m.
 const HOLD_BACK_M: f64 = 0.5;
 
@@ -284,6 +300,7 @@ impl Regulator {
             leader_upper: LongitudinalQp::new(QpShape { event: EventKind::Upper, ..leader })?,
             vut_exit_t_s: None,
             last_key_t_s: None,
+            bv_exit_t_s: None,
         })
     }
 
@@ -296,6 +313,7 @@ impl Regulator {
     pub fn reset(&mut self) {
         self.vut_exit_t_s = None;
         self.last_key_t_s = None;
+        self.bv_exit_t_s = None;
     }
 
     fn fallback(&self, status: RegulatorStatus, v: f64) -> Decision {
@@ -370,14 +388,19 @@ impl Regulator {
                 let v_avg = ((station - inp.bv.s_m) / t).clamp(0.0, v_max);
                 // A rushing cut-in must arrive fast enough that the VUT, keeping its headway behind
                 // it, does not brake before reaching the encroachment point: the BV's rear must be
-                // `h · v_VUT` ahead within τ, so its speed there should reach `h · v_VUT / τ`. The
-                // reference ramps through the average so the key time stays the same.
+                // `h · v_VUT` ahead within τ, so its speed there should reach `h · v_VUT / τ`, and
+                // never below the VUT's own speed plus a margin (a VUT closing in brakes too). The
+                // reference ramps through the average so the key time stays the same; it overshoots
+                // the arrival speed by `MERGE_RAMP_GAIN`, because the plan follows its reference
+                // loosely (speed weight 0.2 against effort and jerk) and would arrive well below it.
                 let v_arrive = if inp.style == Style::Rush && inp.zone_kind == ConflictKind::Merge {
-                    (self.params.vut_headway_s * inp.vut.v_mps / inp.tau_s).clamp(v_avg, v_max)
+                    (self.params.vut_headway_s * inp.vut.v_mps / inp.tau_s)
+                        .max(inp.vut.v_mps + MERGE_SPEED_MARGIN_MPS)
+                        .clamp(v_avg, v_max)
                 } else {
                     v_avg
                 };
-                let ramp = v_arrive - v_avg;
+                let ramp = if v_arrive > v_avg { MERGE_RAMP_GAIN * (v_arrive - v_avg) } else { 0.0 };
                 for (k, v) in self.leader_equal.v_ref_mut().iter_mut().enumerate() {
                     let frac = ((k + 1) as f64 * dt / t).min(1.0);
                     *v = (v_avg + ramp * (2.0 * frac - 1.0)).clamp(0.0, v_max);
@@ -491,7 +514,15 @@ impl Regulator {
             return self.fallback(RegulatorStatus::Stale, inp.bv.v_mps);
         }
         if inp.vut.s_m >= inp.zone_vut.exit_s_m && self.vut_exit_t_s.is_none() {
-            self.vut_exit_t_s = Some(inp.t_s);
+            // Seen out at this cycle: it left between cycles. Back-date the exit by the distance
+            // beyond it at the measured speed (at most one step), so the yield target carries no
+            // bias of half a control period.
+            let beyond_s = (inp.vut.s_m - inp.zone_vut.exit_s_m) / inp.vut.v_mps.max(0.1);
+            self.vut_exit_t_s = Some(inp.t_s - beyond_s.min(self.params.dt_s));
+        }
+        if inp.bv.s_m >= inp.zone_bv.exit_s_m && self.bv_exit_t_s.is_none() {
+            let beyond_s = (inp.bv.s_m - inp.zone_bv.exit_s_m) / inp.bv.v_mps.max(0.1);
+            self.bv_exit_t_s = Some(inp.t_s - beyond_s.min(self.params.dt_s));
         }
         let bv_key = match inp.style {
             Style::Rush => inp.zone_bv.exit_s_m,
@@ -503,7 +534,8 @@ impl Regulator {
             || (inp.style == Style::Rush && vut_gone)
             || (inp.style == Style::Yield && inp.bv.s_m >= inp.zone_bv.enter_s_m)
         {
-            return match self.lead(inp, None, 0.0) {
+            let after = self.after_merge(inp);
+            return match self.lead(&after, None, 0.0) {
                 QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
                 _ => self.decision_from(&self.leader_equal, RegulatorStatus::Passed, None, None, 0.0),
             };
@@ -570,6 +602,13 @@ impl Regulator {
                 pull(t_v + tau, self.params.w_adv, self.params.w_real).max(t_v + self.params.safety_margin_s).max(0.0);
         }
 
+        // Rushing into a merge and already inside the zone: clear it, never slow down in it for a
+        // VUT that comes later than predicted (the VUT follows the BV from here on: a BV that
+        // slows in front of it brakes it more, which only makes the PET longer still).
+        if inp.style == Style::Rush && inp.zone_kind == ConflictKind::Merge && inp.bv.s_m >= inp.zone_bv.enter_s_m {
+            key_t = key_t.min((bv_key - inp.bv.s_m) / inp.bv.v_mps.max(IN_ZONE_MIN_MPS));
+        }
+
         // 3: the leader's plan.
         if self.lead(inp, Some(key_t), bv_key) == QpStatus::Failed {
             return self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps);
@@ -611,6 +650,24 @@ impl Regulator {
         self.last_key_t_s = planned_key.map(|t| t + inp.t_s);
         let status = if lslack > SLACK_TOL_M { RegulatorStatus::Degraded } else { RegulatorStatus::Regulating };
         self.decision_from(&self.leader_equal, status, planned_key, pet, fslack)
+    }
+
+    /// The input of the plan after a rushing cut-in: the BV is now the VUT's lead vehicle, and
+    /// the VUT has yet to reach the encroachment point. If it is predicted (at its measured speed)
+    /// to get there later than τ after the BV's observed exit — it eases off behind the BV — the
+    /// BV pulls away at its top speed (within its caps), so the VUT brakes less: feedback on the
+    /// PET that is still to be measured. Anything else: the input as it is.
+    fn after_merge(&self, inp: &RegulatorInput) -> RegulatorInput {
+        let mut after = *inp;
+        if inp.style != Style::Rush || inp.zone_kind != ConflictKind::Merge || inp.vut.s_m >= inp.zone_vut.enter_s_m {
+            return after;
+        }
+        let Some(bv_exit) = self.bv_exit_t_s else { return after };
+        let vut_in = inp.t_s + (inp.zone_vut.enter_s_m - inp.vut.s_m) / inp.vut.v_mps.max(0.1);
+        if vut_in - bv_exit > inp.tau_s {
+            after.reference_speed_mps = after.reference_speed_mps.max(self.params.bv.max_speed_mps);
+        }
+        after
     }
 
     /// The BV stays behind its zone entry until the VUT is predicted out of the zone plus the margin.
