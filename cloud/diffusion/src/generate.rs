@@ -27,7 +27,7 @@ use v2t_map::boundaries::{first_crossing, solid_boundaries};
 use v2t_model::Style;
 use v2t_model::geometry::{Point2, wrap_angle};
 use v2t_model::grounded::{AgentRole, GroundedScenario};
-use v2t_model::kinematics::{Control, State, step};
+use v2t_model::kinematics::{Control, State, rollout_into, step};
 use v2t_model::metrics::{Side, passage, pet};
 use v2t_model::path::ReferencePath;
 use v2t_model::prior::{AgentTrajectory, TrajectoryPrior};
@@ -178,8 +178,14 @@ pub fn setup(
     }
     let dt = crate::synth::DT_S;
     let horizon = TrajectoryPrior::stand_in_horizon_s(scenario).max(cfg.steps as f64 * dt);
-    let base = TrajectoryPrior::along_routes_at_start_speed(scenario, horizon)
+    let mut base = TrajectoryPrior::along_routes_at_start_speed(scenario, horizon)
         .map_err(|e| GenerateError::Scenario(e.to_string()))?;
+    // Its states become the rollout of its controls, so that the whole prior (lead-in, window,
+    // tail) is dynamically consistent; the difference is the path's discretization (centimetres).
+    for a in &mut base.agents {
+        let x0 = a.states.first().copied().unwrap_or_default();
+        rollout_into(x0, &a.controls, dt, &mut a.states);
+    }
     let routes = scenario
         .agents
         .iter()

@@ -277,7 +277,8 @@ mod tests {
     use super::*;
 
     fn tiny() -> (VarMap, ModelMeta) {
-        let config = DenoiserConfig { slots: 2, steps: 8, patch: 2, hidden: 8, blocks: 1, embed: 8, diffusion_steps: 10 };
+        let config =
+            DenoiserConfig { slots: 2, steps: 8, patch: 2, hidden: 8, blocks: 1, embed: 8, diffusion_steps: 10 };
         let varmap = VarMap::new();
         Denoiser::new(config, VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu)).unwrap();
         let meta = ModelMeta {
@@ -318,10 +319,12 @@ mod tests {
         assert_eq!(model.meta, meta);
         let z = Tensor::ones((1, 4, 8), DType::F32, &Device::Cpu).unwrap();
         let cond = Tensor::ones((1, meta.config.condition_len()), DType::F32, &Device::Cpu).unwrap();
-        let time = Tensor::ones((1, meta.config.time_channels(), meta.config.patches()), DType::F32, &Device::Cpu).unwrap();
+        let time =
+            Tensor::ones((1, meta.config.time_channels(), meta.config.patches()), DType::F32, &Device::Cpu).unwrap();
         let fresh = Denoiser::new(meta.config, VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu)).unwrap();
         let a: Vec<f32> = fresh.forward(&z, &[3], &cond, &time).unwrap().flatten_all().unwrap().to_vec1().unwrap();
-        let b: Vec<f32> = model.denoiser.forward(&z, &[3], &cond, &time).unwrap().flatten_all().unwrap().to_vec1().unwrap();
+        let b: Vec<f32> =
+            model.denoiser.forward(&z, &[3], &cond, &time).unwrap().flatten_all().unwrap().to_vec1().unwrap();
         assert_eq!(a, b);
     }
 

@@ -1,0 +1,171 @@
+//! `video2track generate`, `train` and `realism` end to end: the shipped weights give priors that
+//! meet their grounded scenarios (anchors, solid boundaries, vehicle limits, passing order); a small
+//! training run writes weights, metrics and checkpoints that `generate` and `realism` read; bad
+//! input (no route, a number out of range, foreign or damaged weights) is a clear error.
+
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use v2t_model::prior::TrajectoryPrior;
+use v2t_model::validate::Validate as _;
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn video2track(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_video2track")).args(args).current_dir(repo()).output().unwrap()
+}
+
+fn ok(args: &[&str]) -> String {
+    let o = video2track(args);
+    assert!(o.status.success(), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn fails(args: &[&str]) -> String {
+    let o = video2track(args);
+    assert!(!o.status.success(), "{args:?} succeeded: {}", String::from_utf8_lossy(&o.stdout));
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn tempdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("v2t-diffusion-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn grounded(dir: &Path, which: &str) -> PathBuf {
+    let out = dir.join(format!("{which}.json"));
+    ok(&["ground", &format!("config/examples/semantics_{which}.json"), "--out", s(&out)]);
+    out
+}
+
+#[test]
+fn shipped_weights_generate_priors_that_meet_their_scenarios() {
+    let dir = tempdir("generate");
+    for which in ["cut_in", "left_turn"] {
+        let g = grounded(&dir, which);
+        let prior_path = dir.join(format!("{which}.prior.json"));
+        let metrics_path = dir.join(format!("{which}.metrics.json"));
+        let all = dir.join(format!("{which}-all"));
+        let text = ok(&[
+            "generate",
+            s(&g),
+            "--variants",
+            "6",
+            "--out",
+            s(&prior_path),
+            "--all",
+            s(&all),
+            "--json-metrics",
+            s(&metrics_path),
+        ]);
+        assert!(text.contains("| full | 6 |"), "{text}");
+        let prior: TrajectoryPrior = serde_json::from_str(&std::fs::read_to_string(&prior_path).unwrap()).unwrap();
+        prior.validate().unwrap();
+        assert!(prior.agents.iter().all(|a| a.rollout_gap_m(prior.dt_s) < 1e-6), "states are rollouts of the controls");
+        assert_eq!(std::fs::read_dir(&all).unwrap().count(), 6);
+        let m: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&metrics_path).unwrap()).unwrap();
+        let summary = &m["summary"];
+        assert!(summary["median_anchor_error_m"].as_f64().unwrap() <= 0.5, "{which}: {summary}");
+        assert_eq!(summary["boundary_crossings"].as_u64(), Some(0), "{which}: {summary}");
+        assert_eq!(summary["within_limits_frac"].as_f64(), Some(1.0), "{which}: {summary}");
+        assert_eq!(summary["order_ok_frac"].as_f64(), Some(1.0), "{which}: {summary}");
+        assert_eq!(m["variants"].as_array().unwrap().len(), 6);
+        // The same seed gives the same priors.
+        let again = dir.join(format!("{which}.again.json"));
+        ok(&["generate", s(&g), "--variants", "6", "--out", s(&again)]);
+        assert_eq!(std::fs::read_to_string(&again).unwrap(), std::fs::read_to_string(&prior_path).unwrap());
+    }
+}
+
+#[test]
+fn ablation_switches_change_the_result() {
+    let dir = tempdir("ablation");
+    let g = grounded(&dir, "cut_in");
+    let metrics = |guidance: &str| -> serde_json::Value {
+        let path = dir.join(format!("{guidance}.json"));
+        ok(&["generate", s(&g), "--variants", "4", "--guidance", guidance, "--draws", "1", "--json-metrics", s(&path)]);
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap()
+    };
+    let none = metrics("none");
+    let full = metrics("full");
+    assert_eq!(none["guidance"], "no guidance");
+    let err = |m: &serde_json::Value| m["summary"]["median_anchor_error_m"].as_f64().unwrap();
+    assert!(err(&none) > 3.0 * err(&full), "guidance brings the anchors: none {} full {}", err(&none), err(&full));
+}
+
+#[test]
+fn bad_input_is_a_clear_error() {
+    let dir = tempdir("bad");
+    let g = grounded(&dir, "cut_in");
+    let text = std::fs::read_to_string(&g).unwrap();
+    let mut value: serde_json::Value = serde_json::from_str(&text).unwrap();
+    value["agents"][0]["route"] = serde_json::json!([]);
+    let no_route = dir.join("no_route.json");
+    std::fs::write(&no_route, serde_json::to_string(&value).unwrap()).unwrap();
+    let err = fails(&["generate", s(&no_route)]);
+    assert!(err.contains("route"), "{err}");
+    // A number out of range where an anchor's position belongs (JSON has no NaN).
+    let out_of_range = text.replacen("\"x\":", "\"x\": 1e400, \"ignored\":", 1);
+    let bad_anchor = dir.join("bad_anchor.json");
+    std::fs::write(&bad_anchor, out_of_range).unwrap();
+    let err = fails(&["generate", s(&bad_anchor)]);
+    assert!(err.contains("not a grounded scenario"), "{err}");
+    let garbage = dir.join("garbage.safetensors");
+    std::fs::write(&garbage, b"\x08\x00\x00\x00\x00\x00\x00\x00{}garbage").unwrap();
+    let err = fails(&["generate", s(&g), "--weights", s(&garbage)]);
+    assert!(err.contains("garbage.safetensors") && err.contains("not a safetensors file"), "{err}");
+    let err = fails(&["generate", s(&g), "--weights", s(&dir.join("missing.safetensors"))]);
+    assert!(err.contains("missing.safetensors"), "{err}");
+}
+
+#[test]
+fn a_small_training_run_writes_weights_that_generate_and_realism_read() {
+    let dir = tempdir("train");
+    let out = dir.join("run");
+    let text = ok(&[
+        "train",
+        "--episodes",
+        "40",
+        "--steps",
+        "6",
+        "--batch",
+        "8",
+        "--hidden",
+        "8",
+        "--blocks",
+        "1",
+        "--eval-every",
+        "3",
+        "--checkpoint-every",
+        "3",
+        "--out",
+        s(&out),
+    ]);
+    assert!(text.contains("held-out loss"), "{text}");
+    let metrics = std::fs::read_to_string(out.join("metrics.jsonl")).unwrap();
+    let lines: Vec<serde_json::Value> = metrics.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(lines.iter().map(|l| l["step"].as_u64().unwrap()).collect::<Vec<_>>(), vec![3, 6]);
+    assert!(lines.iter().all(|l| l["heldout_loss"].as_f64().unwrap().is_finite()));
+    for step in ["step-000003", "step-000006"] {
+        assert!(out.join("checkpoints").join(format!("{step}.safetensors")).exists());
+    }
+    let weights = out.join("denoiser.safetensors");
+    let g = grounded(&dir, "cut_in");
+    let prior = dir.join("prior.json");
+    ok(&["generate", s(&g), "--weights", s(&weights), "--out", s(&prior)]);
+    let p: TrajectoryPrior = serde_json::from_str(&std::fs::read_to_string(&prior).unwrap()).unwrap();
+    p.validate().unwrap();
+    let table = ok(&["realism", "--weights", s(&weights), "--episodes", "40", "--windows", "3"]);
+    for row in ["training data (floor)", "no guidance", "anchor only", "full"] {
+        assert!(table.contains(row), "{table}");
+    }
+}
