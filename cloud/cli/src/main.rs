@@ -240,7 +240,7 @@ enum Command {
         #[arg(long, default_value_t = video2track::train::DEFAULT_CORPUS_SEED)]
         corpus_seed: u64,
         /// Optimizer steps.
-        #[arg(long, default_value_t = 4000)]
+        #[arg(long, default_value_t = 5000)]
         steps: usize,
         /// Windows per step.
         #[arg(long, default_value_t = 64)]

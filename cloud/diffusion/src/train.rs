@@ -309,7 +309,7 @@ pub struct TrainOptions {
 
 impl Default for TrainOptions {
     fn default() -> Self {
-        Self { steps: 4000, batch: 64, learning_rate: 1e-3, seed: 1, eval_every: 250, eval_samples: 512 }
+        Self { steps: 5000, batch: 64, learning_rate: 1e-3, seed: 1, eval_every: 250, eval_samples: 512 }
     }
 }
 
