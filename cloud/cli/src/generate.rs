@@ -93,7 +93,8 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
     v.sort_by(f64::total_cmp);
     let n = v.len();
-    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+    let mid = |k: usize| v.get(k).copied().unwrap_or(f64::NAN);
+    if n % 2 == 1 { mid(n / 2) } else { 0.5 * (mid(n / 2 - 1) + mid(n / 2)) }
 }
 
 /// Summary of generated variants.

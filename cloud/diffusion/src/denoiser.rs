@@ -81,7 +81,7 @@ impl DenoiserConfig {
         let rules = [
             (self.slots >= 2 && self.slots <= 4, "slots must lie in 2..=4"),
             (self.patch >= 1 && self.steps >= self.patch, "patch must lie in 1..=steps"),
-            (self.patch >= 1 && self.steps % self.patch == 0, "steps must be a multiple of patch"),
+            (self.patch >= 1 && self.steps.is_multiple_of(self.patch), "steps must be a multiple of patch"),
             (self.steps <= 400, "steps must be at most 400"),
             ((4..=512).contains(&self.hidden), "hidden must lie in 4..=512"),
             ((1..=12).contains(&self.blocks), "blocks must lie in 1..=12"),

@@ -301,10 +301,11 @@ fn route_side(route: &ReferencePath, boundary: &[Point2]) -> i8 {
     let mut votes = 0i64;
     let mut s = 0.0;
     while s <= route.length() {
-        if let Some(d) = crate::guidance::terms::signed_distance(boundary, route.point_at(s)) {
-            if d.alongside && d.signed_m.abs() <= 6.0 {
-                votes += if d.signed_m >= 0.0 { 1 } else { -1 };
-            }
+        if let Some(d) = crate::guidance::terms::signed_distance(boundary, route.point_at(s))
+            && d.alongside
+            && d.signed_m.abs() <= 6.0
+        {
+            votes += if d.signed_m >= 0.0 { 1 } else { -1 };
         }
         s += 2.0;
     }

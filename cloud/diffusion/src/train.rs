@@ -234,7 +234,7 @@ pub struct Dataset {
 
 /// Whether an episode belongs to the held-out split.
 pub fn is_heldout(index: usize) -> bool {
-    index % 10 == 0
+    index.is_multiple_of(10)
 }
 
 /// The routes (maneuver paths) of a topology library by maneuver id.
@@ -533,7 +533,7 @@ impl Trainer {
         while self.step < self.options.steps {
             sum += self.train_step(data)?;
             count += 1;
-            let at_eval = self.step % self.options.eval_every == 0 || self.step == self.options.steps;
+            let at_eval = self.step.is_multiple_of(self.options.eval_every) || self.step == self.options.steps;
             if at_eval {
                 last = self.heldout_loss(data)?;
                 let m = TrainMetrics {

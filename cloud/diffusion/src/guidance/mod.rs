@@ -383,7 +383,7 @@ impl Guidance {
             .enumerate()
         {
             let previous = ctx.previous_accel_mps2.get(agent).copied();
-            e.kinematic += terms::kinematic_energy(&self.config.limits, dt, xs, u, g, ug, w.kinematic, previous);
+            e.kinematic += terms::kinematic_energy(&self.config.limits, dt, (xs, u), (g, ug), w.kinematic, previous);
         }
         for ((xs, g), (u, ug)) in ws
             .states

@@ -209,10 +209,8 @@ fn range_hinge(z: f64, lo: f64, hi: f64) -> (f64, f64) {
 pub fn kinematic_energy(
     limits: &KinematicLimits,
     dt_s: f64,
-    states: &[State],
-    controls: &[Control],
-    state_grads: &mut [State],
-    ctrl_grads: &mut [Control],
+    (states, controls): (&[State], &[Control]),
+    (state_grads, ctrl_grads): (&mut [State], &mut [Control]),
     w: f64,
     previous_accel_mps2: Option<f64>,
 ) -> f64 {
