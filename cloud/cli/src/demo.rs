@@ -4,8 +4,9 @@
 //! the loop with the simulated proving ground (`v2t-edge sim-ecu --prior`) over iceoryx2 → the
 //! run's metrics, OpenSCENARIO file, MCAP recording and an HTML report.
 //!
-//! The prior is, until the diffusion model lands, the constant-speed reference along the grounded
-//! routes; the report and the summary say so.
+//! The prior comes from the guided diffusion model with the shipped weights
+//! (`config/diffusion/denoiser.safetensors`): the best of [`VARIANTS`] variants (no solid boundary
+//! crossed, within the limits, the style's order, the smallest anchor error).
 
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -48,7 +49,11 @@ pub const SCENARIOS: [DemoScenario; 2] = [
 ];
 
 /// What the prior is, in every output.
-pub const PRIOR_KIND: &str = "constant speed along the grounded routes (stand-in until the diffusion model lands)";
+pub const PRIOR_KIND: &str =
+    "guided diffusion prior (shipped weights, trained on the synthetic corpus; best of 8 variants)";
+
+/// Variants generated per scenario.
+pub const VARIANTS: usize = 8;
 
 /// Why the demo stopped.
 #[derive(Debug, thiserror::Error)]
@@ -91,6 +96,8 @@ pub struct DemoOptions {
     pub vut: String,
     /// Noise seed.
     pub seed: u64,
+    /// Denoiser weights.
+    pub weights: PathBuf,
 }
 
 /// One scenario's outcome, as `summary.json` holds it.
@@ -153,11 +160,16 @@ pub fn run(opts: &DemoOptions) -> Result<Summary, DemoError> {
         stage: "load",
         message: e.to_string(),
     })?;
+    let model = crate::generate::load_model(&opts.weights).map_err(|e| DemoError::Stage {
+        scenario: "diffusion".into(),
+        stage: "weights",
+        message: e.to_string(),
+    })?;
     let mut scenarios = Vec::new();
     let mut runs = Vec::new();
     for (i, sc) in SCENARIOS.iter().enumerate() {
         println!("[{}/{}] {}", i + 1, SCENARIOS.len(), sc.name);
-        let (summary, run, grounded) = run_one(opts, sc, &inspection)?;
+        let (summary, run, grounded) = run_one(opts, sc, &inspection, &model)?;
         scenarios.push(summary);
         runs.push((run, grounded));
     }
@@ -177,6 +189,7 @@ fn run_one(
     opts: &DemoOptions,
     sc: &DemoScenario,
     inspection: &crate::map::Inspection,
+    model: &v2t_diffusion::weights::Model,
 ) -> Stage<(ScenarioSummary, Value, v2t_model::grounded::GroundedScenario)> {
     let t0 = Instant::now();
     let fail = |stage: &'static str| move |e: String| DemoError::Stage { scenario: sc.name.into(), stage, message: e };
@@ -212,9 +225,30 @@ fn run_one(
     println!("  grounded    on {} (τ {:.2} s, {:?})", grounded.fragment_id, grounded.tau_s, grounded.style);
 
     // The prior.
-    let prior = crate::link::stand_in_prior(&grounded).map_err(fail("prior"))?;
+    let gen_args = crate::generate::GenerateArgs {
+        grounded: file("grounded.json"),
+        map: opts.map.clone(),
+        weights: opts.weights.clone(),
+        variants: VARIANTS,
+        seed: opts.seed,
+        method: v2t_diffusion::sample::Method::Ddpm { noise: true },
+        guidance: crate::generate::GuidanceMode::Full,
+        schedule: v2t_diffusion::sample::GuidanceSchedule::default(),
+        draws: v2t_diffusion::generate::GenerateOptions::default().draws,
+    };
+    let (variants, gen_summary) =
+        crate::generate::run(model, &inspection.map, &grounded, &gen_args).map_err(|e| fail("prior")(e.to_string()))?;
+    let chosen = crate::generate::best(&variants).ok_or_else(|| fail("prior")("no variant generated".into()))?;
+    let prior = chosen.prior.clone();
     save("prior.json", pretty(&prior))?;
-    println!("  prior       {PRIOR_KIND}, {:.1} s", prior.duration_s());
+    save("prior_metrics.json", pretty(&gen_summary))?;
+    println!(
+        "  prior       {} variants in {:.2} s, median anchor error {:.2} m, {:.1} s",
+        gen_summary.variants,
+        gen_summary.sampling_s,
+        gen_summary.median_anchor_error_m,
+        prior.duration_s()
+    );
 
     // OpenSCENARIO.
     let vehicles = Path::new("config/vehicles");

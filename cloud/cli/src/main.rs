@@ -560,6 +560,7 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
                 edge_bin: video2track::demo::edge_beside_me(),
                 vut,
                 seed,
+                weights: PathBuf::from(video2track::train::SHIPPED_WEIGHTS),
             };
             let summary = video2track::demo::run(&opts)?;
             println!(

@@ -130,6 +130,25 @@ fn scenario_from_prior(
         StyleCode::Rush => v2t_model::Style::Rush,
         StyleCode::Yield => v2t_model::Style::Yield,
     };
+    // The zone the regulator works on (the prior's, nearest its grounded conflict point), so that
+    // the run measures the conflict the BV regulates.
+    let kind = match v2t_wire::ZoneKind::from_code(prior.zone_kind).map_err(|e| EdgeError::Prior(e.to_string()))? {
+        v2t_wire::ZoneKind::Crossing => v2t_model::metrics::ConflictKind::Crossing,
+        v2t_wire::ZoneKind::Merge => v2t_model::metrics::ConflictKind::Merge,
+    };
+    let vut_zone = v2t_model::metrics::OccupancyInterval {
+        enter_s_m: prior.vut_zone_enter_s_m,
+        exit_s_m: prior.vut_zone_exit_s_m,
+    };
+    let zone = v2t_model::metrics::ConflictZone {
+        kind,
+        a: vut_zone,
+        b: v2t_model::metrics::OccupancyInterval {
+            enter_s_m: prior.bv_zone_enter_s_m,
+            exit_s_m: prior.bv_zone_exit_s_m,
+        },
+        anchor: vut_route.point_at(0.5 * (vut_zone.enter_s_m + vut_zone.exit_s_m)),
+    };
     let paths = v2t_sim::scenario::ScenarioPaths {
         name: format!("prior {}", prior.prior_id),
         tau_s: prior.tau_s,
@@ -141,6 +160,7 @@ fn scenario_from_prior(
         bv_id: "bv".into(),
         bv_route: path(prior.bv_path.as_slice(), "BV path")?,
         bv_reference: v2t_sim::scenario::SpeedProfile::new(profile),
+        conflict: Some(zone),
     };
     v2t_sim::scenario::Scenario::from_paths(paths, settings, cfg.vut_vehicle.clone(), cfg.vehicle.clone())
         .map_err(|e| EdgeError::Prior(format!("prior {}: {e}", prior.prior_id)))

@@ -239,7 +239,10 @@ impl Scenario {
             agent: Agent { id: paths.bv_id, vehicle: bv_vehicle, route: paths.bv_route, initial_speed_mps: bv_speed },
             reference: paths.bv_reference,
         }];
-        let conflicts = first_conflicts(&vut, &bvs)?;
+        let conflicts = match paths.conflict {
+            Some(zone) => vec![Conflict { bv_index: 0, zone }],
+            None => first_conflicts(&vut, &bvs)?,
+        };
         Ok(Self {
             name: paths.name,
             description: "built from a prior's paths".into(),
@@ -282,6 +285,10 @@ pub struct ScenarioPaths {
     pub bv_route: ReferencePath,
     /// The BV's reference speed over time.
     pub bv_reference: SpeedProfile,
+    /// The conflict zone the BV regulates (`a` along the VUT route, `b` along the BV path), when the
+    /// prior fixes it; `None`: the first zone of the two paths. Measuring the zone the BV regulates
+    /// matters when the paths share more than one (a generated lane change that runs alongside).
+    pub conflict: Option<ConflictZone>,
 }
 
 /// The first conflict of every BV with the VUT; a BV without one is an error.
