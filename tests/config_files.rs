@@ -81,6 +81,31 @@ fn every_configuration_file_loads_and_validates() {
                 assert!(path.with_extension("xodr").exists(), "{rel}: the map it generates is missing");
             }
             "maps" if rel.ends_with("README.md") => {}
+            // The shipped denoiser weights: they load (format, version, architecture, every tensor's
+            // shape, no NaN), were trained on the synthetic corpus, their metrics file ends with the
+            // held-out loss the weights record, and the README names the command that made them.
+            "diffusion" if rel.ends_with(".safetensors") => {
+                let model = v2t_diffusion::weights::load(path).unwrap_or_else(|e| panic!("{e}"));
+                assert!(model.meta.training.synthetic, "{rel}: training data not marked synthetic");
+            }
+            "diffusion" if rel.ends_with("metrics.jsonl") => {
+                let text = std::fs::read_to_string(path).unwrap();
+                let lines: Vec<v2t_diffusion::train::TrainMetrics> =
+                    text.lines().map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{rel}: {e}"))).collect();
+                let weights = v2t_diffusion::weights::load(&path.with_file_name("denoiser.safetensors")).unwrap();
+                let last = lines.last().and_then(|m| m.heldout_loss).unwrap();
+                assert_eq!(last, weights.meta.training.heldout_loss, "{rel}: not the run of the weights");
+                assert_eq!(lines.last().unwrap().step, weights.meta.training.steps);
+            }
+            "diffusion" if rel.ends_with("README.md") => {
+                let text = std::fs::read_to_string(path).unwrap();
+                let weights = v2t_diffusion::weights::load(&path.with_file_name("denoiser.safetensors")).unwrap();
+                let args = weights.meta.training.command.split_once(" train ").map(|(_, a)| a.to_owned()).unwrap();
+                assert!(text.contains(&format!("video2track train {args}")), "{rel} does not name the command: {args}");
+            }
+            "diffusion" if rel.ends_with(".gitignore") => {
+                assert!(std::fs::read_to_string(path).unwrap().contains("checkpoints/"));
+            }
             // The VLM prompt and the recorded exchanges: a cassette replays to its semantics.json.
             "vlm" => v2t_vlm::check_config_file(path).unwrap_or_else(|e| panic!("config/{rel}: {e}")),
             _ => panic!("config/{rel}: no validator knows this file; add one to tests/config_files.rs"),
