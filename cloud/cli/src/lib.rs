@@ -15,6 +15,7 @@ pub mod generate;
 pub mod ground;
 pub mod link;
 pub mod map;
+pub mod methods;
 pub mod render;
 /// Loading configuration files (lives in `v2t-sim`, shared with the onboard runtime).
 pub use v2t_sim::files;

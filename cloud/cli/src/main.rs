@@ -510,6 +510,12 @@ enum Sampling {
 enum Experiment {
     /// RQ3: does the achieved PET land on the target τ, in both styles, against every VUT model?
     Steerability,
+    /// RQ1: the four methods at rush, τ = 1.5 s: which gives the smallest PET without collision?
+    Adversariality,
+    /// RQ2: the four methods at the video's style and PET label: PET^min_track against the label.
+    Fidelity,
+    /// The four methods in both styles at the video's PET label: is the order the one asked for?
+    Style,
 }
 
 fn main() -> ExitCode {
@@ -771,6 +777,69 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
                 done.encoder
             );
             println!("wrote {}", out.display());
+            Ok(())
+        }
+        Command::Experiment {
+            which: which @ (Experiment::Adversariality | Experiment::Fidelity | Experiment::Style),
+            json,
+            repeats,
+            vut,
+            regulator,
+            ..
+        } => {
+            use v2t_model::Style;
+            use video2track::methods;
+            let models: Vec<VutModel> = if vut.is_empty() {
+                VutModel::ALL.to_vec()
+            } else {
+                vut.iter().map(|v| v.parse::<VutModel>()).collect::<Result<_, _>>().map_err(anyhow::Error::msg)?
+            };
+            let inspection = video2track::map::inspect(std::path::Path::new(video2track::ground::DEFAULT_MAP), None)?;
+            let model = video2track::generate::load_model(std::path::Path::new(video2track::train::SHIPPED_WEIGHTS))?;
+            let setup = methods::Setup {
+                inspection: &inspection,
+                model: &model,
+                regulator: load_toml(&regulator)?,
+                sim: load_toml(std::path::Path::new("config/sim/default.toml"))?,
+                vut_vehicle: load_toml(std::path::Path::new("config/vehicles/vut_sedan.toml"))?,
+                bv_vehicle: load_toml(std::path::Path::new("config/vehicles/bv_sedan.toml"))?,
+            };
+            let mut recorded = Vec::new();
+            for sc in video2track::demo::SCENARIOS {
+                let args = AbstractArgs {
+                    video: PathBuf::from(sc.video),
+                    pet_label_s: sc.pet_label_s,
+                    record: None,
+                    replay: Some(PathBuf::from(sc.cassette)),
+                    frames: None,
+                    sampling: None,
+                };
+                let result = video2track::abstract_cmd::abstract_video(&args, |_| None)?;
+                recorded.push(methods::Recorded { name: sc.name.to_owned(), semantics: result.semantics });
+            }
+            let style_of = |r: &methods::Recorded| r.semantics.interacting_bvs.first().map_or(Style::Rush, |b| b.style);
+            let targets: Box<dyn Fn(&methods::Recorded) -> Vec<(f64, Style)>> = match which {
+                Experiment::Adversariality => Box::new(|_| vec![(1.5, Style::Rush)]),
+                Experiment::Fidelity => Box::new(move |r| vec![(r.semantics.pet_label_s, style_of(r))]),
+                _ => {
+                    Box::new(|r| vec![(r.semantics.pet_label_s, Style::Rush), (r.semantics.pet_label_s, Style::Yield)])
+                }
+            };
+            let cases =
+                methods::run_all(&setup, &recorded, targets.as_ref(), &models, repeats).map_err(anyhow::Error::msg)?;
+            let summary = methods::summarize(&cases);
+            // The fidelity error is against the video's PET label: only where τ is that label.
+            let labels: Vec<(String, f64)> = match which {
+                Experiment::Adversariality => Vec::new(),
+                _ => recorded.iter().map(|r| (r.name.clone(), r.semantics.pet_label_s)).collect(),
+            };
+            print!("{}", methods::markdown(&summary, &labels));
+            if let Some(path) = json {
+                let doc = serde_json::json!({ "cases": cases, "summary": summary });
+                let text = serde_json::to_string_pretty(&doc).context("serializing the report")?;
+                std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
+                println!("wrote {}", path.display());
+            }
             Ok(())
         }
         Command::Experiment { which: Experiment::Steerability, json, repeats, cards, vut, tau, regulator } => {

@@ -144,6 +144,9 @@ fn help_lists_only_real_commands() {
             "render",
             "experiment",
             "abstract",
+            "generate",
+            "realism",
+            "train",
             "ground",
             "export",
             "map",
@@ -155,6 +158,38 @@ fn help_lists_only_real_commands() {
         ],
         "{out}"
     );
+}
+
+#[test]
+fn the_four_methods_run_on_both_recorded_scenarios() {
+    let json = tempdir("fidelity").join("fidelity.json");
+    let o = video2track(&[
+        "experiment",
+        "fidelity",
+        "--repeats",
+        "1",
+        "--vut",
+        "idm-normal",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    for method in ["Predefined", "TroubleMaker-like", "Diffusion-only", "Video2Track"] {
+        assert_eq!(out.matches(&format!("| {method} |")).count(), 2, "{out}");
+    }
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let cases = doc["cases"].as_array().unwrap();
+    assert_eq!(cases.len(), 8, "2 scenarios × 4 methods × 1 VUT model");
+    for c in cases {
+        assert_eq!(c["collisions"], 0, "{c}");
+        assert_eq!(c["repeats"], 1);
+        assert!(c["mean_pet_min_s"].as_f64().unwrap() > 0.5, "{c}");
+        assert_eq!(c["style"], "rush");
+    }
+    assert_eq!(doc["summary"].as_array().unwrap().len(), 8);
+    let taus: Vec<f64> = cases.iter().map(|c| c["tau_s"].as_f64().unwrap()).collect();
+    assert!(taus.contains(&4.7) && taus.contains(&2.9), "the videos' PET labels are the targets: {taus:?}");
 }
 
 #[test]
