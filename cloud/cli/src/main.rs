@@ -787,7 +787,6 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             regulator,
             ..
         } => {
-            use v2t_model::Style;
             use video2track::methods;
             let models: Vec<VutModel> = if vut.is_empty() {
                 VutModel::ALL.to_vec()
@@ -817,16 +816,13 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
                 let result = video2track::abstract_cmd::abstract_video(&args, |_| None)?;
                 recorded.push(methods::Recorded { name: sc.name.to_owned(), semantics: result.semantics });
             }
-            let style_of = |r: &methods::Recorded| r.semantics.interacting_bvs.first().map_or(Style::Rush, |b| b.style);
-            let targets: Box<dyn Fn(&methods::Recorded) -> Vec<(f64, Style)>> = match which {
-                Experiment::Adversariality => Box::new(|_| vec![(1.5, Style::Rush)]),
-                Experiment::Fidelity => Box::new(move |r| vec![(r.semantics.pet_label_s, style_of(r))]),
-                _ => {
-                    Box::new(|r| vec![(r.semantics.pet_label_s, Style::Rush), (r.semantics.pet_label_s, Style::Yield)])
-                }
+            let comparison = match which {
+                Experiment::Adversariality => methods::Comparison::Adversariality,
+                Experiment::Fidelity => methods::Comparison::Fidelity,
+                _ => methods::Comparison::Style,
             };
             let cases =
-                methods::run_all(&setup, &recorded, targets.as_ref(), &models, repeats).map_err(anyhow::Error::msg)?;
+                methods::run_all(&setup, &recorded, comparison, &models, repeats).map_err(anyhow::Error::msg)?;
             let summary = methods::summarize(&cases);
             // The fidelity error is against the video's PET label: only where τ is that label.
             let labels: Vec<(String, f64)> = match which {

@@ -74,6 +74,29 @@ impl Method {
     }
 }
 
+/// Which comparison.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Comparison {
+    /// Rush at τ = 1.5 s.
+    Adversariality,
+    /// The video's style at its PET label.
+    Fidelity,
+    /// Rush and yield at the video's PET label.
+    Style,
+}
+
+impl Comparison {
+    /// The (τ, style) targets of `rec`.
+    pub fn targets(self, rec: &Recorded) -> Vec<(f64, Style)> {
+        let label = rec.semantics.pet_label_s;
+        match self {
+            Self::Adversariality => vec![(1.5, Style::Rush)],
+            Self::Fidelity => vec![(label, rec.semantics.interacting_bvs.first().map_or(Style::Rush, |b| b.style))],
+            Self::Style => vec![(label, Style::Rush), (label, Style::Yield)],
+        }
+    }
+}
+
 /// One recorded scenario of the experiments.
 #[derive(Debug, Clone)]
 pub struct Recorded {
@@ -267,13 +290,13 @@ pub fn run_case(setup: &Setup<'_>, scenario: &Scenario, method: Method, model: V
 pub fn run_all(
     setup: &Setup<'_>,
     recorded: &[Recorded],
-    targets: &dyn Fn(&Recorded) -> Vec<(f64, Style)>,
+    comparison: Comparison,
     models: &[VutModel],
     repeats: usize,
 ) -> Result<Vec<MethodCase>, String> {
     let mut jobs = Vec::new();
     for rec in recorded {
-        for (tau, style) in targets(rec) {
+        for (tau, style) in comparison.targets(rec) {
             let (grounded, stand_in, diffusion) = priors(rec, tau, style, setup, 1)?;
             let name = format!("{} ({:?}, τ {tau:.2} s)", rec.name, style).to_lowercase();
             let constant = scenario_of_prior(&name, &stand_in, &grounded, setup)?;

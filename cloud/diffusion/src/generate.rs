@@ -250,16 +250,14 @@ pub fn setup(
     let merges = scenario.conflicts.iter().any(|c| c.kind == v2t_model::metrics::ConflictKind::Merge);
     let passages: Vec<(usize, f64)> = anchors.iter().map(|(i, _, t)| (*i, *t)).collect();
     for &i in &slot_agents {
-        if merges {
-            if let Some(t_pass) = passages.iter().filter(|(a, _)| *a == i).map(|(_, t)| *t).reduce(f64::min) {
-                let mut t = (t_pass + 1.0).max(t0);
-                while t < t0 + horizon_s - 0.5 {
-                    let k = ((t / dt).round() as usize).min(n);
-                    if let Some(x) = base.agents.get(i).and_then(|a| a.states.get(k)) {
-                        anchors.push((i, x.position(), k as f64 * dt));
-                    }
-                    t += 1.0;
+        if merges && let Some(t_pass) = passages.iter().filter(|(a, _)| *a == i).map(|(_, t)| *t).reduce(f64::min) {
+            let mut t = (t_pass + 1.0).max(t0);
+            while t < t0 + horizon_s - 0.5 {
+                let k = ((t / dt).round() as usize).min(n);
+                if let Some(x) = base.agents.get(i).and_then(|a| a.states.get(k)) {
+                    anchors.push((i, x.position(), k as f64 * dt));
                 }
+                t += 1.0;
             }
         }
         if let Some(x) = base.agents.get(i).and_then(|a| a.states.get(window_start + cfg.steps)) {
