@@ -32,6 +32,23 @@ pub struct DemoScenario {
     pub pet_label_s: f64,
 }
 
+impl DemoScenario {
+    /// The semantics its recorded VLM exchange replays to.
+    pub fn replayed_semantics(
+        &self,
+    ) -> Result<v2t_model::semantics::ScenarioSemantics, crate::abstract_cmd::AbstractError> {
+        let args = AbstractArgs {
+            video: PathBuf::from(self.video),
+            pet_label_s: self.pet_label_s,
+            record: None,
+            replay: Some(PathBuf::from(self.cassette)),
+            frames: None,
+            sampling: None,
+        };
+        abstract_video(&args, |_| None).map(|r| r.semantics)
+    }
+}
+
 /// The paper's cut-in (PET 4.70 s) and unprotected left turn (PET 2.90 s).
 pub const SCENARIOS: [DemoScenario; 2] = [
     DemoScenario {
@@ -203,16 +220,7 @@ fn run_one(
     };
 
     // Semantics from the recorded exchange.
-    let args = AbstractArgs {
-        video: PathBuf::from(sc.video),
-        pet_label_s: sc.pet_label_s,
-        record: None,
-        replay: Some(PathBuf::from(sc.cassette)),
-        frames: None,
-        sampling: None,
-    };
-    let abs = abstract_video(&args, |_| None).map_err(|e| fail("abstract")(e.to_string()))?;
-    let sem = abs.semantics;
+    let sem = sc.replayed_semantics().map_err(|e| fail("abstract")(e.to_string()))?;
     save("semantics.json", pretty(&sem))?;
     let interaction = sem.interacting_bvs.first().map_or("?", |b| b.interaction_type.as_str());
     println!("  semantics   {interaction}, PET label {:.2} s (replayed cassette)", sem.pet_label_s);

@@ -26,6 +26,24 @@ struct Cli {
     command: Command,
 }
 
+/// The training corpus of `train` and `realism`.
+#[derive(Debug, clap::Args)]
+struct CorpusArgs {
+    /// A corpus file (JSON lines, as the synthetic corpus writer makes it); default: generate the
+    /// synthetic corpus on --map (the one the shipped weights were trained on).
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// The corpus's map (routes come from its topology library).
+    #[arg(long, default_value = video2track::ground::DEFAULT_MAP)]
+    map: PathBuf,
+    /// Episodes of the generated corpus.
+    #[arg(long, default_value_t = video2track::train::DEFAULT_EPISODES)]
+    episodes: usize,
+    /// Seed of the generated corpus.
+    #[arg(long, default_value_t = video2track::train::DEFAULT_CORPUS_SEED)]
+    corpus_seed: u64,
+}
+
 /// Guidance terms of `generate`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 enum GuidanceArg {
@@ -201,18 +219,8 @@ enum Command {
         /// Denoiser weights (safetensors).
         #[arg(long, default_value = video2track::train::SHIPPED_WEIGHTS)]
         weights: PathBuf,
-        /// A corpus file; default: the synthetic corpus the shipped weights were trained on.
-        #[arg(long)]
-        data: Option<PathBuf>,
-        /// The corpus's map.
-        #[arg(long, default_value = video2track::ground::DEFAULT_MAP)]
-        map: PathBuf,
-        /// Episodes of the generated corpus.
-        #[arg(long, default_value_t = video2track::train::DEFAULT_EPISODES)]
-        episodes: usize,
-        /// Seed of the generated corpus.
-        #[arg(long, default_value_t = video2track::train::DEFAULT_CORPUS_SEED)]
-        corpus_seed: u64,
+        #[command(flatten)]
+        corpus: CorpusArgs,
         /// Held-out windows compared (one per held-out episode).
         #[arg(long, default_value_t = 100)]
         windows: usize,
@@ -226,19 +234,8 @@ enum Command {
     /// Train the trajectory-prior denoiser (default: on the synthetic corpus generated on the
     /// proving ground); writes OUT/denoiser.safetensors, OUT/metrics.jsonl, OUT/checkpoints/.
     Train {
-        /// A corpus file (JSON lines, as the synthetic corpus writer makes it); default: generate
-        /// the synthetic corpus on --map.
-        #[arg(long)]
-        data: Option<PathBuf>,
-        /// The corpus's map (routes come from its topology library).
-        #[arg(long, default_value = video2track::ground::DEFAULT_MAP)]
-        map: PathBuf,
-        /// Episodes of the generated corpus.
-        #[arg(long, default_value_t = video2track::train::DEFAULT_EPISODES)]
-        episodes: usize,
-        /// Seed of the generated corpus.
-        #[arg(long, default_value_t = video2track::train::DEFAULT_CORPUS_SEED)]
-        corpus_seed: u64,
+        #[command(flatten)]
+        corpus: CorpusArgs,
         /// Optimizer steps.
         #[arg(long, default_value_t = 5000)]
         steps: usize,
@@ -675,7 +672,8 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Command::Realism { weights, data, map, episodes, corpus_seed, windows, seed, json } => {
+        Command::Realism { weights, corpus, windows, seed, json } => {
+            let CorpusArgs { data, map, episodes, corpus_seed } = corpus;
             let args = video2track::train::RealismArgs { weights, data, map, episodes, corpus_seed, windows, seed };
             let rows = video2track::train::realism(&args)?;
             print!("{}", video2track::train::realism_table(&rows));
@@ -685,22 +683,9 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Command::Train {
-            data,
-            map,
-            episodes,
-            corpus_seed,
-            steps,
-            batch,
-            lr,
-            seed,
-            hidden,
-            blocks,
-            eval_every,
-            checkpoint_every,
-            out,
-        } => {
+        Command::Train { corpus, steps, batch, lr, seed, hidden, blocks, eval_every, checkpoint_every, out } => {
             let command = std::env::args().collect::<Vec<_>>().join(" ");
+            let CorpusArgs { data, map, episodes, corpus_seed } = corpus;
             let args = video2track::train::TrainArgs {
                 data,
                 map,
@@ -805,16 +790,8 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             };
             let mut recorded = Vec::new();
             for sc in video2track::demo::SCENARIOS {
-                let args = AbstractArgs {
-                    video: PathBuf::from(sc.video),
-                    pet_label_s: sc.pet_label_s,
-                    record: None,
-                    replay: Some(PathBuf::from(sc.cassette)),
-                    frames: None,
-                    sampling: None,
-                };
-                let result = video2track::abstract_cmd::abstract_video(&args, |_| None)?;
-                recorded.push(methods::Recorded { name: sc.name.to_owned(), semantics: result.semantics });
+                let semantics = sc.replayed_semantics()?;
+                recorded.push(methods::Recorded { name: sc.name.to_owned(), semantics });
             }
             let comparison = match which {
                 Experiment::Adversariality => methods::Comparison::Adversariality,

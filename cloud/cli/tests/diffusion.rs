@@ -5,25 +5,13 @@
 
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
+use std::path::Path;
+
+use common::{ok, s, video2track};
 use v2t_model::prior::TrajectoryPrior;
 use v2t_model::validate::Validate as _;
-
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn video2track(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_video2track")).args(args).current_dir(repo()).output().unwrap()
-}
-
-fn ok(args: &[&str]) -> String {
-    let o = video2track(args);
-    assert!(o.status.success(), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
 
 fn fails(args: &[&str]) -> String {
     let o = video2track(args);
@@ -31,20 +19,12 @@ fn fails(args: &[&str]) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("v2t-diffusion-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn tempdir(name: &str) -> std::path::PathBuf {
+    common::tempdir("diffusion", name)
 }
 
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn grounded(dir: &Path, which: &str) -> PathBuf {
-    let out = dir.join(format!("{which}.json"));
-    ok(&["ground", &format!("config/examples/semantics_{which}.json"), "--out", s(&out)]);
-    out
+fn grounded(dir: &Path, which: &str) -> std::path::PathBuf {
+    common::ground_example(dir, which)
 }
 
 #[test]

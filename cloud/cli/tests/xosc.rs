@@ -5,43 +5,24 @@
 
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+
+use common::{ok, repo, s, video2track};
 
 use v2t_model::geometry::Point2;
 use v2t_model::grounded::{AgentRole, GroundedScenario};
 use v2t_model::kinematics::State;
 use v2t_model::prior::TrajectoryPrior;
 
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn video2track(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_video2track")).args(args).current_dir(repo()).output().unwrap()
-}
-
-fn ok(args: &[&str]) -> String {
-    let o = video2track(args);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{args:?}: {err}");
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
 fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("v2t-xosc-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
+    common::tempdir("xosc", name)
 }
 
 /// Grounds the example semantics `which` (left_turn, cut_in) into `dir`.
 fn grounded(dir: &Path, which: &str) -> (PathBuf, GroundedScenario) {
-    let out = dir.join(format!("{which}.json"));
-    ok(&["ground", &format!("config/examples/semantics_{which}.json"), "--out", s(&out)]);
+    let out = common::ground_example(dir, which);
     let g: GroundedScenario = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
     (out, g)
 }

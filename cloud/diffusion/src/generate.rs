@@ -423,14 +423,7 @@ fn stitch(
         controls.extend(tail_controls);
         *agent = AgentTrajectory { id: agent.id.clone(), role: agent.role, states, controls };
     }
-    TrajectoryPrior {
-        fragment_id: scenario.fragment_id.clone(),
-        dt_s: dt,
-        agents,
-        conflicts: scenario.conflicts.clone(),
-        tau_s: scenario.tau_s,
-        style: scenario.style,
-    }
+    TrajectoryPrior::of_scenario(scenario, dt, agents)
 }
 
 /// Position at time `t` (linear between states).

@@ -92,16 +92,21 @@ impl TrajectoryPrior {
                 .collect();
             agents.push(AgentTrajectory { id: a.id.clone(), role: a.role, states, controls });
         }
-        let prior = Self {
+        let prior = Self::of_scenario(scenario, dt, agents);
+        prior.validate()?;
+        Ok(prior)
+    }
+
+    /// A prior of `scenario`'s fragment, conflicts, τ and style with these agents (not validated).
+    pub fn of_scenario(scenario: &GroundedScenario, dt_s: f64, agents: Vec<AgentTrajectory>) -> Self {
+        Self {
             fragment_id: scenario.fragment_id.clone(),
-            dt_s: dt,
+            dt_s,
             agents,
             conflicts: scenario.conflicts.clone(),
             tau_s: scenario.tau_s,
             style: scenario.style,
-        };
-        prior.validate()?;
-        Ok(prior)
+        }
     }
 
     /// How long [`Self::along_routes_at_start_speed`] must run for every agent of `g` to reach its
