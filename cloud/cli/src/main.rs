@@ -140,6 +140,10 @@ enum Command {
         /// Regulator settings (TOML).
         #[arg(long, default_value = "config/regulator/default.toml")]
         regulator: PathBuf,
+        /// steerability: compare the four methods on the two recorded scenarios (grounded for each
+        /// τ and style) instead of the regulator alone on the scenario cards.
+        #[arg(long)]
+        methods: bool,
     },
     /// Turn a driving video into scenario semantics with a vision-language model (endpoint from
     /// V2T_VLM_BASE_URL, V2T_VLM_MODEL, V2T_VLM_API_KEY), or replay a recorded cassette offline.
@@ -764,14 +768,9 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             println!("wrote {}", out.display());
             Ok(())
         }
-        Command::Experiment {
-            which: which @ (Experiment::Adversariality | Experiment::Fidelity | Experiment::Style),
-            json,
-            repeats,
-            vut,
-            regulator,
-            ..
-        } => {
+        Command::Experiment { which, json, repeats, vut, regulator, methods: four, tau, .. }
+            if four || !matches!(which, Experiment::Steerability) =>
+        {
             use video2track::methods;
             let models: Vec<VutModel> = if vut.is_empty() {
                 VutModel::ALL.to_vec()
@@ -793,29 +792,37 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
                 let semantics = sc.replayed_semantics()?;
                 recorded.push(methods::Recorded { name: sc.name.to_owned(), semantics });
             }
+            let taus = if tau.is_empty() { experiment::STEER_TAUS_S.to_vec() } else { tau };
             let comparison = match which {
                 Experiment::Adversariality => methods::Comparison::Adversariality,
                 Experiment::Fidelity => methods::Comparison::Fidelity,
-                _ => methods::Comparison::Style,
+                Experiment::Style => methods::Comparison::Style,
+                Experiment::Steerability => methods::Comparison::Steerability(taus),
             };
             let cases =
-                methods::run_all(&setup, &recorded, comparison, &models, repeats).map_err(anyhow::Error::msg)?;
+                methods::run_all(&setup, &recorded, &comparison, &models, repeats).map_err(anyhow::Error::msg)?;
             let summary = methods::summarize(&cases);
             // The fidelity error is against the video's PET label: only where τ is that label.
             let labels: Vec<(String, f64)> = match which {
-                Experiment::Adversariality => Vec::new(),
+                Experiment::Adversariality | Experiment::Steerability => Vec::new(),
                 _ => recorded.iter().map(|r| (r.name.clone(), r.semantics.pet_label_s)).collect(),
             };
             print!("{}", methods::markdown(&summary, &labels));
+            let steering = methods::steering_errors(&summary);
+            if matches!(which, Experiment::Steerability) {
+                print!("{}", methods::steering_markdown(&steering));
+            }
             if let Some(path) = json {
-                let doc = serde_json::json!({ "cases": cases, "summary": summary });
+                let doc = serde_json::json!({ "cases": cases, "summary": summary, "steering": steering });
                 let text = serde_json::to_string_pretty(&doc).context("serializing the report")?;
                 std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
                 println!("wrote {}", path.display());
             }
             Ok(())
         }
-        Command::Experiment { which: Experiment::Steerability, json, repeats, cards, vut, tau, regulator } => {
+        // Steerability of the regulator alone on the scenario cards (the other experiments and
+        // `--methods` are the arm above).
+        Command::Experiment { json, repeats, cards, vut, tau, regulator, .. } => {
             let settings: RegulatorParams = load_toml(&regulator)?;
             let cards = if cards.is_empty() {
                 vec![

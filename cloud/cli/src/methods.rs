@@ -19,6 +19,8 @@
 //! - `fidelity`: the recorded style and τ = the video's PET label; `PET^min_track` (minimum over
 //!   runs) against the label.
 //! - `style`: rush and yield at τ = the video's PET label; the share of runs in the asked order.
+//! - `steerability --methods`: rush and yield at every τ (1.5–5 s); per method the steering error
+//!   `|meanPET^min − τ| / τ`.
 
 use serde::Serialize;
 use v2t_game::regulator::RegulatorParams;
@@ -75,8 +77,10 @@ impl Method {
 }
 
 /// Which comparison.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Comparison {
+    /// Rush and yield at each of these τ.
+    Steerability(Vec<f64>),
     /// Rush at τ = 1.5 s.
     Adversariality,
     /// The video's style at its PET label.
@@ -87,9 +91,10 @@ pub enum Comparison {
 
 impl Comparison {
     /// The (τ, style) targets of `rec`.
-    pub fn targets(self, rec: &Recorded) -> Vec<(f64, Style)> {
+    pub fn targets(&self, rec: &Recorded) -> Vec<(f64, Style)> {
         let label = rec.semantics.pet_label_s;
         match self {
+            Self::Steerability(taus) => taus.iter().flat_map(|t| [(*t, Style::Rush), (*t, Style::Yield)]).collect(),
             Self::Adversariality => vec![(1.5, Style::Rush)],
             Self::Fidelity => vec![(label, rec.semantics.interacting_bvs.first().map_or(Style::Rush, |b| b.style))],
             Self::Style => vec![(label, Style::Rush), (label, Style::Yield)],
@@ -290,7 +295,7 @@ pub fn run_case(setup: &Setup<'_>, scenario: &Scenario, method: Method, model: V
 pub fn run_all(
     setup: &Setup<'_>,
     recorded: &[Recorded],
-    comparison: Comparison,
+    comparison: &Comparison,
     models: &[VutModel],
     repeats: usize,
 ) -> Result<Vec<MethodCase>, String> {
@@ -371,6 +376,66 @@ pub fn summarize(cases: &[MethodCase]) -> Vec<MethodSummary> {
             order_ok_frac: group.iter().map(|d| d.order_ok_frac * d.repeats as f64).sum::<f64>() / runs.max(1) as f64,
             runs,
         });
+    }
+    out
+}
+
+/// Steering error per method: `|meanPET^min − τ| / τ` over its (scenario, style, τ) rows, mean
+/// and max over all of them and over τ ∈ [2, 5] s (the range).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SteeringError {
+    /// Method.
+    pub method: Method,
+    /// Rows (scenario × style × τ).
+    pub rows: usize,
+    /// Mean error over all rows.
+    pub mean_error_rel: f64,
+    /// Largest error.
+    pub max_error_rel: f64,
+    /// Mean error over the rows with τ in [2, 5] s.
+    pub mean_error_rel_tau_2_5: f64,
+}
+
+/// The steering errors of `rows` per method (a row without a measured PET counts as error 1).
+pub fn steering_errors(rows: &[MethodSummary]) -> Vec<SteeringError> {
+    Method::ALL
+        .iter()
+        .filter_map(|&method| {
+            let errs: Vec<(f64, f64)> = rows
+                .iter()
+                .filter(|r| r.method == method)
+                .map(|r| (r.tau_s, r.mean_pet_min_s.map_or(1.0, |m| (m - r.tau_s).abs() / r.tau_s)))
+                .collect();
+            if errs.is_empty() {
+                return None;
+            }
+            let mid: Vec<f64> = errs.iter().filter(|(t, _)| (2.0..=5.0).contains(t)).map(|(_, e)| *e).collect();
+            let mean = |v: &[f64]| if v.is_empty() { f64::NAN } else { v.iter().sum::<f64>() / v.len() as f64 };
+            let all: Vec<f64> = errs.iter().map(|(_, e)| *e).collect();
+            Some(SteeringError {
+                method,
+                rows: errs.len(),
+                mean_error_rel: mean(&all),
+                max_error_rel: all.iter().copied().fold(0.0, f64::max),
+                mean_error_rel_tau_2_5: mean(&mid),
+            })
+        })
+        .collect()
+}
+
+/// The steering errors as a markdown table.
+pub fn steering_markdown(errors: &[SteeringError]) -> String {
+    let mut out =
+        String::from("\n| method | rows | mean steering error | max | mean, τ 2–5 s |\n|---|---|---|---|---|\n");
+    for e in errors {
+        out.push_str(&format!(
+            "| {} | {} | {:.1} % | {:.1} % | {:.1} % |\n",
+            e.method.name(),
+            e.rows,
+            100.0 * e.mean_error_rel,
+            100.0 * e.max_error_rel,
+            100.0 * e.mean_error_rel_tau_2_5
+        ));
     }
     out
 }

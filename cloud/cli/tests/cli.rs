@@ -193,6 +193,24 @@ fn the_four_methods_run_on_both_recorded_scenarios() {
 }
 
 #[test]
+fn steerability_compares_the_four_methods_on_request() {
+    let json = tempdir("steer-methods").join("steer.json");
+    let args = ["experiment", "steerability", "--methods", "--repeats", "1", "--tau", "3", "--vut", "idm-normal"];
+    let o = video2track(&[&args[..], &["--json", json.to_str().unwrap()]].concat());
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(out.contains("mean steering error"), "{out}");
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(doc["cases"].as_array().unwrap().len(), 16, "2 scenarios × 2 styles × 4 methods");
+    let steering = doc["steering"].as_array().unwrap();
+    assert_eq!(steering.len(), 4);
+    for s in steering {
+        assert_eq!(s["rows"], 4, "{s}");
+        assert!(s["mean_error_rel"].as_f64().unwrap().is_finite());
+    }
+}
+
+#[test]
 fn steerability_writes_the_documented_json() {
     let json = tempdir("steer").join("steer.json");
     let o = video2track(&[
