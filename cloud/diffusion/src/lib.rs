@@ -1,20 +1,21 @@
-//! # v2t-diffusion — the data side
+//! # v2t-diffusion — guided diffusion over joint controls
 //!
-//! The guided diffusion model of the paper (Section 3.3.1) denoises *joint control sequences*
-//! `(a, ω)` of the kinematic model of `v2t-model`; it learns human driving priors from data. This
-//! crate prepares that data, with no ML dependency:
+//! The guided diffusion model of the paper (Section 3.3.1, Algorithm 1): it denoises *joint
+//! control sequences* `(a, ω)` of the kinematic model of `v2t-model` for the VUT and 1–2 BVs,
+//! guided at every step through the differentiable rollout, and learns human driving priors from
+//! data (here a **synthetic** corpus):
 //!
-//! - [`tracks`]: recorded tracks and episodes;
-//! - [`import`]: INTERACTION/highD-style CSV and CommonRoad XML importers;
-//! - [`inverse`]: positions → controls by a jerk-penalised least-squares smoother and exact
-//!   inversion of the discrete model, with the rollout gap measured;
-//! - [`mining`]: cut-ins, left turns / crossings and merges found in an episode, with PET;
-//! - [`synth`]: a **synthetic** human-driving corpus simulated on the topology library's fragments
-//!   with heterogeneous driver models, and its JSON-lines format;
-//! - [`stats`]: histograms and Wasserstein-1 distances for realism checks;
-//! - [`guidance`]: stage 2a, the guidance energies (anchors, solid boundaries, clearance, kinematic
-//!   limits) on rolled-out joint controls with their gradients through the rollout adjoint, and the
-//!   guided correction of Algorithm 1 in the denoiser's normalized space.
+//! - [`denoiser`]: `ε_θ(U_k, k, c)` on `candle`, a patched temporal convolution network with FiLM;
+//!   [`condition`]: what `c` holds; [`schedule`]: the noise schedule;
+//! - [`sample`]: Algorithm 1 batched over variants (DDPM or DDIM) with [`guidance`]: the energies
+//!   (anchors, solid boundaries, clearance, kinematic limits) on rolled-out controls, their
+//!   gradients through the rollout adjoint, the guided correction;
+//! - [`generate`]: a grounded scenario → trajectory priors and their metrics;
+//! - [`train`], [`weights`], [`realism`]: training windows and the trainer, versioned safetensors,
+//!   Wasserstein-1 distances to held-out data;
+//! - the data side: [`tracks`], [`import`] (INTERACTION/highD-style CSV, CommonRoad XML),
+//!   [`inverse`] (positions → controls), [`mining`] (cut-ins, left turns, merges with PET),
+//!   [`synth`] (the synthetic corpus), [`stats`] (histograms, W₁).
 //!
 //! ```
 //! use v2t_diffusion::import::csv::{parse, CsvOptions};
