@@ -233,19 +233,10 @@ fn run_one(
     println!("  grounded    on {} (τ {:.2} s, {:?})", grounded.fragment_id, grounded.tau_s, grounded.style);
 
     // The prior.
-    let gen_args = crate::generate::GenerateArgs {
-        grounded: file("grounded.json"),
-        map: opts.map.clone(),
-        weights: opts.weights.clone(),
-        variants: VARIANTS,
-        seed: opts.seed,
-        method: v2t_diffusion::sample::Method::Ddpm { noise: true },
-        guidance: crate::generate::GuidanceMode::Full,
-        schedule: v2t_diffusion::sample::GuidanceSchedule::default(),
-        draws: v2t_diffusion::generate::GenerateOptions::default().draws,
-    };
-    let (variants, gen_summary) =
-        crate::generate::run(model, &inspection.map, &grounded, &gen_args).map_err(|e| fail("prior")(e.to_string()))?;
+    let gen_options =
+        v2t_diffusion::generate::GenerateOptions { variants: VARIANTS, seed: opts.seed, ..Default::default() };
+    let (variants, gen_summary) = crate::generate::run(model, &inspection.map, &grounded, &gen_options)
+        .map_err(|e| fail("prior")(e.to_string()))?;
     let chosen = crate::generate::best(&variants).ok_or_else(|| fail("prior")("no variant generated".into()))?;
     let prior = chosen.prior.clone();
     save("prior.json", pretty(&prior))?;

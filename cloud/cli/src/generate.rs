@@ -1,21 +1,15 @@
 //! `video2track generate`: trajectory priors for a grounded scenario from the diffusion model, with
 //! their metrics (anchor error, boundary crossings, vehicle limits, passing order).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde::Serialize;
 use v2t_diffusion::generate::{GenerateOptions, Generated, PriorMetrics, generate};
 use v2t_diffusion::guidance::GuidanceWeights;
-use v2t_diffusion::sample::{GuidanceSchedule, Method, SamplerOptions};
 use v2t_diffusion::weights::{self, Model};
 use v2t_model::grounded::GroundedScenario;
 use v2t_model::prior::TrajectoryPrior;
 use v2t_model::validate::Validate as _;
-
-/// The weights of full guidance: the kinematic term counts four times, so that guidance trades
-/// anchor precision for the vehicle limits before the final projection has to.
-pub const FULL_WEIGHTS: GuidanceWeights =
-    GuidanceWeights { anchor: 1.0, boundary: 1.0, clearance: 1.0, kinematic: 4.0 };
 
 /// Which guidance terms are on (the ablation of the crate README).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -32,7 +26,7 @@ impl GuidanceMode {
     /// The weights of the mode.
     pub fn weights(self) -> GuidanceWeights {
         match self {
-            Self::Full => FULL_WEIGHTS,
+            Self::Full => v2t_diffusion::generate::FULL_GUIDANCE,
             Self::AnchorOnly => GuidanceWeights { anchor: 1.0, boundary: 0.0, clearance: 0.0, kinematic: 0.0 },
             Self::None => GuidanceWeights { anchor: 0.0, boundary: 0.0, clearance: 0.0, kinematic: 0.0 },
         }
@@ -86,26 +80,15 @@ pub struct MetricsFile {
     pub variants: Vec<PriorMetrics>,
 }
 
-/// Median of `v` (NaN when empty).
-fn median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    let mid = |k: usize| v.get(k).copied().unwrap_or(f64::NAN);
-    if n % 2 == 1 { mid(n / 2) } else { 0.5 * (mid(n / 2 - 1) + mid(n / 2)) }
-}
-
 /// Summary of generated variants.
 pub fn summarize(generated: &[Generated], redrawn: usize, sampling_s: f64) -> Summary {
-    let errors: Vec<f64> = generated.iter().flat_map(|g| g.metrics.anchor_errors_m.iter().copied()).collect();
+    let mut errors: Vec<f64> = generated.iter().flat_map(|g| g.metrics.anchor_errors_m.iter().copied()).collect();
     let agents: usize = generated.iter().map(|g| g.metrics.agents).sum();
     let conflicts: usize = generated.iter().map(|g| g.metrics.conflicts).sum();
     Summary {
         variants: generated.len(),
         max_anchor_error_m: errors.iter().copied().fold(0.0, f64::max),
-        median_anchor_error_m: median(errors),
+        median_anchor_error_m: v2t_diffusion::stats::median(&mut errors).unwrap_or(f64::NAN),
         boundary_crossings: generated.iter().map(|g| g.metrics.boundary_crossings).sum(),
         within_limits_frac: generated.iter().map(|g| g.metrics.agents_within_limits).sum::<usize>() as f64
             / agents.max(1) as f64,
@@ -113,29 +96,6 @@ pub fn summarize(generated: &[Generated], redrawn: usize, sampling_s: f64) -> Su
         redrawn,
         sampling_s,
     }
-}
-
-/// What `generate` needs.
-#[derive(Debug, Clone)]
-pub struct GenerateArgs {
-    /// Grounded scenario (JSON).
-    pub grounded: PathBuf,
-    /// The map it is grounded on.
-    pub map: PathBuf,
-    /// Weights file.
-    pub weights: PathBuf,
-    /// Variants.
-    pub variants: usize,
-    /// Seed.
-    pub seed: u64,
-    /// Sampler.
-    pub method: Method,
-    /// Guidance terms.
-    pub guidance: GuidanceMode,
-    /// Guidance step sizes.
-    pub schedule: GuidanceSchedule,
-    /// Draws per variant (1: hand on the first draw whatever it is).
-    pub draws: u64,
 }
 
 /// Reads and checks a grounded scenario file.
@@ -160,18 +120,10 @@ pub fn run(
     model: &Model,
     map: &v2t_map::Map,
     scenario: &GroundedScenario,
-    args: &GenerateArgs,
+    options: &GenerateOptions,
 ) -> anyhow::Result<(Vec<Generated>, Summary)> {
-    let options = GenerateOptions {
-        variants: args.variants,
-        seed: args.seed,
-        sampler: SamplerOptions { method: args.method, guidance: args.schedule },
-        weights: args.guidance.weights(),
-        draws: args.draws,
-        ..GenerateOptions::default()
-    };
     let started = std::time::Instant::now();
-    let (generated, redrawn) = generate(model, map, scenario, &options)?;
+    let (generated, redrawn) = generate(model, map, scenario, options)?;
     let summary = summarize(&generated, redrawn, started.elapsed().as_secs_f64());
     Ok((generated, summary))
 }

@@ -637,18 +637,15 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
                 final_iterations,
                 ..v2t_diffusion::sample::GuidanceSchedule::default()
             };
-            let args = g::GenerateArgs {
-                grounded,
-                map,
-                weights: weights.clone(),
+            let options = v2t_diffusion::generate::GenerateOptions {
                 variants,
                 seed,
-                method,
-                guidance: mode,
-                schedule,
+                sampler: v2t_diffusion::sample::SamplerOptions { method, guidance: schedule },
+                weights: mode.weights(),
                 draws,
+                ..v2t_diffusion::generate::GenerateOptions::default()
             };
-            let (generated, summary) = g::run(&model, &map_data, &scenario, &args)?;
+            let (generated, summary) = g::run(&model, &map_data, &scenario, &options)?;
             print!("{}{}", g::REPORT_HEADER, g::report(&summary, mode));
             if let Some(dir) = &all {
                 std::fs::create_dir_all(dir)?;

@@ -230,9 +230,8 @@ pub fn priors(
     let grounded = g.scenario;
     let stand_in = crate::link::stand_in_prior(&grounded)?;
     let options = v2t_diffusion::generate::GenerateOptions {
-        variants: 8,
+        variants: crate::demo::VARIANTS,
         seed,
-        weights: crate::generate::FULL_WEIGHTS,
         ..v2t_diffusion::generate::GenerateOptions::default()
     };
     let (variants, _) = v2t_diffusion::generate::generate(setup.model, &setup.inspection.map, &grounded, &options)

@@ -200,8 +200,11 @@ pub fn realism(args: &RealismArgs) -> anyhow::Result<Vec<v2t_diffusion::realism:
     let (corpus, _) = load_corpus(&targs, &map)?;
     let data = Dataset::build(&corpus.episodes, &library, model.meta.config, 5)?;
     let anchor_only = GuidanceWeights { anchor: 1.0, boundary: 0.0, clearance: 0.0, kinematic: 0.0 };
-    let modes =
-        [("no guidance", None), ("anchor only", Some(anchor_only)), ("full", Some(crate::generate::FULL_WEIGHTS))];
+    let modes = [
+        ("no guidance", None),
+        ("anchor only", Some(anchor_only)),
+        ("full", Some(v2t_diffusion::generate::FULL_GUIDANCE)),
+    ];
     let rows = v2t_diffusion::realism::realism(
         &model,
         &data,

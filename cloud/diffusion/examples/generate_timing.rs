@@ -5,7 +5,8 @@
 //! `RAYON_NUM_THREADS=1 cargo run --release -p v2t-diffusion --example generate_timing -- config/diffusion/denoiser.safetensors config/maps/proving_ground.xodr`
 use std::time::Instant;
 
-use v2t_diffusion::guidance::{Anchor, Guidance, GuidanceConfig, GuidanceContext, GuidanceWeights};
+use v2t_diffusion::generate::FULL_GUIDANCE;
+use v2t_diffusion::realism::window_guidance;
 use v2t_diffusion::sample::{Problem, SamplerOptions, sample};
 use v2t_diffusion::synth::generate_corpus;
 use v2t_diffusion::train::Dataset;
@@ -24,33 +25,7 @@ fn main() -> anyhow::Result<()> {
     let steps = model.meta.config.steps;
     let mut times = Vec::new();
     for w in windows {
-        let x0s: Vec<_> = w.condition.slots.iter().flatten().map(|s| s.start).collect();
-        let mut anchors: Vec<Anchor> = w
-            .condition
-            .slots
-            .iter()
-            .flatten()
-            .enumerate()
-            .filter_map(|(agent, s)| s.anchor.map(|(position, time_s)| Anchor { agent, position, time_s }))
-            .collect();
-        anchors.extend(w.end_positions.iter().enumerate().map(|(agent, p)| Anchor {
-            agent,
-            position: *p,
-            time_s: 8.0,
-        }));
-        let near: Vec<_> = x0s.iter().map(|x| x.position()).chain(w.end_positions.iter().copied()).collect();
-        let context = GuidanceContext {
-            anchors,
-            boundaries: v2t_map::boundaries::solid_boundaries(&map, &near, 40.0, 0.05),
-            ..GuidanceContext::default()
-        };
-        let config = GuidanceConfig {
-            agents: 3,
-            steps,
-            weights: GuidanceWeights { kinematic: 4.0, ..GuidanceWeights::default() },
-            ..GuidanceConfig::default()
-        };
-        let guidance = Guidance::new(config, context)?;
+        let (guidance, x0s) = window_guidance(w, FULL_GUIDANCE, Some(&map), steps)?;
         let problem = Problem { condition: &w.condition, guidance: Some(&guidance), x0s: &x0s };
         let t = Instant::now();
         let v = sample(&model, &problem, 16, 1, &SamplerOptions::default())?;

@@ -68,6 +68,11 @@ pub enum GenerateError {
     Sample(#[from] SampleError),
 }
 
+/// The weights of full guidance: the kinematic term counts four times, so that guidance trades
+/// anchor precision for the vehicle limits before the final projection has to.
+pub const FULL_GUIDANCE: GuidanceWeights =
+    GuidanceWeights { anchor: 1.0, boundary: 1.0, clearance: 1.0, kinematic: 4.0 };
+
 /// Settings of [`generate`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GenerateOptions {
@@ -91,14 +96,8 @@ impl Default for GenerateOptions {
             variants: 1,
             seed: 1,
             sampler: SamplerOptions::default(),
-            weights: GuidanceWeights::default(),
-            limits: KinematicLimits {
-                accel_min_mps2: -6.0,
-                accel_max_mps2: 3.0,
-                lat_accel_max_mps2: 4.0,
-                jerk_max_mps3: 6.0,
-                speed_max_mps: 40.0,
-            },
+            weights: FULL_GUIDANCE,
+            limits: KinematicLimits::default(),
             draws: 4,
         }
     }

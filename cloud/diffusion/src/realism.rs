@@ -31,8 +31,9 @@ pub struct RealismRow {
     pub median_anchor_error_m: Option<f64>,
 }
 
-/// The guidance of `mode` for a held-out window.
-fn window_guidance(
+/// The guidance with `weights` for a recorded window (its conflict anchors and window-end
+/// positions, and with a map the solid boundaries within 40 m), and its agents' initial states.
+pub fn window_guidance(
     w: &Window,
     weights: GuidanceWeights,
     map: Option<&Map>,
@@ -72,15 +73,6 @@ fn window_guidance(
     };
     let config = GuidanceConfig { agents: used.len(), steps, weights, ..GuidanceConfig::default() };
     Ok((Guidance::new(config, context)?, x0s))
-}
-
-/// Median of `v` (None when empty).
-fn median(mut v: Vec<f64>) -> Option<f64> {
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied()
 }
 
 /// The realism rows: training vs held-out (the floor), then one per guidance mode in `modes`
@@ -151,7 +143,7 @@ pub fn realism(
             name: (*name).to_owned(),
             windows: heldout.len(),
             distances: generated.distance(&reference),
-            median_anchor_error_m: median(errors),
+            median_anchor_error_m: crate::stats::median(&mut errors),
         });
     }
     Ok(rows)

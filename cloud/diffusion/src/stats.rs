@@ -107,6 +107,16 @@ pub fn wasserstein1(a: &[f64], b: &[f64]) -> Option<f64> {
     Some(total)
 }
 
+/// Median of `v` (sorted in place), `None` if empty.
+pub fn median(v: &mut [f64]) -> Option<f64> {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n == 0 {
+        return None;
+    }
+    if n % 2 == 1 { v.get(n / 2).copied() } else { Some(0.5 * (v.get(n / 2 - 1)? + v.get(n / 2)?)) }
+}
+
 /// Acceleration, jerk and yaw-rate samples of control sequences at period `dt_s`.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct ControlSamples {

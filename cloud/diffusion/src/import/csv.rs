@@ -417,7 +417,7 @@ pub fn parse(text: &str, name: &str, options: &CsvOptions) -> Result<CsvImport, 
             periods.push((b.sample.t_s - a.sample.t_s) / frames as f64);
         }
         let fallback = options.frame_rate_hz.map_or(0.1, |hz| 1.0 / hz);
-        let dt_s = median(&mut periods).unwrap_or(fallback);
+        let dt_s = crate::stats::median(&mut periods).unwrap_or(fallback);
         let samples = g.rows.into_iter().map(|r| r.sample).collect();
         out.push(Track { id, dt_s, kind: g.kind, dims: g.dims, samples });
     }
@@ -498,16 +498,6 @@ pub fn write(episode: &Episode) -> String {
         }
     }
     out
-}
-
-/// Median of `v` (sorted in place), `None` if empty.
-pub(crate) fn median(v: &mut [f64]) -> Option<f64> {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n == 0 {
-        return None;
-    }
-    if n % 2 == 1 { v.get(n / 2).copied() } else { Some(0.5 * (v.get(n / 2 - 1)? + v.get(n / 2)?)) }
 }
 
 #[cfg(test)]
