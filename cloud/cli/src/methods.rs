@@ -26,9 +26,8 @@ use serde::Serialize;
 use v2t_game::regulator::RegulatorParams;
 use v2t_game::sim::RegulatedBv;
 use v2t_model::Style;
-use v2t_model::geometry::Point2;
 use v2t_model::grounded::{AgentRole, GroundedScenario};
-use v2t_model::metrics::{ConflictOptions, conflict_zones};
+use v2t_model::metrics::{ConflictOptions, conflict_zones, nearest_zone};
 use v2t_model::path::ReferencePath;
 use v2t_model::prior::TrajectoryPrior;
 use v2t_model::semantics::ScenarioSemantics;
@@ -155,16 +154,10 @@ pub struct Setup<'a> {
     pub bv_vehicle: VehicleConfig,
 }
 
-/// The path a trajectory traces (standstills dropped).
+/// An agent's path (standstills dropped), speed profile and start speed.
 fn trajectory_path(prior: &TrajectoryPrior, id: &str) -> Result<(ReferencePath, Vec<[f64; 2]>, f64), String> {
     let a = prior.agents.iter().find(|a| a.id == id).ok_or_else(|| format!("prior has no agent `{id}`"))?;
-    let mut pts: Vec<Point2> = Vec::with_capacity(a.states.len());
-    for x in &a.states {
-        if pts.last().is_none_or(|q| q.dist(x.position()) > 0.01) {
-            pts.push(x.position());
-        }
-    }
-    let path = ReferencePath::from_points(&pts).map_err(|e| format!("{id}: {e}"))?;
+    let path = ReferencePath::through_states(&a.states).map_err(|e| format!("{id}: {e}"))?;
     let profile = a.states.iter().enumerate().map(|(k, x)| [k as f64 * prior.dt_s, x.speed_mps.max(0.0)]).collect();
     Ok((path, profile, a.states.first().map_or(0.0, |x| x.speed_mps)))
 }
@@ -185,16 +178,14 @@ pub fn scenario_of_prior(
         length_m: v.geometry.length_m,
         width_m: v.geometry.width_m,
     };
-    let zone = conflict_zones(
+    let zones = conflict_zones(
         &vut_route,
         dims(&setup.vut_vehicle),
         &bv_route,
         dims(&setup.bv_vehicle),
         &ConflictOptions::default(),
-    )
-    .into_iter()
-    .min_by(|a, b| a.anchor.dist(conflict.point).total_cmp(&b.anchor.dist(conflict.point)))
-    .ok_or("the prior's paths share no conflict zone")?;
+    );
+    let zone = nearest_zone(zones, Some(conflict.point)).ok_or("the prior's paths share no conflict zone")?;
     let paths = ScenarioPaths {
         name: name.to_owned(),
         tau_s: prior.tau_s,

@@ -113,21 +113,20 @@ pub fn to_local(start: &State, p: Point2) -> Point2 {
     Point2::new(c * d.x + s * d.y, -s * d.x + c * d.y)
 }
 
+/// The point at arc length `s` of `route`, which goes on straight beyond its end.
+pub fn point_on_route(route: &ReferencePath, s: f64) -> Point2 {
+    let len = route.length();
+    if s <= len {
+        route.point_at(s)
+    } else {
+        route.point_at(len).add(Point2::from_heading(route.heading_at(len)).scale(s - len))
+    }
+}
+
 /// [`ROUTE_POINTS`] points of `route` ahead of the foot point of `start`, in its start frame.
 pub fn route_ahead(route: &ReferencePath, start: &State) -> Vec<Point2> {
     let s0 = route.project(start.position()).map_or(0.0, |f| f.s_m.max(0.0));
-    let len = route.length();
-    (0..ROUTE_POINTS)
-        .map(|j| {
-            let s = s0 + j as f64 * ROUTE_SPACING_M;
-            let p = if s <= len {
-                route.point_at(s)
-            } else {
-                route.point_at(len).add(Point2::from_heading(route.heading_at(len)).scale(s - len))
-            };
-            to_local(start, p)
-        })
-        .collect()
+    (0..ROUTE_POINTS).map(|j| to_local(start, point_on_route(route, s0 + j as f64 * ROUTE_SPACING_M))).collect()
 }
 
 impl Condition {

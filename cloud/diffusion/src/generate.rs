@@ -33,7 +33,7 @@ use v2t_model::path::ReferencePath;
 use v2t_model::prior::{AgentTrajectory, TrajectoryPrior};
 use v2t_model::validate::Validate as _;
 
-use crate::condition::{Condition, KindClass, PassingOrder, SlotCondition, route_ahead};
+use crate::condition::{Condition, KindClass, PassingOrder, SlotCondition, point_on_route, route_ahead};
 use crate::guidance::{
     Anchor, ConflictWindow, Guidance, GuidanceConfig, GuidanceContext, GuidanceWeights, KinematicLimits,
 };
@@ -350,13 +350,7 @@ fn follow_route(
         let foot = route.project_near(state.position(), s_hint, 20.0).map_or(s_hint, |f| f.s_m);
         s_hint = foot;
         let look = (1.0 * state.speed_mps).max(6.0);
-        let s_target = foot + look;
-        let target = if s_target <= route.length() {
-            route.point_at(s_target)
-        } else {
-            let len = route.length();
-            route.point_at(len).add(Point2::from_heading(route.heading_at(len)).scale(s_target - len))
-        };
+        let target = point_on_route(route, foot + look);
         let d = target.sub(state.position());
         let alpha = wrap_angle(d.y.atan2(d.x) - state.theta_rad);
         let mut omega = 2.0 * state.speed_mps * alpha.sin() / d.norm().max(1.0);

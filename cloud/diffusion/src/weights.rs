@@ -212,19 +212,7 @@ pub fn read_meta(bytes: &[u8]) -> Result<ModelMeta, WeightsError> {
     config.check().map_err(|message| WeightsError::Metadata { field: "config", message })?;
     let normalization: NormalizationRecord = field(md, "normalization")?;
     let normalization = ControlNormalization::from(normalization);
-    let n = normalization;
-    if !(n.accel_mean_mps2.is_finite()
-        && n.yaw_rate_mean_radps.is_finite()
-        && n.accel_scale_mps2 > 0.0
-        && n.accel_scale_mps2.is_finite()
-        && n.yaw_rate_scale_radps > 0.0
-        && n.yaw_rate_scale_radps.is_finite())
-    {
-        return Err(WeightsError::Metadata {
-            field: "normalization",
-            message: "needs finite means and scales > 0".into(),
-        });
-    }
+    normalization.checked().map_err(|e| WeightsError::Metadata { field: "normalization", message: e.to_string() })?;
     let training: TrainingRecord = field(md, "training")?;
     Ok(ModelMeta { config, normalization, training })
 }

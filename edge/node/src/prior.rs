@@ -7,8 +7,7 @@ use v2t_map::drivable::DrivableArea;
 use v2t_model::Style;
 use v2t_model::geometry::Point2;
 use v2t_model::grounded::{AgentRole, GroundedScenario};
-use v2t_model::kinematics::State;
-use v2t_model::metrics::{ConflictKind, ConflictOptions, Dimensions, OccupancyInterval, conflict_zones};
+use v2t_model::metrics::{ConflictKind, ConflictOptions, Dimensions, OccupancyInterval, conflict_zones, nearest_zone};
 use v2t_model::path::ReferencePath;
 use v2t_model::prior::TrajectoryPrior;
 use v2t_model::validate::Validate;
@@ -182,17 +181,13 @@ pub fn from_upload(
             checks.geofence_margin_m
         ));
     }
-    let bv_path =
-        trajectory_path(&bv.states).map_err(|e| EdgeError::Prior(format!("prior {}: BV path: {e}", up.prior_id)))?;
-    let vut_path =
-        trajectory_path(&vut.states).map_err(|e| EdgeError::Prior(format!("prior {}: VUT path: {e}", up.prior_id)))?;
+    let bv_path = ReferencePath::through_states(&bv.states)
+        .map_err(|e| EdgeError::Prior(format!("prior {}: BV path: {e}", up.prior_id)))?;
+    let vut_path = ReferencePath::through_states(&vut.states)
+        .map_err(|e| EdgeError::Prior(format!("prior {}: VUT path: {e}", up.prior_id)))?;
     let hint = p.conflicts.iter().find(|c| c.bv_id == up.bv_agent).map(|c| c.point);
     let options = ConflictOptions::default();
-    let zones = conflict_zones(&bv_path, checks.bv, &vut_path, checks.vut, &options);
-    let zone = zones.into_iter().min_by(|a, b| {
-        let d = |z: &v2t_model::metrics::ConflictZone| hint.map_or(z.a.enter_s_m, |h| z.anchor.dist(h));
-        d(a).total_cmp(&d(b))
-    });
+    let zone = nearest_zone(conflict_zones(&bv_path, checks.bv, &vut_path, checks.vut, &options), hint);
     let Some(zone) = zone else {
         return refuse(format!("the trajectories of `{}` and the VUT never share a conflict zone", up.bv_agent));
     };
@@ -235,19 +230,6 @@ pub fn from_upload(
     }
     prior.check().map_err(|e| EdgeError::Prior(format!("prior {}: {e}", up.prior_id)))?;
     Ok(prior)
-}
-
-/// The path a trajectory's positions trace (points closer than 1 cm to the last kept are
-/// dropped: a standstill repeats its position).
-fn trajectory_path(states: &[State]) -> Result<ReferencePath, String> {
-    let mut pts: Vec<Point2> = Vec::with_capacity(states.len());
-    for x in states {
-        let p = x.position();
-        if pts.last().is_none_or(|q| q.dist(p) > 0.01) {
-            pts.push(p);
-        }
-    }
-    ReferencePath::from_points(&pts).map_err(|e| e.to_string())
 }
 
 /// A prior upload in which every agent of `scenario` drives its grounded route at its start speed

@@ -152,6 +152,19 @@ impl ReferencePath {
         PathSample { point: a.lerp(b, t), heading_rad: ha + t * (hb - ha), curvature_1pm: (hb - ha) / len }
     }
 
+    /// The path a trajectory's positions trace; points closer than 1 cm to the last one kept are
+    /// dropped (a standstill repeats its position).
+    pub fn through_states(states: &[crate::kinematics::State]) -> Result<Self, PathError> {
+        let mut pts: Vec<Point2> = Vec::with_capacity(states.len());
+        for x in states {
+            let p = x.position();
+            if pts.last().is_none_or(|q| q.dist(p) > 0.01) {
+                pts.push(p);
+            }
+        }
+        Self::from_points(&pts)
+    }
+
     /// Position at arc length `s`.
     pub fn point_at(&self, s: f64) -> Point2 {
         self.sample(s).point

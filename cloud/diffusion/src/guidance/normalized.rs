@@ -37,7 +37,8 @@ impl Default for ControlNormalization {
 }
 
 impl ControlNormalization {
-    fn checked(&self) -> Result<(), GuidanceError> {
+    /// Finite means and finite scales above zero (NaN fails), or the error that says so.
+    pub fn checked(&self) -> Result<(), GuidanceError> {
         let ok = |v: f64| v.is_finite();
         if ok(self.accel_mean_mps2)
             && ok(self.yaw_rate_mean_radps)

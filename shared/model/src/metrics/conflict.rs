@@ -202,6 +202,13 @@ fn merge_zone(
     })
 }
 
+/// The zone of `zones` nearest `hint` (a grounded conflict point), or without a hint the first
+/// along path `a`.
+pub fn nearest_zone(zones: Vec<ConflictZone>, hint: Option<Point2>) -> Option<ConflictZone> {
+    let key = |z: &ConflictZone| hint.map_or(z.a.enter_s_m, |h| z.anchor.dist(h));
+    zones.into_iter().min_by(|a, b| key(a).total_cmp(&key(b)))
+}
+
 /// All conflict zones between a vehicle of size `a_dims` on path `a` and one of size `b_dims` on
 /// path `b`, in order along `b`.
 ///
@@ -322,5 +329,19 @@ mod tests {
         assert_eq!(zones[0].kind, ConflictKind::Crossing);
         let z = zones[0];
         assert!(z.a.exit_s_m - z.a.enter_s_m > CAR.length_m + CAR.width_m - 1e-6);
+    }
+
+    #[test]
+    fn nearest_zone_follows_the_hint_else_the_first_along_a() {
+        let zone = |enter: f64, x: f64| ConflictZone {
+            kind: ConflictKind::Crossing,
+            a: OccupancyInterval { enter_s_m: enter, exit_s_m: enter + 5.0 },
+            b: OccupancyInterval { enter_s_m: 0.0, exit_s_m: 5.0 },
+            anchor: Point2::new(x, 0.0),
+        };
+        let zones = || vec![zone(40.0, 40.0), zone(10.0, 10.0), zone(70.0, 70.0)];
+        assert_eq!(nearest_zone(zones(), None).unwrap().a.enter_s_m, 10.0);
+        assert_eq!(nearest_zone(zones(), Some(Point2::new(66.0, 3.0))).unwrap().a.enter_s_m, 70.0);
+        assert!(nearest_zone(Vec::new(), None).is_none());
     }
 }

@@ -10,7 +10,7 @@ mod conflict;
 mod pet;
 mod ttc;
 
-pub use conflict::{ConflictKind, ConflictOptions, ConflictZone, OccupancyInterval, conflict_zones};
+pub use conflict::{ConflictKind, ConflictOptions, ConflictZone, OccupancyInterval, conflict_zones, nearest_zone};
 pub use pet::{Passage, PetOutcome, Side, passage, pet, predict_pet, predicted_pet_series};
 pub use ttc::{Motion, MotionSnapshot, collision, min_distance, ttc_1d, ttc_2d};
 
