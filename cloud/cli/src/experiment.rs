@@ -123,6 +123,19 @@ pub fn steer_case(
     }
 }
 
+/// `f` of every job, in order, on up to 8 of the available cores (contiguous chunks). A chunk
+/// whose thread panicked contributes nothing.
+pub fn parallel_map<T: Sync, R: Send>(jobs: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).clamp(1, 8);
+    let chunk = jobs.len().div_ceil(threads).max(1);
+    let f = &f;
+    std::thread::scope(|s| {
+        let handles: Vec<_> =
+            jobs.chunks(chunk).map(|part| s.spawn(move || part.iter().map(f).collect::<Vec<R>>())).collect();
+        handles.into_iter().flat_map(|h| h.join().unwrap_or_default()).collect()
+    })
+}
+
 /// Runs every case on the available cores.
 pub fn steerability(
     settings: &RegulatorParams,
@@ -141,21 +154,7 @@ pub fn steerability(
             }
         }
     }
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).clamp(1, 8);
-    let chunk = jobs.len().div_ceil(threads).max(1);
-    let mut cases: Vec<SteerCase> = std::thread::scope(|s| {
-        let handles: Vec<_> = jobs
-            .chunks(chunk)
-            .map(|part| {
-                s.spawn(move || {
-                    part.iter()
-                        .map(|(sc, st, tau, m)| steer_case(settings, sc, *st, *tau, *m, repeats))
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        handles.into_iter().flat_map(|h| h.join().unwrap_or_default()).collect()
-    });
+    let mut cases = parallel_map(&jobs, |(sc, st, tau, m)| steer_case(settings, sc, *st, *tau, *m, repeats));
     cases.sort_by(|a, b| {
         (&a.scenario, a.style as u8, a.tau_s.to_bits(), &a.vut).cmp(&(
             &b.scenario,

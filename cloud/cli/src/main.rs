@@ -26,24 +26,6 @@ struct Cli {
     command: Command,
 }
 
-/// The training corpus of `train` and `realism`.
-#[derive(Debug, clap::Args)]
-struct CorpusArgs {
-    /// A corpus file (JSON lines, as the synthetic corpus writer makes it); default: generate the
-    /// synthetic corpus on --map (the one the shipped weights were trained on).
-    #[arg(long)]
-    data: Option<PathBuf>,
-    /// The corpus's map (routes come from its topology library).
-    #[arg(long, default_value = video2track::ground::DEFAULT_MAP)]
-    map: PathBuf,
-    /// Episodes of the generated corpus.
-    #[arg(long, default_value_t = video2track::train::DEFAULT_EPISODES)]
-    episodes: usize,
-    /// Seed of the generated corpus.
-    #[arg(long, default_value_t = video2track::train::DEFAULT_CORPUS_SEED)]
-    corpus_seed: u64,
-}
-
 /// Guidance terms of `generate`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 enum GuidanceArg {
@@ -224,7 +206,7 @@ enum Command {
         #[arg(long, default_value = video2track::train::SHIPPED_WEIGHTS)]
         weights: PathBuf,
         #[command(flatten)]
-        corpus: CorpusArgs,
+        corpus: video2track::train::CorpusSource,
         /// Held-out windows compared (one per held-out episode).
         #[arg(long, default_value_t = 100)]
         windows: usize,
@@ -239,7 +221,7 @@ enum Command {
     /// proving ground); writes OUT/denoiser.safetensors, OUT/metrics.jsonl, OUT/checkpoints/.
     Train {
         #[command(flatten)]
-        corpus: CorpusArgs,
+        corpus: video2track::train::CorpusSource,
         /// Optimizer steps.
         #[arg(long, default_value_t = 5000)]
         steps: usize,
@@ -674,8 +656,7 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
             Ok(())
         }
         Command::Realism { weights, corpus, windows, seed, json } => {
-            let CorpusArgs { data, map, episodes, corpus_seed } = corpus;
-            let args = video2track::train::RealismArgs { weights, data, map, episodes, corpus_seed, windows, seed };
+            let args = video2track::train::RealismArgs { weights, corpus, windows, seed };
             let rows = video2track::train::realism(&args)?;
             print!("{}", video2track::train::realism_table(&rows));
             if let Some(path) = json {
@@ -686,12 +667,8 @@ fn execute(cli: Cli) -> anyhow::Result<()> {
         }
         Command::Train { corpus, steps, batch, lr, seed, hidden, blocks, eval_every, checkpoint_every, out } => {
             let command = std::env::args().collect::<Vec<_>>().join(" ");
-            let CorpusArgs { data, map, episodes, corpus_seed } = corpus;
             let args = video2track::train::TrainArgs {
-                data,
-                map,
-                episodes,
-                corpus_seed,
+                corpus,
                 options: v2t_diffusion::train::TrainOptions {
                     steps,
                     batch,

@@ -304,19 +304,7 @@ pub fn run_all(
             }
         }
     }
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).clamp(1, 8);
-    let chunk = jobs.len().div_ceil(threads).max(1);
-    let cases = std::thread::scope(|s| {
-        let handles: Vec<_> = jobs
-            .chunks(chunk)
-            .map(|part| {
-                s.spawn(move || {
-                    part.iter().map(|(sc, me, m)| run_case(setup, sc, *me, *m, repeats)).collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        handles.into_iter().flat_map(|h| h.join().unwrap_or_default()).collect()
-    });
+    let cases = crate::experiment::parallel_map(&jobs, |(sc, me, m)| run_case(setup, sc, *me, *m, repeats));
     Ok(cases)
 }
 

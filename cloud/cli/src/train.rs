@@ -17,17 +17,29 @@ pub const DEFAULT_CORPUS_SEED: u64 = 1;
 /// Where the shipped weights live.
 pub const SHIPPED_WEIGHTS: &str = "config/diffusion/denoiser.safetensors";
 
+/// The corpus `train` learns from and `realism` compares with (also the command-line options).
+#[derive(Debug, Clone, clap::Args)]
+pub struct CorpusSource {
+    /// A corpus file (JSON lines, as the synthetic corpus writer makes it); default: generate the
+    /// synthetic corpus on --map (the one the shipped weights were trained on).
+    #[arg(long)]
+    pub data: Option<PathBuf>,
+    /// The corpus's map (routes come from its topology library).
+    #[arg(long, default_value = crate::ground::DEFAULT_MAP)]
+    pub map: PathBuf,
+    /// Episodes of the generated corpus.
+    #[arg(long, default_value_t = DEFAULT_EPISODES)]
+    pub episodes: usize,
+    /// Seed of the generated corpus.
+    #[arg(long, default_value_t = DEFAULT_CORPUS_SEED)]
+    pub corpus_seed: u64,
+}
+
 /// What `train` needs.
 #[derive(Debug, Clone)]
 pub struct TrainArgs {
-    /// A corpus file (JSON lines); `None`: generate the synthetic corpus on `map`.
-    pub data: Option<PathBuf>,
-    /// Map of the generated corpus and of the routes (the corpus's map).
-    pub map: PathBuf,
-    /// Episodes of the generated corpus.
-    pub episodes: usize,
-    /// Seed of the generated corpus.
-    pub corpus_seed: u64,
+    /// The corpus.
+    pub corpus: CorpusSource,
     /// Optimizer settings.
     pub options: TrainOptions,
     /// Architecture.
@@ -57,7 +69,7 @@ pub struct TrainOutcome {
     pub elapsed_s: f64,
 }
 
-fn load_corpus(args: &TrainArgs, map: &v2t_map::Map) -> anyhow::Result<(SyntheticCorpus, String)> {
+fn load_corpus(args: &CorpusSource, map: &v2t_map::Map) -> anyhow::Result<(SyntheticCorpus, String)> {
     match &args.data {
         Some(path) => {
             let corpus = read_jsonl_file(path)?;
@@ -106,9 +118,9 @@ fn progress(m: &TrainMetrics, total: usize) {
 /// Trains and writes the weights, checkpoints and metrics under `args.out`.
 pub fn train(args: &TrainArgs) -> anyhow::Result<TrainOutcome> {
     let started = std::time::Instant::now();
-    let map = v2t_map::Map::load(&args.map)?;
+    let map = v2t_map::Map::load(&args.corpus.map)?;
     let library = v2t_map::library::TopologyLibrary::build(&map);
-    let (corpus, source) = load_corpus(args, &map)?;
+    let (corpus, source) = load_corpus(&args.corpus, &map)?;
     let data = Dataset::build(&corpus.episodes, &library, args.config, args.stride)?;
     eprintln!(
         "{} training windows, {} held-out windows ({} held-out episodes)",
@@ -164,14 +176,8 @@ pub fn shipped_weights() -> &'static Path {
 pub struct RealismArgs {
     /// Weights to evaluate.
     pub weights: PathBuf,
-    /// Corpus (as for training).
-    pub data: Option<PathBuf>,
-    /// Map of the corpus.
-    pub map: PathBuf,
-    /// Episodes of the generated corpus.
-    pub episodes: usize,
-    /// Its seed.
-    pub corpus_seed: u64,
+    /// The corpus they were trained on.
+    pub corpus: CorpusSource,
     /// Held-out windows compared (one per episode).
     pub windows: usize,
     /// Sampling seed.
@@ -183,21 +189,9 @@ pub struct RealismArgs {
 pub fn realism(args: &RealismArgs) -> anyhow::Result<Vec<v2t_diffusion::realism::RealismRow>> {
     use v2t_diffusion::guidance::GuidanceWeights;
     let model = crate::generate::load_model(&args.weights)?;
-    let map = v2t_map::Map::load(&args.map)?;
+    let map = v2t_map::Map::load(&args.corpus.map)?;
     let library = v2t_map::library::TopologyLibrary::build(&map);
-    let targs = TrainArgs {
-        data: args.data.clone(),
-        map: args.map.clone(),
-        episodes: args.episodes,
-        corpus_seed: args.corpus_seed,
-        options: TrainOptions::default(),
-        config: model.meta.config,
-        stride: 5,
-        out: PathBuf::new(),
-        checkpoint_every: 0,
-        command: String::new(),
-    };
-    let (corpus, _) = load_corpus(&targs, &map)?;
+    let (corpus, _) = load_corpus(&args.corpus, &map)?;
     let data = Dataset::build(&corpus.episodes, &library, model.meta.config, 5)?;
     let anchor_only = GuidanceWeights { anchor: 1.0, boundary: 0.0, clearance: 0.0, kinematic: 0.0 };
     let modes = [

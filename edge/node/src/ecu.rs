@@ -15,9 +15,7 @@ use v2t_sim::plant::ActuationRequest;
 use v2t_sim::recording::PlanRecord;
 use v2t_sim::runner::{RunOutcome, Simulation};
 use v2t_sim::vut::VutModel;
-use v2t_wire::{
-    ActivePrior, Code, DbwMode, Header, Localization, PlanStatus, RegulatedPlan, StyleCode, VutState, services,
-};
+use v2t_wire::{ActivePrior, Code, DbwMode, Header, Localization, PlanStatus, RegulatedPlan, VutState, services};
 
 use crate::canbus::{End, IpcCanBus};
 use crate::clock::now_ns;
@@ -114,51 +112,30 @@ fn scenario_from_prior(
     settings: v2t_sim::config::SimSettings,
     vut_model: VutModel,
 ) -> Result<v2t_sim::scenario::Scenario, EdgeError> {
-    use v2t_model::geometry::Point2;
-    use v2t_model::path::ReferencePath;
     use v2t_wire::Vector as _;
-    prior.check().map_err(|e| EdgeError::Prior(format!("prior {}: {e}", prior.prior_id)))?;
-    let path = |pts: &[v2t_wire::Vec2], what: &str| {
-        let pts: Vec<Point2> = pts.iter().map(|q| Point2 { x: q.x_m, y: q.y_m }).collect();
-        ReferencePath::from_points(&pts).map_err(|e| EdgeError::Prior(format!("prior {}: {what}: {e}", prior.prior_id)))
-    };
+    // The paths, the zone the regulator works on and the style, decoded as the regulator does, so
+    // that the run measures the conflict the BV regulates.
+    let ctx = crate::prior::PriorContext::new(prior)
+        .map_err(|e| EdgeError::Prior(format!("prior {}: {e}", prior.prior_id)))?;
     let profile: Vec<[f64; 2]> = prior.bv_profile.as_slice().iter().map(|q| [q.t_s, q.v_mps]).collect();
-    let vut_route = path(prior.vut_path.as_slice(), "VUT route")?;
     let bv_end_s = profile.last().map_or(0.0, |[t, _]| *t);
-    let vut_end_s = vut_route.length() / prior.vut_speed_mps.max(1.0);
-    let style = match StyleCode::from_code(prior.style).map_err(|e| EdgeError::Prior(e.to_string()))? {
-        StyleCode::Rush => v2t_model::Style::Rush,
-        StyleCode::Yield => v2t_model::Style::Yield,
-    };
-    // The zone the regulator works on (the prior's, nearest its grounded conflict point), so that
-    // the run measures the conflict the BV regulates.
-    let kind = match v2t_wire::ZoneKind::from_code(prior.zone_kind).map_err(|e| EdgeError::Prior(e.to_string()))? {
-        v2t_wire::ZoneKind::Crossing => v2t_model::metrics::ConflictKind::Crossing,
-        v2t_wire::ZoneKind::Merge => v2t_model::metrics::ConflictKind::Merge,
-    };
-    let vut_zone = v2t_model::metrics::OccupancyInterval {
-        enter_s_m: prior.vut_zone_enter_s_m,
-        exit_s_m: prior.vut_zone_exit_s_m,
-    };
+    let vut_end_s = ctx.vut_path.length() / prior.vut_speed_mps.max(1.0);
     let zone = v2t_model::metrics::ConflictZone {
-        kind,
-        a: vut_zone,
-        b: v2t_model::metrics::OccupancyInterval {
-            enter_s_m: prior.bv_zone_enter_s_m,
-            exit_s_m: prior.bv_zone_exit_s_m,
-        },
-        anchor: vut_route.point_at(0.5 * (vut_zone.enter_s_m + vut_zone.exit_s_m)),
+        kind: ctx.zone_kind,
+        a: ctx.zone_vut,
+        b: ctx.zone_bv,
+        anchor: ctx.vut_path.point_at(0.5 * (ctx.zone_vut.enter_s_m + ctx.zone_vut.exit_s_m)),
     };
     let paths = v2t_sim::scenario::ScenarioPaths {
         name: format!("prior {}", prior.prior_id),
-        tau_s: prior.tau_s,
-        style,
+        tau_s: ctx.tau_s,
+        style: ctx.style,
         duration_s: (bv_end_s.max(vut_end_s) + 2.0).min(MAX_PRIOR_RUN_S),
-        vut_route,
+        vut_route: ctx.vut_path,
         vut_speed_mps: prior.vut_speed_mps,
         vut_model,
         bv_id: "bv".into(),
-        bv_route: path(prior.bv_path.as_slice(), "BV path")?,
+        bv_route: ctx.bv_path,
         bv_reference: v2t_sim::scenario::SpeedProfile::new(profile),
         conflict: Some(zone),
     };
