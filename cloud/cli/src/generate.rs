@@ -128,15 +128,11 @@ pub fn run(
     Ok((generated, summary))
 }
 
-/// The variant to hand on: the one with the smallest worst anchor error among those without a
-/// boundary crossing, within the limits and in the style's order (else the smallest overall).
+/// The variant to hand on: the one with the smallest worst anchor error among the
+/// [`acceptable`](v2t_diffusion::generate::acceptable) ones (else the smallest overall).
 pub fn best(generated: &[Generated]) -> Option<&Generated> {
     let worst = |g: &Generated| g.metrics.anchor_errors_m.iter().copied().fold(0.0, f64::max);
-    let clean = |g: &&Generated| {
-        g.metrics.boundary_crossings == 0
-            && g.metrics.agents_within_limits == g.metrics.agents
-            && g.metrics.order_ok == g.metrics.conflicts
-    };
+    let clean = |g: &&Generated| v2t_diffusion::generate::acceptable(&g.metrics);
     let by_worst = |a: &&Generated, b: &&Generated| worst(a).total_cmp(&worst(b));
     generated.iter().filter(clean).min_by(by_worst).or_else(|| generated.iter().min_by(by_worst))
 }
