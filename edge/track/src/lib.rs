@@ -79,6 +79,17 @@ pub enum TrackError {
         /// Its value.
         value: f64,
     },
+    /// An input is finite but beyond what a vehicle on a track can measure or be asked for (a
+    /// sensor or plan fault); taken at face value it would overflow the controllers.
+    #[error("`{field}` = {value} is beyond the plausible ±{bound}")]
+    Implausible {
+        /// Which input.
+        field: &'static str,
+        /// Its value.
+        value: f64,
+        /// The largest magnitude accepted.
+        bound: f64,
+    },
     /// The vehicle could not be located on the path.
     #[error("the vehicle at ({x}, {y}) cannot be located on the path")]
     OffPath {
@@ -97,6 +108,12 @@ fn check_dt(dt_s: f64, max_s: f64) -> Result<(), TrackError> {
 /// `value` must be finite.
 fn check_finite(field: &'static str, value: f64) -> Result<(), TrackError> {
     if value.is_finite() { Ok(()) } else { Err(TrackError::NotFinite { field, value }) }
+}
+
+/// `value` must be finite with `|value| <= bound`.
+fn check_plausible(field: &'static str, value: f64, bound: f64) -> Result<(), TrackError> {
+    check_finite(field, value)?;
+    if value.abs() <= bound { Ok(()) } else { Err(TrackError::Implausible { field, value, bound }) }
 }
 
 /// `x` limited to `[lo, hi]`; never panics (unlike `f64::clamp` with NaN or crossed bounds): NaN

@@ -24,7 +24,14 @@ use v2t_model::vehicle::VehicleConfig;
 use crate::latency::{Request, RequestHistory};
 use crate::lateral::{LateralGains, Stanley, StanleyInput, SteeringModel};
 use crate::longitudinal::{LongitudinalGains, LongitudinalInput, LongitudinalLimits, SpeedPid};
-use crate::{TrackError, check_dt, check_finite, limit};
+use crate::{TrackError, check_dt, check_finite, check_plausible, limit};
+
+/// Speeds beyond this (measured or planned) are faults, m/s.
+const MAX_PLAUSIBLE_SPEED_MPS: f64 = 150.0;
+/// Planned accelerations beyond this are faults, m/s².
+const MAX_PLAUSIBLE_ACCEL_MPS2: f64 = 50.0;
+/// Planned stations beyond this are faults, m.
+const MAX_PLAUSIBLE_STATION_M: f64 = 1.0e6;
 
 /// Tracker settings, as written in `config/track/*.toml`. The vehicle's geometry and limits are
 /// not part of the file: they come from the vehicle file.
@@ -218,10 +225,10 @@ impl Tracker {
         check_finite("state.px", state.px)?;
         check_finite("state.py", state.py)?;
         check_finite("state.theta_rad", state.theta_rad)?;
-        check_finite("state.speed_mps", state.speed_mps)?;
-        check_finite("plan.s_m", plan.s_m)?;
-        check_finite("plan.v_mps", plan.v_mps)?;
-        check_finite("plan.a_mps2", plan.a_mps2)?;
+        check_plausible("state.speed_mps", state.speed_mps, MAX_PLAUSIBLE_SPEED_MPS)?;
+        check_plausible("plan.s_m", plan.s_m, MAX_PLAUSIBLE_STATION_M)?;
+        check_plausible("plan.v_mps", plan.v_mps, MAX_PLAUSIBLE_SPEED_MPS)?;
+        check_plausible("plan.a_mps2", plan.a_mps2, MAX_PLAUSIBLE_ACCEL_MPS2)?;
 
         let cfg = &self.config;
         let model = *self.stanley.model();

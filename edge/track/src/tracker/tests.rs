@@ -253,6 +253,7 @@ proptest! {
             }
             Err(TrackError::TimeStep { .. }) => prop_assert!(!(dt > 0.0 && dt <= 0.5)),
             Err(TrackError::OffPath { .. }) => {}
+            Err(TrackError::Implausible { value, bound, .. }) => prop_assert!(value.abs() > bound),
             Err(e) => prop_assert!(false, "unexpected error {e}"),
         }
     }
@@ -266,4 +267,27 @@ proptest! {
         let r = t.step(&at(x, y, th, sp), &east(), &PlanSample { s_m: s, v_mps: vr, a_mps2: ar }, 0.1);
         prop_assert!(matches!(r, Err(TrackError::NotFinite { .. })), "{r:?}");
     }
+}
+
+#[test]
+fn implausible_speeds_and_plans_are_refused_by_name() {
+    // Found by the property test above: a measured speed of −1.1e308 m/s overflowed the station
+    // estimate to −∞ inside the speed controller.
+    let mut t = tracker();
+    let plan = PlanSample { s_m: 0.0, v_mps: 0.0, a_mps2: 0.0 };
+    let e = t.step(&at(0.0, 0.0, 0.0, -1.1375287301691592e308), &east(), &plan, 3.5e-6).unwrap_err();
+    assert!(matches!(e, TrackError::Implausible { field: "state.speed_mps", .. }), "{e}");
+    for (plan, field) in [
+        (PlanSample { s_m: 2.0e6, v_mps: 10.0, a_mps2: 0.0 }, "plan.s_m"),
+        (PlanSample { s_m: 0.0, v_mps: 200.0, a_mps2: 0.0 }, "plan.v_mps"),
+        (PlanSample { s_m: 0.0, v_mps: 10.0, a_mps2: -80.0 }, "plan.a_mps2"),
+    ] {
+        let e = t.step(&at(0.0, 0.0, 0.0, 10.0), &east(), &plan, 0.01).unwrap_err();
+        assert!(matches!(e, TrackError::Implausible { field: f, .. } if f == field), "{e}");
+        assert!(e.to_string().contains(field), "{e}");
+    }
+    // Plausible values still track.
+    assert!(
+        t.step(&at(0.0, 0.0, 0.0, 10.0), &east(), &PlanSample { s_m: 0.0, v_mps: 10.0, a_mps2: 0.0 }, 0.01).is_ok()
+    );
 }
