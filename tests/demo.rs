@@ -9,7 +9,8 @@ use v2t_tests::repo_root;
 
 #[test]
 fn the_demo_runs_both_scenarios_and_writes_what_it_promises() {
-    let out = tempdir("demo");
+    let out_scratch = tempdir("demo");
+    let out = out_scratch.path();
     let o = std::process::Command::new(bin("video2track"))
         .args(["demo", "--out", out.to_str().unwrap()])
         .current_dir(repo_root())

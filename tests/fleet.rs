@@ -60,8 +60,9 @@ impl Bv {
 
 #[test]
 fn one_serve_supervises_two_bvs_each_with_its_own_prior_and_target() {
-    let dir = tempdir("fleet");
-    let (_key, secret, public) = write_keys(&dir, 23);
+    let dir_scratch = tempdir("fleet");
+    let dir = dir_scratch.path();
+    let (_key, secret, public) = write_keys(dir, 23);
     let port = free_port();
     let listen = format!("127.0.0.1:{port}");
     let log = dir.join("session.jsonl");
@@ -85,8 +86,8 @@ fn one_serve_supervises_two_bvs_each_with_its_own_prior_and_target() {
     );
     serve.expect_line("embedded broker listening", Duration::from_secs(10));
     v2t_tests::harness::iceoryx2_config();
-    let bv1 = Bv::start(&dir, port, &public, "bv1");
-    let bv2 = Bv::start(&dir, port, &public, "bv2");
+    let bv1 = Bv::start(dir, port, &public, "bv1");
+    let bv2 = Bv::start(dir, port, &public, "bv2");
     let mut online =
         [serve.expect_line(" online", Duration::from_secs(10)), serve.expect_line(" online", Duration::from_secs(10))];
     online.sort();
@@ -127,7 +128,9 @@ fn one_serve_supervises_two_bvs_each_with_its_own_prior_and_target() {
     assert!(bv1.priors.receive().unwrap().is_none(), "bv1 got bv2's prior");
 
     // A prior signed with another key: bv2 refuses it and says why; `upload` fails with the reason.
-    let (_, wrong, _) = write_keys(&tempdir("fleet-wrong-key"), 24);
+    let wrong_dir_scratch = tempdir("fleet-wrong-key");
+    let wrong_dir = wrong_dir_scratch.path();
+    let (_, wrong, _) = write_keys(wrong_dir, 24);
     let out = upload(wrong.to_str().unwrap(), "3");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.contains("refused") && stderr.contains("signature"), "{stderr}");
@@ -178,8 +181,9 @@ fn one_serve_supervises_two_bvs_each_with_its_own_prior_and_target() {
 /// starts them, and each BV regulates its own interaction to its own target.
 #[test]
 fn two_simulated_bvs_regulate_their_own_priors_in_closed_loop_under_one_serve() {
-    let dir = tempdir("fleet-closed");
-    let (_key, secret, public) = write_keys(&dir, 31);
+    let dir_scratch = tempdir("fleet-closed");
+    let dir = dir_scratch.path();
+    let (_key, secret, public) = write_keys(dir, 31);
     let port = free_port();
     let listen = format!("127.0.0.1:{port}");
     let key_arg = secret.to_str().unwrap().to_owned();
@@ -192,7 +196,7 @@ fn two_simulated_bvs_regulate_their_own_priors_in_closed_loop_under_one_serve() 
     let mut launchers = Vec::new();
     let mut ecus = Vec::new();
     for (i, bv) in ["bv1", "bv2"].into_iter().enumerate() {
-        let cfg = v2t_tests::harness::edge_config_from(&dir, port, &public, bv, &format!("config/edge/{bv}_link.toml"));
+        let cfg = v2t_tests::harness::edge_config_from(dir, port, &public, bv, &format!("config/edge/{bv}_link.toml"));
         let ns = format!("v2t/test/closed{}/{bv}", std::process::id());
         let cfg_arg = cfg.to_str().unwrap().to_owned();
         launchers.push(Proc::start(&bin("v2t-edge"), &["launch", "--config", &cfg_arg, "--namespace", &ns], bv));

@@ -40,12 +40,9 @@ pub fn iceoryx2_config() {
     ONCE.call_once(|| v2t_edge::ports::use_iceoryx2_config(&repo_root().join("config/iceoryx2.toml")).unwrap());
 }
 
-/// A fresh directory for one test.
-pub fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("v2t-link-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A fresh directory for one test, removed when dropped.
+pub fn tempdir(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("v2t-link-{name}-")).tempdir().unwrap()
 }
 
 /// A free loopback port.

@@ -32,10 +32,11 @@ fn next_prior(
 }
 
 fn priors_and_commands_cross_the_broker(kind: BrokerKind) {
-    let dir = tempdir(&format!("{kind:?}").to_lowercase());
-    let (key, secret, public) = write_keys(&dir, 11);
-    let mut broker = Broker::start(kind, &dir, &secret);
-    let cfg = edge_config(&dir, broker.port, &public, "bv1");
+    let dir_scratch = tempdir(&format!("{kind:?}").to_lowercase());
+    let dir = dir_scratch.path();
+    let (key, secret, public) = write_keys(dir, 11);
+    let mut broker = Broker::start(kind, dir, &secret);
+    let cfg = edge_config(dir, broker.port, &public, "bv1");
     let ns = format!("v2t/test/uplink{:?}{}", kind, std::process::id());
     let node = uplink_node(&cfg, &ns, "uplink", &[]);
     v2t_tests::harness::iceoryx2_config();
@@ -156,9 +157,10 @@ fn priors_and_commands_cross_the_embedded_broker_bad_ones_are_refused_and_a_brok
 #[test]
 fn bvs_and_the_supervisor_log_in_with_tls_client_certificates_and_passwords() {
     use v2t_tests::harness::{edge_config_with, make_pki};
-    let dir = tempdir("tls");
-    make_pki(&dir, &["bv1", "supervisor"]);
-    let (_key, secret, public) = write_keys(&dir, 12);
+    let dir_scratch = tempdir("tls");
+    let dir = dir_scratch.path();
+    make_pki(dir, &["bv1", "supervisor"]);
+    let (_key, secret, public) = write_keys(dir, 12);
     let passwd = dir.join("passwd");
     for (i, (user, pw)) in [("bv1", "bv1-secret"), ("cloud", "cloud-secret")].into_iter().enumerate() {
         let mut cmd = std::process::Command::new("mosquitto_passwd");
@@ -171,7 +173,7 @@ fn bvs_and_the_supervisor_log_in_with_tls_client_certificates_and_passwords() {
     let d = dir.display();
     std::fs::set_permissions(&passwd, std::os::unix::fs::PermissionsExt::from_mode(0o644)).unwrap();
     let mosquitto = Broker::mosquitto_with(
-        &dir,
+        dir,
         &format!(
             "allow_anonymous false\npassword_file {d}/passwd\ncafile {d}/ca.pem\ncertfile {d}/server.pem\n\
              keyfile {d}/server.key\nrequire_certificate true\nset_tcp_nodelay true\n"
@@ -182,7 +184,7 @@ fn bvs_and_the_supervisor_log_in_with_tls_client_certificates_and_passwords() {
     let tls = format!(
         "username = \"bv1\"\npassword_env = \"V2T_TEST_MQTT_PASSWORD\"\nca_file = \"{d}/ca.pem\"\nclient_cert = \"{d}/bv1.pem\"\nclient_key = \"{d}/bv1.key\"\n"
     );
-    let cfg = edge_config_with(&dir, &broker, &public, "bv1", "config/edge/bv1.toml", &tls);
+    let cfg = edge_config_with(dir, &broker, &public, "bv1", "config/edge/bv1.toml", &tls);
     let ns = format!("v2t/test/tls{}", std::process::id());
     let node = uplink_node(&cfg, &ns, "uplink", &[("V2T_TEST_MQTT_PASSWORD", "bv1-secret")]);
     node.expect_line("connected", Duration::from_secs(10));
@@ -234,12 +236,13 @@ fn bvs_and_the_supervisor_log_in_with_tls_client_certificates_and_passwords() {
 #[test]
 fn a_lost_broker_brings_the_minimal_risk_stop_when_the_policy_says_so() {
     use v2t_tests::harness::edge_config_with;
-    let dir = tempdir("linkloss");
-    let (_key, secret, public) = write_keys(&dir, 13);
-    let mut broker = Broker::start(BrokerKind::Mosquitto, &dir, &secret);
+    let dir_scratch = tempdir("linkloss");
+    let dir = dir_scratch.path();
+    let (_key, secret, public) = write_keys(dir, 13);
+    let mut broker = Broker::start(BrokerKind::Mosquitto, dir, &secret);
     let extra = "on_link_loss = \"minimal_risk_stop\"\nlink_loss_timeout_s = 0.5\n";
     let cfg = edge_config_with(
-        &dir,
+        dir,
         &format!("mqtt://127.0.0.1:{}", broker.port),
         &public,
         "bv1",
@@ -274,12 +277,13 @@ fn a_lost_broker_brings_the_minimal_risk_stop_when_the_policy_says_so() {
 #[test]
 fn a_restarted_uplink_still_refuses_replays() {
     use v2t_tests::harness::edge_config_with;
-    let dir = tempdir("restart");
-    let (key, secret, public) = write_keys(&dir, 14);
-    let broker = Broker::start(BrokerKind::Mosquitto, &dir, &secret);
+    let dir_scratch = tempdir("restart");
+    let dir = dir_scratch.path();
+    let (key, secret, public) = write_keys(dir, 14);
+    let broker = Broker::start(BrokerKind::Mosquitto, dir, &secret);
     let extra = format!("state_file = \"{}\"\n", dir.join("bv1.seq").display());
     let cfg = edge_config_with(
-        &dir,
+        dir,
         &format!("mqtt://127.0.0.1:{}", broker.port),
         &public,
         "bv1",

@@ -131,9 +131,8 @@ mod tests {
         let e = load_semantics(&missing).unwrap_err();
         assert!(matches!(e, SemanticsFileError::Read { .. }) && e.to_string().contains("no_such.json"), "{e}");
 
-        let dir = std::env::temp_dir().join(format!("v2t-ground-cli-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let bad = dir.join("bad.json");
+        let dir = tempfile::Builder::new().prefix("v2t-ground-cli-").tempdir().unwrap();
+        let bad = dir.path().join("bad.json");
         std::fs::write(&bad, "{\"road_topology\": ").unwrap();
         let e = load_semantics(&bad).unwrap_err();
         assert!(matches!(e, SemanticsFileError::Invalid { .. }) && e.to_string().contains("bad.json"), "{e}");

@@ -406,15 +406,16 @@ mod tests {
     use super::*;
     use v2t_wire::link::{Receiver, Window};
 
-    fn tempdir(name: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("v2t-cli-link-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        d
+    /// A path that does not exist yet, in a scratch folder removed when the guard drops.
+    fn tempdir(name: &str) -> (tempfile::TempDir, PathBuf) {
+        let scratch = tempfile::Builder::new().prefix(&format!("v2t-cli-link-{name}-")).tempdir().unwrap();
+        let d = scratch.path().join("keys");
+        (scratch, d)
     }
 
     #[test]
     fn keygen_writes_a_pair_the_edge_reads_and_refuses_to_overwrite() {
-        let dir = tempdir("keygen");
+        let (_scratch, dir) = tempdir("keygen");
         let vk = keygen(&dir).unwrap();
         let sk = load_signing_key(&dir.join("cloud.key")).unwrap();
         assert_eq!(sk.verifying_key(), vk);

@@ -4,12 +4,11 @@
 
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
+use common::{repo, text};
+
+use std::process::{Command, Output};
 
 /// Runs the binary in the repository root with no `V2T_VLM_*` variable set.
 fn video2track(args: &[&str]) -> Output {
@@ -22,19 +21,14 @@ fn video2track(args: &[&str]) -> Output {
     cmd.args(args).current_dir(repo()).output().unwrap()
 }
 
-fn text(o: &Output) -> (String, String) {
-    (String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned())
-}
-
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("v2t-cli-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn tempdir(name: &str) -> tempfile::TempDir {
+    common::tempdir("cli", name)
 }
 
 #[test]
 fn replaying_the_shipped_cassettes_writes_their_semantics_byte_for_byte() {
-    let dir = tempdir("abstract-replay");
+    let dir_scratch = tempdir("abstract-replay");
+    let dir = dir_scratch.path();
     for (name, video, pet, kind) in [
         ("cut_in", "cut_in_4.70.mp4", "4.70", "cut_in"),
         ("left_turn", "left_turn_2.90.mp4", "2.90", "unprotected_left_turn"),
@@ -76,7 +70,9 @@ fn replaying_the_shipped_cassettes_writes_their_semantics_byte_for_byte() {
 
 #[test]
 fn the_label_goes_into_the_semantics() {
-    let out = tempdir("abstract-label").join("s.json");
+    let dir_scratch = tempdir("abstract-label");
+    let dir = dir_scratch.path();
+    let out = dir.join("s.json");
     let o = video2track(&[
         "abstract",
         "left_turn_2.90.mp4",
@@ -126,7 +122,9 @@ fn a_missing_video_is_an_input_error() {
 #[test]
 fn no_endpoint_is_a_clear_error() {
     // Any readable file will do: the endpoint is checked before the frames are taken.
-    let video = tempdir("abstract-endpoint").join("clip.mp4");
+    let dir_scratch = tempdir("abstract-endpoint");
+    let dir = dir_scratch.path();
+    let video = dir.join("clip.mp4");
     std::fs::write(&video, b"not really a video").unwrap();
     expect_input_error(
         &["abstract", video.to_str().unwrap(), "--pet-label", "2.0"],
@@ -179,7 +177,8 @@ fn replay_options_are_checked() {
 
 #[test]
 fn the_label_comes_from_the_annotation_file_beside_the_video_when_not_given() {
-    let dir = tempdir("abstract-labels");
+    let dir_scratch = tempdir("abstract-labels");
+    let dir = dir_scratch.path();
     // The cassette recorded `cut_in_4.70.mp4`: an annotation beside a video of that name.
     let video = dir.join("cut_in_4.70.mp4");
     std::fs::write(dir.join("cut_in_4.70.labels.toml"), "pet_label_s = 4.70\nnote = \"measured by hand\"\n").unwrap();

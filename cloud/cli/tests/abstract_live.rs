@@ -72,9 +72,8 @@ fn serve_once(content: String) -> (String, mpsc::Receiver<(String, serde_json::V
 
 #[test]
 fn a_rendered_run_is_abstracted_live_recorded_and_replayed() {
-    let dir = std::env::temp_dir().join(format!("v2t-cli-abstract-live-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let scratch = tempfile::Builder::new().prefix("v2t-cli-abstract-live-").tempdir().unwrap();
+    let dir = scratch.path();
     let run = dir.join("left_turn.json");
     let video = dir.join("left_turn.mp4");
     let o = video2track(&["sim", "config/scenarios/left_turn_basic.toml", "--json", run.to_str().unwrap()], &[]);

@@ -3,24 +3,16 @@
 
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
 
+mod common;
+
+use common::{repo, text, video2track};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn video2track(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_video2track")).args(args).current_dir(repo()).output().unwrap()
-}
-
-fn text(o: &Output) -> (String, String) {
-    (String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned())
-}
 
 #[test]
 fn sim_runs_both_cards_with_every_vut_model_and_writes_json() {
-    let dir = tempdir("sim");
+    let dir_scratch = tempdir("sim");
+    let dir = dir_scratch.path();
     for card in ["left_turn_basic", "cut_in_basic"] {
         for vut in ["idm-cautious", "idm-normal", "idm-aggressive", "reactive", "sampling"] {
             let json = dir.join(format!("{card}-{vut}.json"));
@@ -46,16 +38,19 @@ fn sim_runs_both_cards_with_every_vut_model_and_writes_json() {
     }
 }
 
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("v2t-cli-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn tempdir(name: &str) -> tempfile::TempDir {
+    common::tempdir("cli", name)
 }
 
 /// Writes a copy of the left-turn card with `edit` applied to its text, next to copies of the
-/// files it names, and returns its path.
-fn broken_card(name: &str, edit: impl Fn(&str) -> String, vehicle_edit: impl Fn(&str) -> String) -> PathBuf {
-    let dir = tempdir(name);
+/// files it names, and returns its path with the scratch folder that holds it.
+fn broken_card(
+    name: &str,
+    edit: impl Fn(&str) -> String,
+    vehicle_edit: impl Fn(&str) -> String,
+) -> (tempfile::TempDir, PathBuf) {
+    let dir_scratch = tempdir(name);
+    let dir = dir_scratch.path();
     std::fs::create_dir_all(dir.join("scenarios")).unwrap();
     std::fs::create_dir_all(dir.join("vehicles")).unwrap();
     std::fs::create_dir_all(dir.join("sim")).unwrap();
@@ -66,7 +61,8 @@ fn broken_card(name: &str, edit: impl Fn(&str) -> String, vehicle_edit: impl Fn(
         std::fs::write(dir.join(format!("vehicles/{v}.toml")), vehicle_edit(&t)).unwrap();
     }
     std::fs::copy(repo().join("config/sim/default.toml"), dir.join("sim/default.toml")).unwrap();
-    dir.join("scenarios/card.toml")
+    let card = dir.join("scenarios/card.toml");
+    (dir_scratch, card)
 }
 
 fn expect_input_error(card: &Path, needles: &[&str]) {
@@ -81,25 +77,27 @@ fn expect_input_error(card: &Path, needles: &[&str]) {
 
 #[test]
 fn malformed_toml_names_the_file_and_line() {
-    let card = broken_card("malformed", |t| t.replace("tau_s = 2.0", "tau_s = = 2.0"), str::to_owned);
+    let (_dir, card) = broken_card("malformed", |t| t.replace("tau_s = 2.0", "tau_s = = 2.0"), str::to_owned);
     expect_input_error(&card, &["card.toml", "line"]);
 }
 
 #[test]
 fn unknown_field_is_named() {
-    let card = broken_card("unknown", |t| t.replace("tau_s = 2.0", "tau_s = 2.0\ncolour = \"red\""), str::to_owned);
+    let (_dir, card) =
+        broken_card("unknown", |t| t.replace("tau_s = 2.0", "tau_s = 2.0\ncolour = \"red\""), str::to_owned);
     expect_input_error(&card, &["card.toml", "colour"]);
 }
 
 #[test]
 fn nan_is_rejected_with_the_field() {
-    let card = broken_card("nan", |t| t.replace("initial_speed_mps = 10.0", "initial_speed_mps = nan"), str::to_owned);
+    let (_dir, card) =
+        broken_card("nan", |t| t.replace("initial_speed_mps = 10.0", "initial_speed_mps = nan"), str::to_owned);
     expect_input_error(&card, &["card.toml", "bvs[0].initial_speed_mps", "NaN"]);
 }
 
 #[test]
 fn negative_vehicle_dimension_names_the_vehicle_file() {
-    let card = broken_card("negative", str::to_owned, |t| t.replace("width_m = 1.85", "width_m = -1.85"));
+    let (_dir, card) = broken_card("negative", str::to_owned, |t| t.replace("width_m = 1.85", "width_m = -1.85"));
     expect_input_error(&card, &["sedan.toml", "geometry.width_m", "-1.85"]);
 }
 
@@ -108,7 +106,7 @@ fn missing_file_and_unknown_model_are_input_errors() {
     let o = video2track(&["sim", "config/scenarios/no_such_card.toml"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(text(&o).1.contains("no_such_card.toml"));
-    let card = broken_card("model", |t| t.replace("idm-normal", "idm-reckless"), str::to_owned);
+    let (_dir, card) = broken_card("model", |t| t.replace("idm-normal", "idm-reckless"), str::to_owned);
     expect_input_error(&card, &["vut.model", "idm-reckless", "idm-normal"]);
     let o = video2track(&["sim", "config/scenarios/left_turn_basic.toml", "--vut", "nobody"]);
     assert_eq!(o.status.code(), Some(2), "clap rejects unknown values with its usage exit code");
@@ -116,7 +114,7 @@ fn missing_file_and_unknown_model_are_input_errors() {
 
 #[test]
 fn paths_that_never_meet_are_refused() {
-    let card = broken_card(
+    let (_dir, card) = broken_card(
         "apart",
         |t| t.replace("start_x_m = -1.75, start_y_m = 39.36", "start_x_m = -300.0, start_y_m = 39.36"),
         str::to_owned,
@@ -162,7 +160,9 @@ fn help_lists_only_real_commands() {
 
 #[test]
 fn the_four_methods_run_on_both_recorded_scenarios() {
-    let json = tempdir("fidelity").join("fidelity.json");
+    let dir_scratch = tempdir("fidelity");
+    let dir = dir_scratch.path();
+    let json = dir.join("fidelity.json");
     let o = video2track(&[
         "experiment",
         "fidelity",
@@ -194,7 +194,9 @@ fn the_four_methods_run_on_both_recorded_scenarios() {
 
 #[test]
 fn steerability_compares_the_four_methods_on_request() {
-    let json = tempdir("steer-methods").join("steer.json");
+    let dir_scratch = tempdir("steer-methods");
+    let dir = dir_scratch.path();
+    let json = dir.join("steer.json");
     let args = ["experiment", "steerability", "--methods", "--repeats", "1", "--tau", "3", "--vut", "idm-normal"];
     let o = video2track(&[&args[..], &["--json", json.to_str().unwrap()]].concat());
     let (out, err) = text(&o);
@@ -212,7 +214,9 @@ fn steerability_compares_the_four_methods_on_request() {
 
 #[test]
 fn steerability_writes_the_documented_json() {
-    let json = tempdir("steer").join("steer.json");
+    let dir_scratch = tempdir("steer");
+    let dir = dir_scratch.path();
+    let json = dir.join("steer.json");
     let o = video2track(&[
         "experiment",
         "steerability",
@@ -253,7 +257,8 @@ fn steerability_writes_the_documented_json() {
 
 #[test]
 fn a_bad_regulator_file_is_an_input_error() {
-    let dir = tempdir("regulator");
+    let dir_scratch = tempdir("regulator");
+    let dir = dir_scratch.path();
     let path = dir.join("regulator.toml");
     let original = std::fs::read_to_string(repo().join("config/regulator/default.toml")).unwrap();
     std::fs::write(&path, original.replace("horizon = 50", "horizon = 1")).unwrap();
@@ -265,7 +270,8 @@ fn a_bad_regulator_file_is_an_input_error() {
 
 #[test]
 fn map_inspect_and_ground_work_on_the_proving_ground() {
-    let dir = tempdir("ground");
+    let dir_scratch = tempdir("ground");
+    let dir = dir_scratch.path();
     let lib = dir.join("library.json");
     let svg = dir.join("pg.svg");
     let o = video2track(&[
@@ -313,7 +319,8 @@ fn map_inspect_and_ground_work_on_the_proving_ground() {
 
 #[test]
 fn ground_refuses_bad_semantics_and_explains_a_misfit() {
-    let dir = tempdir("ground-bad");
+    let dir_scratch = tempdir("ground-bad");
+    let dir = dir_scratch.path();
     let bad = dir.join("bad.json");
     std::fs::write(&bad, "{ \"road_topology\": 3 }").unwrap();
     let o = video2track(&["ground", bad.to_str().unwrap()]);

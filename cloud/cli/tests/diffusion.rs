@@ -19,7 +19,7 @@ fn fails(args: &[&str]) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
-fn tempdir(name: &str) -> std::path::PathBuf {
+fn tempdir(name: &str) -> tempfile::TempDir {
     common::tempdir("diffusion", name)
 }
 
@@ -29,9 +29,10 @@ fn grounded(dir: &Path, which: &str) -> std::path::PathBuf {
 
 #[test]
 fn shipped_weights_generate_priors_that_meet_their_scenarios() {
-    let dir = tempdir("generate");
+    let dir_scratch = tempdir("generate");
+    let dir = dir_scratch.path();
     for which in ["cut_in", "left_turn"] {
-        let g = grounded(&dir, which);
+        let g = grounded(dir, which);
         let prior_path = dir.join(format!("{which}.prior.json"));
         let metrics_path = dir.join(format!("{which}.metrics.json"));
         let all = dir.join(format!("{which}-all"));
@@ -68,8 +69,9 @@ fn shipped_weights_generate_priors_that_meet_their_scenarios() {
 
 #[test]
 fn ablation_switches_change_the_result() {
-    let dir = tempdir("ablation");
-    let g = grounded(&dir, "cut_in");
+    let dir_scratch = tempdir("ablation");
+    let dir = dir_scratch.path();
+    let g = grounded(dir, "cut_in");
     let metrics = |guidance: &str| -> serde_json::Value {
         let path = dir.join(format!("{guidance}.json"));
         ok(&["generate", s(&g), "--variants", "4", "--guidance", guidance, "--draws", "1", "--json-metrics", s(&path)]);
@@ -84,8 +86,9 @@ fn ablation_switches_change_the_result() {
 
 #[test]
 fn bad_input_is_a_clear_error() {
-    let dir = tempdir("bad");
-    let g = grounded(&dir, "cut_in");
+    let dir_scratch = tempdir("bad");
+    let dir = dir_scratch.path();
+    let g = grounded(dir, "cut_in");
     let text = std::fs::read_to_string(&g).unwrap();
     let mut value: serde_json::Value = serde_json::from_str(&text).unwrap();
     value["agents"][0]["route"] = serde_json::json!([]);
@@ -109,7 +112,8 @@ fn bad_input_is_a_clear_error() {
 
 #[test]
 fn a_small_training_run_writes_weights_that_generate_and_realism_read() {
-    let dir = tempdir("train");
+    let dir_scratch = tempdir("train");
+    let dir = dir_scratch.path();
     let out = dir.join("run");
     let text = ok(&[
         "train",
@@ -139,7 +143,7 @@ fn a_small_training_run_writes_weights_that_generate_and_realism_read() {
         assert!(out.join("checkpoints").join(format!("{step}.safetensors")).exists());
     }
     let weights = out.join("denoiser.safetensors");
-    let g = grounded(&dir, "cut_in");
+    let g = grounded(dir, "cut_in");
     let prior = dir.join("prior.json");
     ok(&["generate", s(&g), "--weights", s(&weights), "--out", s(&prior)]);
     let p: TrajectoryPrior = serde_json::from_str(&std::fs::read_to_string(&prior).unwrap()).unwrap();

@@ -4,26 +4,18 @@
 
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
+use common::{repo, video2track};
 
-fn video2track(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_video2track")).args(args).current_dir(repo()).output().unwrap()
-}
-
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("v2t-cli-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn tempdir(name: &str) -> tempfile::TempDir {
+    common::tempdir("cli", name)
 }
 
 #[test]
 fn recorded_runs_replay_to_the_same_metrics_and_altered_ones_do_not() {
-    let dir = tempdir("mcap");
+    let dir_scratch = tempdir("mcap");
+    let dir = dir_scratch.path();
     for (card, vut) in
         [("config/scenarios/left_turn_basic.toml", "idm-normal"), ("config/scenarios/cut_in_basic.toml", "reactive")]
     {

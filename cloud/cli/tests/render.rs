@@ -4,27 +4,17 @@
 
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
 
+mod common;
+
+use common::{repo, text, video2track};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 use v2t_vlm::frames::{FrameSettings, extract_frames};
 
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn video2track(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_video2track")).args(args).current_dir(repo()).output().unwrap()
-}
-
-fn text(o: &Output) -> (String, String) {
-    (String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned())
-}
-
-fn tempdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("v2t-cli-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn tempdir(name: &str) -> tempfile::TempDir {
+    common::tempdir("cli", name)
 }
 
 /// `video2track sim` of the left-turn card: the run file and the time its trace spans, s.
@@ -54,8 +44,9 @@ fn ffprobe(video: &Path) -> serde_json::Value {
 
 #[test]
 fn a_simulated_left_turn_renders_to_an_mp4_the_frame_pipeline_reads() {
-    let dir = tempdir("render");
-    let (run, span) = left_turn_run(&dir);
+    let dir_scratch = tempdir("render");
+    let dir = dir_scratch.path();
+    let (run, span) = left_turn_run(dir);
     assert!(span > 3.0, "{span}");
     let mp4 = dir.join("left_turn.mp4");
     let o = video2track(&["render", run.to_str().unwrap(), "-o", mp4.to_str().unwrap(), "--width", "640"]);
@@ -102,8 +93,9 @@ fn a_simulated_left_turn_renders_to_an_mp4_the_frame_pipeline_reads() {
 
 #[test]
 fn render_takes_the_card_and_the_map_and_other_rates() {
-    let dir = tempdir("render-card");
-    let (run, span) = left_turn_run(&dir);
+    let dir_scratch = tempdir("render-card");
+    let dir = dir_scratch.path();
+    let (run, span) = left_turn_run(dir);
     let mp4 = dir.join("card.mp4");
     let o = video2track(&[
         "render",
@@ -142,7 +134,8 @@ fn render_takes_the_card_and_the_map_and_other_rates() {
 
 #[test]
 fn bad_render_input_is_an_input_error_and_a_missing_ffmpeg_is_named() {
-    let dir = tempdir("render-bad");
+    let dir_scratch = tempdir("render-bad");
+    let dir = dir_scratch.path();
     let bad = dir.join("bad.json");
     std::fs::write(&bad, "{\"trace\": 3}").unwrap();
     for args in [
@@ -159,7 +152,7 @@ fn bad_render_input_is_an_input_error_and_a_missing_ffmpeg_is_named() {
     let o = video2track(&["render", bad.to_str().unwrap(), "-o", "/tmp/never.mp4"]);
     assert!(text(&o).1.contains("bad.json"));
 
-    let (run, _) = left_turn_run(&dir);
+    let (run, _) = left_turn_run(dir);
     let o = Command::new(env!("CARGO_BIN_EXE_video2track"))
         .args(["render", run.to_str().unwrap(), "-o", dir.join("x.mp4").to_str().unwrap()])
         .env("PATH", dir.join("empty-path"))

@@ -16,7 +16,7 @@ use v2t_model::grounded::{AgentRole, GroundedScenario};
 use v2t_model::kinematics::State;
 use v2t_model::prior::TrajectoryPrior;
 
-fn tempdir(name: &str) -> PathBuf {
+fn tempdir(name: &str) -> tempfile::TempDir {
     common::tempdir("xosc", name)
 }
 
@@ -200,8 +200,9 @@ fn map_resolves(xosc_path: &Path, map: &str) {
 
 #[test]
 fn a_trajectory_prior_exports_its_bv_trajectories_and_the_vut_route() {
-    let dir = tempdir("prior");
-    let (_, g) = grounded(&dir, "left_turn");
+    let dir_scratch = tempdir("prior");
+    let dir = dir_scratch.path();
+    let (_, g) = grounded(dir, "left_turn");
     // Two BVs (the second a copy of the first, shifted): one story and one trajectory each.
     let mut prior = TrajectoryPrior::along_routes_at_start_speed(&g, 12.0).unwrap();
     let mut bv2 = prior.agents.iter().find(|a| a.role == AgentRole::Bv).unwrap().clone();
@@ -246,11 +247,12 @@ fn a_trajectory_prior_exports_its_bv_trajectories_and_the_vut_route() {
 
 #[test]
 fn grounded_scenarios_export_constant_speed_along_their_routes() {
-    let dir = tempdir("grounded");
+    let dir_scratch = tempdir("grounded");
+    let dir = dir_scratch.path();
     // The output in a subfolder: the map's path is written relative to it.
     std::fs::create_dir_all(dir.join("xosc")).unwrap();
     for which in ["left_turn", "cut_in"] {
-        let (input, g) = grounded(&dir, which);
+        let (input, g) = grounded(dir, which);
         let out = dir.join("xosc").join(format!("{which}.xosc"));
         let x = read(&export(&input, &out));
         let ids: Vec<&str> = g.agents.iter().map(|a| a.id.as_str()).collect();
@@ -284,7 +286,8 @@ fn grounded_scenarios_export_constant_speed_along_their_routes() {
 
 #[test]
 fn a_simulated_run_exports_its_trace() {
-    let dir = tempdir("run");
+    let dir_scratch = tempdir("run");
+    let dir = dir_scratch.path();
     let run = dir.join("run.json");
     ok(&["sim", "config/scenarios/left_turn_basic.toml", "--json", s(&run)]);
     let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&run).unwrap()).unwrap();
@@ -316,8 +319,9 @@ fn a_simulated_run_exports_its_trace() {
 
 #[test]
 fn names_are_escaped() {
-    let dir = tempdir("escape");
-    let (_, g) = grounded(&dir, "cut_in");
+    let dir_scratch = tempdir("escape");
+    let dir = dir_scratch.path();
+    let (_, g) = grounded(dir, "cut_in");
     let mut prior = TrajectoryPrior::along_routes_at_start_speed(&g, 5.0).unwrap();
     prior.fragment_id = "a<b & \"c\"".into();
     prior.agents[1].id = "bv<1>&'x'".into();
@@ -330,8 +334,9 @@ fn names_are_escaped() {
 
 #[test]
 fn bad_input_is_an_input_error_with_a_message() {
-    let dir = tempdir("bad");
-    let (_, g) = grounded(&dir, "left_turn");
+    let dir_scratch = tempdir("bad");
+    let dir = dir_scratch.path();
+    let (_, g) = grounded(dir, "left_turn");
     let prior = serde_json::to_string_pretty(&TrajectoryPrior::along_routes_at_start_speed(&g, 5.0).unwrap()).unwrap();
     let mut value: serde_json::Value = serde_json::from_str(&prior).unwrap();
     value["agents"] = serde_json::json!([]);

@@ -20,8 +20,12 @@ const KEY: &str = "sk-test-never-written-anywhere";
 
 /// One short test video for the whole file: 2 s of `testsrc`, 320x240.
 fn video() -> &'static PathBuf {
+    // The folder lives as long as the test process (statics are not dropped): one per run.
     static VIDEO: OnceLock<PathBuf> = OnceLock::new();
-    VIDEO.get_or_init(|| make_video(&temp_dir("client"), "clip.mp4", "testsrc=duration=2:size=320x240:rate=10"))
+    VIDEO.get_or_init(|| {
+        let dir = temp_dir("client").keep();
+        make_video(&dir, "clip.mp4", "testsrc=duration=2:size=320x240:rate=10")
+    })
 }
 
 fn config(server: &Server) -> VlmConfig {
@@ -279,18 +283,19 @@ fn missing_ffmpeg_names_the_debian_package() {
 
 #[test]
 fn a_recorded_run_replays_offline_byte_for_byte_and_keeps_the_key_out() {
-    let dir = temp_dir("record");
+    let dir_scratch = temp_dir("record");
+    let dir = dir_scratch.path();
     let server = Server::start(vec![
         Reply::status(503, "overloaded").with_header("Retry-After", "0"),
         Reply::chat(&cut_in().replace("\"lane_change_left\"", "\"left_turn\"")),
         Reply::chat(&cut_in()),
     ]);
     let cfg = config(&server);
-    let recorded = abstract_video(video(), 4.7, &cfg, &Mode::Record(dir.clone())).unwrap();
+    let recorded = abstract_video(video(), 4.7, &cfg, &Mode::Record(dir.to_path_buf())).unwrap();
     assert_eq!((recorded.requests, recorded.repairs), (3, 1));
 
     // Nothing in the cassette carries the key.
-    for entry in std::fs::read_dir(&dir).unwrap() {
+    for entry in std::fs::read_dir(dir).unwrap() {
         let text = std::fs::read_to_string(entry.unwrap().path()).unwrap();
         assert!(!text.contains(KEY));
     }
@@ -300,14 +305,16 @@ fn a_recorded_run_replays_offline_byte_for_byte_and_keeps_the_key_out() {
     assert_eq!(exchange["response"]["body_text"], "overloaded");
 
     // Offline: no server, no video file, no endpoint in the config.
-    let offline = Mode::Replay(dir.clone());
+    let offline = Mode::Replay(dir.to_path_buf());
     let replayed = abstract_video(std::path::Path::new("clip.mp4"), 4.7, &VlmConfig::default(), &offline).unwrap();
     assert_eq!(replayed, recorded);
     let written = std::fs::read_to_string(dir.join("semantics.json")).unwrap();
     assert_eq!(semantics_text(&replayed.semantics).unwrap(), written);
 
     // A replay that would send a different request fails and says where.
-    let prompt = temp_dir("prompt").join("prompt.md");
+    let dir_scratch = temp_dir("prompt");
+    let dir = dir_scratch.path();
+    let prompt = dir.join("prompt.md");
     let builtin = v2t_vlm::prompt::BUILTIN_PROMPT;
     std::fs::write(&prompt, builtin.replace("traffic-scenario analyst", "traffic analyst")).unwrap();
     let changed = VlmConfig { prompt_file: Some(prompt), ..VlmConfig::default() };
@@ -319,18 +326,19 @@ fn a_recorded_run_replays_offline_byte_for_byte_and_keeps_the_key_out() {
 
 #[test]
 fn a_recorded_timeout_replays_as_a_timeout() {
-    let dir = temp_dir("record-timeout");
+    let dir_scratch = temp_dir("record-timeout");
+    let dir = dir_scratch.path();
     let server = Server::start(vec![Reply::chat(&cut_in()).after(Duration::from_secs(2)), Reply::chat(&cut_in())]);
     let mut cfg = config(&server);
     cfg.timeouts.request = Duration::from_millis(300);
-    let recorded = abstract_video(video(), 2.0, &cfg, &Mode::Record(dir.clone())).unwrap();
+    let recorded = abstract_video(video(), 2.0, &cfg, &Mode::Record(dir.to_path_buf())).unwrap();
     assert_eq!(recorded.requests, 2);
     let first: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("exchange_01.json")).unwrap()).unwrap();
     assert_eq!(first["error"]["kind"], "timeout");
 
     let started = Instant::now();
-    let replayed = abstract_video(video(), 2.0, &VlmConfig::default(), &Mode::Replay(dir)).unwrap();
+    let replayed = abstract_video(video(), 2.0, &VlmConfig::default(), &Mode::Replay(dir.to_path_buf())).unwrap();
     assert_eq!(replayed, recorded);
     assert!(started.elapsed() < Duration::from_millis(300), "a replay does not wait");
 }

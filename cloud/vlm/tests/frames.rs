@@ -8,8 +8,9 @@ use v2t_vlm::frames::{FrameError, FrameSettings, extract_frames, motion_scores, 
 
 #[test]
 fn uniform_frames_are_scaled_jpegs_with_timestamps() {
-    let dir = temp_dir("frames");
-    let video = make_video(&dir, "hd.mp4", "testsrc=duration=4:size=1280x720:rate=25");
+    let dir_scratch = temp_dir("frames");
+    let dir = dir_scratch.path();
+    let video = make_video(dir, "hd.mp4", "testsrc=duration=4:size=1280x720:rate=25");
     let settings = FrameSettings { count: 5, ..FrameSettings::default() };
     let (info, frames) = extract_frames(&video, &settings).unwrap();
     assert_eq!((info.width, info.height), (1280, 720));
@@ -30,10 +31,11 @@ fn uniform_frames_are_scaled_jpegs_with_timestamps() {
 
 #[test]
 fn motion_frames_land_where_the_picture_changes() {
-    let dir = temp_dir("motion");
+    let dir_scratch = temp_dir("motion");
+    let dir = dir_scratch.path();
     // 3 s of a still grey picture, then 3 s of testsrc: the cut at 3 s is the largest change.
     let graph = "color=c=gray:size=320x180:rate=10:duration=3[a];testsrc=size=320x180:rate=10:duration=3[b];[a][b]concat=n=2:v=1";
-    let video = make_video(&dir, "cut.mp4", graph);
+    let video = make_video(dir, "cut.mp4", graph);
     let info = probe(&video, &Default::default()).unwrap();
     let scores = motion_scores(&video, &info, &Default::default()).unwrap();
     let (t_max, _) = scores.iter().copied().max_by(|a, b| a.1.total_cmp(&b.1)).unwrap();
@@ -50,8 +52,9 @@ fn motion_frames_land_where_the_picture_changes() {
 
 #[test]
 fn limits_and_missing_inputs_are_clear_errors() {
-    let dir = temp_dir("limits");
-    let video = make_video(&dir, "short.mp4", "testsrc=duration=2:size=160x120:rate=10");
+    let dir_scratch = temp_dir("limits");
+    let dir = dir_scratch.path();
+    let video = make_video(dir, "short.mp4", "testsrc=duration=2:size=160x120:rate=10");
     let too_long = FrameSettings { max_duration_s: 1.0, ..FrameSettings::default() };
     let e = extract_frames(&video, &too_long).unwrap_err();
     assert!(matches!(e, FrameError::TooLong { .. }), "{e:?}");

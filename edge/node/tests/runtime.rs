@@ -156,7 +156,8 @@ impl GateWatch {
 fn a_yielding_left_turn_runs_to_the_end_through_the_processes_and_lands_on_the_target_pet() {
     let ns = namespace("closed");
     let cfg = config();
-    let out = std::env::temp_dir().join(format!("v2t-edge-closed-{}.json", std::process::id()));
+    let scratch = tempfile::Builder::new().prefix("v2t-edge-closed-").tempdir().unwrap();
+    let out = scratch.path().join("run.json");
     let can = can_args();
     let mut args = vec!["launch", "--config", &cfg, "--namespace", &ns];
     args.extend(can.iter().map(String::as_str));

@@ -6,6 +6,8 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use tempfile::TempDir;
+
 /// The repository root (commands run there, so `config/…` defaults resolve).
 pub fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -16,6 +18,11 @@ pub fn video2track(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_video2track")).args(args).current_dir(repo()).output().unwrap()
 }
 
+/// Its stdout and stderr as text.
+pub fn text(o: &Output) -> (String, String) {
+    (String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned())
+}
+
 /// Runs it and asserts success; returns stdout.
 pub fn ok(args: &[&str]) -> String {
     let o = video2track(args);
@@ -23,11 +30,9 @@ pub fn ok(args: &[&str]) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
 
-/// A fresh scratch folder `v2t-<suite>-<name>-<pid>`.
-pub fn tempdir(suite: &str, name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("v2t-{suite}-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A fresh scratch folder `v2t-<suite>-<name>-…`, removed when dropped.
+pub fn tempdir(suite: &str, name: &str) -> TempDir {
+    tempfile::Builder::new().prefix(&format!("v2t-{suite}-{name}-")).tempdir().unwrap()
 }
 
 /// A path as `&str`.
