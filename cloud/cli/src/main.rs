@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context as _;
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory as _, Parser, Subcommand, ValueEnum as _};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use v2t_game::regulator::RegulatorParams;
@@ -110,13 +110,13 @@ enum Command {
         /// Seeded noisy runs per case.
         #[arg(long, default_value_t = 20)]
         repeats: usize,
-        /// Scenario cards (default: the bundled left turn and cut-in).
+        /// steerability without --methods: scenario cards (default: the bundled left turn and cut-in).
         #[arg(long = "card")]
         cards: Vec<PathBuf>,
         /// Only these VUT models (default: all).
         #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(VutModel::names()))]
         vut: Vec<String>,
-        /// Only these targets τ, s (default: 1.5 2 3 4 5).
+        /// steerability: only these targets τ, s (default: 1.5 2 3 4 5; repeat the option for more).
         #[arg(long)]
         tau: Vec<f64>,
         /// Regulator settings (TOML).
@@ -503,6 +503,9 @@ enum Experiment {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Some(msg) = unused_experiment_options(&cli) {
+        Cli::command().error(clap::error::ErrorKind::ArgumentConflict, msg).exit();
+    }
     match execute(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
@@ -530,6 +533,27 @@ fn main() -> ExitCode {
             if bad_input { ExitCode::from(2) } else { ExitCode::FAILURE }
         }
     }
+}
+
+/// An `experiment` option given where that experiment does not read it (it would be silently
+/// ignored): what to say.
+fn unused_experiment_options(cli: &Cli) -> Option<String> {
+    let Command::Experiment { which, cards, tau, methods, .. } = &cli.command else { return None };
+    let steerability = matches!(which, Experiment::Steerability);
+    if !cards.is_empty() && (*methods || !steerability) {
+        return Some(
+            "--card applies to `experiment steerability` (the regulator on scenario cards); the four \
+             methods run on the two recorded scenarios"
+                .to_owned(),
+        );
+    }
+    if !tau.is_empty() && !steerability {
+        return Some(format!(
+            "--tau applies to `experiment steerability` only; `experiment {}` sets its own targets",
+            which.to_possible_value().map_or_else(String::new, |v| v.get_name().to_owned())
+        ));
+    }
+    None
 }
 
 fn wait_duration(s: f64) -> anyhow::Result<std::time::Duration> {

@@ -213,6 +213,23 @@ fn steerability_compares_the_four_methods_on_request() {
 }
 
 #[test]
+fn experiment_options_an_experiment_would_ignore_are_refused() {
+    for (args, needle) in [
+        (&["experiment", "fidelity", "--tau", "3"][..], "--tau applies to `experiment steerability` only"),
+        (&["experiment", "adversariality", "--card", "config/scenarios/cut_in_basic.toml"][..], "--card applies"),
+        (
+            &["experiment", "steerability", "--methods", "--card", "config/scenarios/cut_in_basic.toml"][..],
+            "the four methods run on the two recorded scenarios",
+        ),
+    ] {
+        let o = video2track(args);
+        let (_, err) = text(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+    }
+}
+
+#[test]
 fn steerability_writes_the_documented_json() {
     let dir_scratch = tempdir("steer");
     let dir = dir_scratch.path();
