@@ -1,0 +1,102 @@
+//! Which PETs can a rushing BV reach at all against each VUT model? Every BV here drives an
+//! open-loop speed profile — acceleration `a1` for `t1` seconds, then `a2` until it has left the
+//! conflict zone, then its reference speed — over a grid of profiles, on the bundled left turn (or
+//! the card given), with the card's sensor noise and delays. For each VUT model it prints the
+//! smallest and largest PET measured among runs where the BV passed first without collision or
+//! zone overlap, and how many profiles land within ±10 % of each target τ.
+//!
+//! ```sh
+//! cargo run --release -p v2t-sim --example reachable_pet [-- config/scenarios/cut_in_basic.toml]
+//! ```
+//!
+//! It bounds what any regulator can achieve against a VUT model: if no profile of the grid reaches a
+//! PET, the regulator's miss there is the VUT's rule, not the regulator's.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)] // a measurement tool
+
+use std::path::Path;
+
+use v2t_model::Style;
+use v2t_sim::bv::BvController;
+use v2t_sim::control::pure_pursuit;
+use v2t_sim::files::load_scenario;
+use v2t_sim::observation::BvObservation;
+use v2t_sim::plant::ActuationRequest;
+use v2t_sim::runner::run;
+use v2t_sim::vut::VutModel;
+
+/// An open-loop speed profile.
+#[derive(Debug, Clone, Copy)]
+struct Profile {
+    a1: f64,
+    t1: f64,
+    a2: f64,
+}
+
+#[derive(Debug)]
+struct OpenLoop {
+    p: Profile,
+}
+
+impl BvController for OpenLoop {
+    fn name(&self) -> &str {
+        "open-loop"
+    }
+
+    fn control(&mut self, obs: &BvObservation<'_>) -> ActuationRequest {
+        let sc = obs.scenario;
+        let bv = &sc.bvs[obs.bv_index];
+        let zone = sc.conflict_of(obs.bv_index).unwrap().zone.b;
+        let v = obs.own.state.speed_mps;
+        let lim = &bv.agent.vehicle.limits;
+        let wanted = if obs.own.s_m >= zone.exit_s_m {
+            0.5 * (bv.reference.speed_at(obs.t_s) - v)
+        } else if obs.t_s < self.p.t1 {
+            self.p.a1
+        } else {
+            self.p.a2
+        };
+        // Neither below standstill nor above the top speed within one period.
+        let accel = wanted.clamp(-v / obs.dt_s, (lim.max_speed_mps - v) / obs.dt_s);
+        ActuationRequest {
+            accel_mps2: accel.clamp(-lim.max_decel_mps2, lim.max_accel_mps2),
+            steer_rad: pure_pursuit(&bv.agent.route, &obs.own.state, obs.own.s_m, &bv.agent.vehicle),
+        }
+    }
+}
+
+fn main() {
+    let card = std::env::args().nth(1).unwrap_or_else(|| "config/scenarios/left_turn_basic.toml".to_owned());
+    let mut scenario = load_scenario(Path::new(&card)).expect("the card loads");
+    scenario.style = Style::Rush;
+    let taus = [1.5, 2.0, 3.0, 4.0, 5.0];
+    let accels = [-3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0];
+    let mut profiles = Vec::new();
+    for a1 in accels {
+        for k in 0..=12 {
+            for a2 in accels {
+                profiles.push(Profile { a1, t1: 0.5 * f64::from(k), a2 });
+            }
+        }
+    }
+    println!("{card}: {} open-loop rush profiles per VUT model, seed 1", profiles.len());
+    println!("| VUT | runs BV first, safe | min PET (s) | max PET (s) | {} |", taus.map(|t| format!("within ±10 % of {t} s")).join(" | "));
+    println!("|---|---|---|---|{}", "---|".repeat(taus.len()));
+    for model in VutModel::ALL {
+        let mut pets = Vec::new();
+        for p in &profiles {
+            let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(OpenLoop { p: *p })];
+            let mut driver = model.driver();
+            let Ok(out) = run(&scenario, &mut bvs, driver.as_mut(), 1) else { continue };
+            let r = out.result;
+            let bv_first = r.conflicts.iter().all(|c| c.order_matches_style == Some(true));
+            if let (true, None, false, Some(pet)) = (bv_first, r.collision, r.zone_overlap, r.pet_min_s) {
+                pets.push(pet);
+            }
+        }
+        let min = pets.iter().copied().fold(f64::INFINITY, f64::min);
+        let max = pets.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let within = taus.map(|t| pets.iter().filter(|p| (**p - t).abs() <= 0.1 * t).count().to_string());
+        println!("| {model} | {} | {min:.2} | {max:.2} | {} |", pets.len(), within.join(" | "));
+    }
+}
