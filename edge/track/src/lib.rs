@@ -90,6 +90,14 @@ pub enum TrackError {
         /// The largest magnitude accepted.
         bound: f64,
     },
+    /// The vehicle is farther from its path than the configuration allows.
+    #[error("the vehicle is {cross_track_m:.2} m from its path (at most {limit_m} m)")]
+    FarFromPath {
+        /// Its signed distance from the path (left positive), m.
+        cross_track_m: f64,
+        /// The largest accepted, m.
+        limit_m: f64,
+    },
     /// The vehicle could not be located on the path.
     #[error("the vehicle at ({x}, {y}) cannot be located on the path")]
     OffPath {

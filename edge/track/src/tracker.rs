@@ -49,6 +49,11 @@ pub struct TrackerConfig {
     /// Half-width of the window around the previous arc length in which the path is searched, m
     /// (widened by twice the distance the vehicle covers in a cycle).
     pub projection_window_m: f64,
+    /// Farthest the vehicle may be from its path, m: beyond it the BV is not where its plan can
+    /// take it (a localization fault, or control lost), and steering it back across the track
+    /// would be a manoeuvre nobody planned. The state is refused (no command: the gate's command
+    /// timeout brings the minimal-risk stop).
+    pub max_cross_track_m: f64,
     /// Speed control.
     pub longitudinal: LongitudinalGains,
     /// Steering control.
@@ -63,6 +68,7 @@ impl Default for TrackerConfig {
             accel_latency_s: 0.45,
             max_dt_s: 0.5,
             projection_window_m: 5.0,
+            max_cross_track_m: 2.0,
             longitudinal: LongitudinalGains::default(),
             lateral: LateralGains::default(),
         }
@@ -75,6 +81,7 @@ impl Validate for TrackerConfig {
         in_range("accel_latency_s", self.accel_latency_s, 0.0, 1.0)?;
         in_range("max_dt_s", self.max_dt_s, 0.001, 2.0)?;
         positive("projection_window_m", self.projection_window_m)?;
+        in_range("max_cross_track_m", self.max_cross_track_m, 0.1, 1.0e6)?;
         self.longitudinal.validate().map_err(|e| e.within("longitudinal"))?;
         self.lateral.validate().map_err(|e| e.within("lateral"))
     }
@@ -235,6 +242,9 @@ impl Tracker {
         let pose = self.history.predict_pose(state, &model, cfg.steer_latency_s, dt_s);
         let (speed_ahead, travelled) = self.history.predict_speed(state.speed_mps, cfg.accel_latency_s, dt_s);
         let (center, front) = self.locate(path, state, &pose, plan, dt_s)?;
+        if center.l_m.abs() > cfg.max_cross_track_m {
+            return Err(TrackError::FarFromPath { cross_track_m: center.l_m, limit_m: cfg.max_cross_track_m });
+        }
 
         let target = plan.advanced(cfg.accel_latency_s);
         let mut pid = self.pid;

@@ -80,7 +80,10 @@ fn main() {
         }
     }
     println!("{card}: {} open-loop rush profiles per VUT model, seed 1", profiles.len());
-    println!("| VUT | runs BV first, safe | min PET (s) | max PET (s) | {} |", taus.map(|t| format!("within ±10 % of {t} s")).join(" | "));
+    println!(
+        "| VUT | runs BV first, safe | min PET (s) | max PET (s) | {} |",
+        taus.map(|t| format!("within ±10 % of {t} s")).join(" | ")
+    );
     println!("|---|---|---|---|{}", "---|".repeat(taus.len()));
     for model in VutModel::ALL {
         let mut pets = Vec::new();

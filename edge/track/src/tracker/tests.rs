@@ -136,7 +136,8 @@ fn the_projection_stays_on_its_branch_of_a_hairpin() {
     // East 40 m, a U-turn of radius 2 m, back west 4 m to the north: the two legs are 4 m apart.
     let hairpin =
         PathBuilder::new(0.0, 0.0, 0.0).line(40.0).arc(2.0, std::f64::consts::PI).line(40.0).build(0.1).unwrap();
-    let mut t = tracker();
+    // 2.5 m off is beyond the default refusal distance; the projection is what is tested here.
+    let mut t = Tracker::try_new(TrackerConfig { max_cross_track_m: 3.0, ..TrackerConfig::default() }, &bv()).unwrap();
     // The BV has drifted 2.5 m left of the first leg: nearer the return leg, but it is on the first.
     let mut out = t.step(&at(10.0, 0.0, 0.0, 5.0), &hairpin, &plan(10.0, 5.0), 0.1).unwrap();
     for k in 1..=5 {
@@ -223,7 +224,9 @@ proptest! {
             1..30),
     ) {
         let path = PathBuilder::new(0.0, 0.0, 0.0).line(50.0).arc(20.0, 2.0).line(50.0).build(0.5).unwrap();
-        let mut t = tracker();
+        // Arbitrary states, however far from the path (the cross-track refusal has its own test).
+        let config = TrackerConfig { max_cross_track_m: 1.0e6, ..TrackerConfig::default() };
+        let mut t = Tracker::try_new(config, &bv()).unwrap();
         let (mut prev_a, mut prev_d) = (0.0, 0.0);
         for ((x, y, th, v), (s, vr, ar, dt)) in cycles {
             let out = t.step(&at(x, y, th, v), &path, &PlanSample { s_m: s, v_mps: vr, a_mps2: ar }, dt).unwrap();
@@ -254,6 +257,7 @@ proptest! {
             Err(TrackError::TimeStep { .. }) => prop_assert!(!(dt > 0.0 && dt <= 0.5)),
             Err(TrackError::OffPath { .. }) => {}
             Err(TrackError::Implausible { value, bound, .. }) => prop_assert!(value.abs() > bound),
+            Err(TrackError::FarFromPath { cross_track_m, limit_m }) => prop_assert!(cross_track_m.abs() > limit_m),
             Err(e) => prop_assert!(false, "unexpected error {e}"),
         }
     }
@@ -290,4 +294,17 @@ fn implausible_speeds_and_plans_are_refused_by_name() {
     assert!(
         t.step(&at(0.0, 0.0, 0.0, 10.0), &east(), &PlanSample { s_m: 0.0, v_mps: 10.0, a_mps2: 0.0 }, 0.01).is_ok()
     );
+}
+
+#[test]
+fn a_vehicle_far_from_its_path_is_refused_and_taken_back_when_it_returns() {
+    let mut t = tracker();
+    let plan = PlanSample { s_m: 10.0, v_mps: 10.0, a_mps2: 0.0 };
+    assert!(t.step(&at(10.0, 1.9, 0.0, 10.0), &east(), &plan, 0.1).is_ok());
+    let e = t.step(&at(10.5, 2.6, 0.0, 10.0), &east(), &plan, 0.1).unwrap_err();
+    assert!(matches!(e, TrackError::FarFromPath { limit_m: 2.0, .. }), "{e}");
+    assert!(e.to_string().contains("2.60 m from its path"), "{e}");
+    let e = t.step(&at(11.0, -3.0, 0.0, 10.0), &east(), &plan, 0.1).unwrap_err();
+    assert!(matches!(e, TrackError::FarFromPath { cross_track_m, .. } if cross_track_m < -2.0), "{e}");
+    assert!(t.step(&at(11.5, 0.5, 0.0, 10.0), &east(), &plan, 0.1).is_ok());
 }
