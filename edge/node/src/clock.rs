@@ -19,6 +19,38 @@ pub fn secs_between(earlier_ns: u64, later_ns: u64) -> f64 {
     }
 }
 
+/// At most one log line per period for a recurring problem (a babbling node on the CAN bus must
+/// not flood the log or stall the loop that writes it); the counters keep the totals.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Throttle {
+    period_ns: u64,
+    last_ns: Option<u64>,
+    skipped: u64,
+}
+
+impl Throttle {
+    /// One line per `period_ns` at most.
+    pub const fn new(period_ns: u64) -> Self {
+        Self { period_ns, last_ns: None, skipped: 0 }
+    }
+
+    /// Whether an occurrence at `now_ns` is logged: `Some(n)` with the number left out since the
+    /// last line, or `None` (counted as left out).
+    pub fn admit(&mut self, now_ns: u64) -> Option<u64> {
+        if self.last_ns.is_some_and(|last| now_ns.saturating_sub(last) < self.period_ns) {
+            self.skipped += 1;
+            return None;
+        }
+        self.last_ns = Some(now_ns);
+        Some(std::mem::take(&mut self.skipped))
+    }
+}
+
+/// `" (N more since the last line)"` for `N > 0`, else nothing.
+pub fn skipped_note(skipped: u64) -> String {
+    if skipped > 0 { format!(" ({skipped} more since the last line)") } else { String::new() }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -31,5 +63,20 @@ mod tests {
         assert!(a > 0 && b > a);
         assert!(secs_between(a, b) >= 0.002);
         assert!(secs_between(b, a) < 0.0);
+    }
+
+    #[test]
+    fn a_throttle_admits_one_line_per_period_and_counts_the_rest() {
+        let mut t = Throttle::new(1_000);
+        assert_eq!(t.admit(10), Some(0));
+        assert_eq!(t.admit(500), None);
+        assert_eq!(t.admit(1_009), None);
+        assert_eq!(t.admit(1_010), Some(2));
+        assert_eq!(t.admit(5_000), Some(0));
+        // A clock that steps back does not silence it for long.
+        assert_eq!(t.admit(100), None);
+        assert_eq!(t.admit(6_000), Some(1));
+        assert_eq!(skipped_note(0), "");
+        assert_eq!(skipped_note(3), " (3 more since the last line)");
     }
 }

@@ -15,7 +15,7 @@ use v2t_wire::{
 };
 
 use crate::canbus::{End, IpcCanBus};
-use crate::clock::now_ns;
+use crate::clock::{Throttle, now_ns, skipped_note};
 use crate::config::{CanLink, Loaded};
 use crate::error::EdgeError;
 use crate::heart::Heart;
@@ -56,7 +56,12 @@ pub struct Gateway {
     /// Frame statistics.
     pub counters: Counters,
     heartbeat: u8,
+    /// Rejected frames: one log line per second at most.
+    reject_log: Throttle,
 }
+
+/// One log line per second at most for each recurring CAN problem.
+const LOG_PERIOD_NS: u64 = 1_000_000_000;
 
 impl Gateway {
     /// A gateway with the gate of `cfg`.
@@ -69,6 +74,7 @@ impl Gateway {
             feedback_header: Header::default(),
             counters: Counters::default(),
             heartbeat: 0,
+            reject_log: Throttle::new(LOG_PERIOD_NS),
         }
     }
 
@@ -93,7 +99,9 @@ impl Gateway {
             Ok(_) => None,
             Err(e) => {
                 self.counters.rejected += 1;
-                eprintln!("gateway: frame {:#05x} rejected: {e}", frame.id);
+                if let Some(skipped) = self.reject_log.admit(now_ns) {
+                    eprintln!("gateway: frame {:#05x} rejected: {e}{}", frame.id, skipped_note(skipped));
+                }
                 None
             }
         }
@@ -159,6 +167,7 @@ pub fn run<S: Service + 'static>(cfg: &Loaded) -> Result<(), EdgeError> {
     let mut next_ns = now_ns();
     let mut command: Option<ActuationCommand> = None;
     let mut report = GateReport::default();
+    let (mut bus_log, mut send_log) = (Throttle::new(LOG_PERIOD_NS), Throttle::new(LOG_PERIOD_NS));
     loop {
         let wait = next_ns.saturating_sub(now_ns());
         wait_wake(&wake, Duration::from_nanos(wait))?;
@@ -179,13 +188,17 @@ pub fn run<S: Service + 'static>(cfg: &Loaded) -> Result<(), EdgeError> {
                 // speak (extended, remote, FD) from another node is counted and skipped.
                 Err(e) if e.is_bus_fault() => {
                     gw.counters.bus_errors += 1;
-                    eprintln!("gateway: bus error: {e}");
+                    if let Some(skipped) = bus_log.admit(now) {
+                        eprintln!("gateway: bus error: {e}{}", skipped_note(skipped));
+                    }
                     gw.gate_bus_error();
                     break;
                 }
                 Err(e) => {
                     gw.counters.rejected += 1;
-                    eprintln!("gateway: frame rejected: {e}");
+                    if let Some(skipped) = gw.reject_log.admit(now) {
+                        eprintln!("gateway: frame rejected: {e}{}", skipped_note(skipped));
+                    }
                 }
             }
         }
@@ -213,7 +226,9 @@ pub fn run<S: Service + 'static>(cfg: &Loaded) -> Result<(), EdgeError> {
                 Ok(()) => gw.counters.tx += 1,
                 Err(e) => {
                     gw.counters.bus_errors += 1;
-                    eprintln!("gateway: cannot send {:#05x}: {e}", frame.id);
+                    if let Some(skipped) = send_log.admit(now) {
+                        eprintln!("gateway: cannot send {:#05x}: {e}{}", frame.id, skipped_note(skipped));
+                    }
                 }
             }
         }
