@@ -122,7 +122,7 @@ pub fn write(run: &RunOutcome, path: &Path) -> Result<(), RecordingError> {
     write_with_plans(run, &[], path)
 }
 
-/// [`write`] with the regulator's decisions on `/plans` (`v2t.Plan`), in time order with the rest.
+/// [`write()`] with the regulator's decisions on `/plans` (`v2t.Plan`), in time order with the rest.
 pub fn write_with_plans(run: &RunOutcome, plans: &[PlanRecord], path: &Path) -> Result<(), RecordingError> {
     let io = |source| RecordingError::Io { path: path.to_owned(), source };
     let mc = |e: mcap::McapError| RecordingError::Mcap { path: path.to_owned(), message: e.to_string() };
