@@ -128,9 +128,8 @@ fn one_serve_supervises_two_bvs_each_with_its_own_prior_and_target() {
     assert!(bv1.priors.receive().unwrap().is_none(), "bv1 got bv2's prior");
 
     // A prior signed with another key: bv2 refuses it and says why; `upload` fails with the reason.
-    let wrong_dir_scratch = tempdir("fleet-wrong-key");
-    let wrong_dir = wrong_dir_scratch.path();
-    let (_, wrong, _) = write_keys(wrong_dir, 24);
+    let wrong_dir = tempdir("fleet-wrong-key");
+    let (_, wrong, _) = write_keys(wrong_dir.path(), 24);
     let out = upload(wrong.to_str().unwrap(), "3");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.contains("refused") && stderr.contains("signature"), "{stderr}");

@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{repo, text};
+use common::{repo, tempdir, text};
 
 use std::process::{Command, Output};
 
@@ -19,10 +19,6 @@ fn video2track(args: &[&str]) -> Output {
         }
     }
     cmd.args(args).current_dir(repo()).output().unwrap()
-}
-
-fn tempdir(name: &str) -> tempfile::TempDir {
-    common::tempdir("cli", name)
 }
 
 #[test]

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{repo, text, video2track};
+use common::{repo, tempdir, text, video2track};
 
 use std::path::{Path, PathBuf};
 
@@ -36,10 +36,6 @@ fn sim_runs_both_cards_with_every_vut_model_and_writes_json() {
             assert!(v["trace"].as_array().unwrap().len() > 10);
         }
     }
-}
-
-fn tempdir(name: &str) -> tempfile::TempDir {
-    common::tempdir("cli", name)
 }
 
 /// Writes a copy of the left-turn card with `edit` applied to its text, next to copies of the

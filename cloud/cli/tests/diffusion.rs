@@ -9,7 +9,7 @@ mod common;
 
 use std::path::Path;
 
-use common::{ok, s, video2track};
+use common::{ok, s, tempdir, video2track};
 use v2t_model::prior::TrajectoryPrior;
 use v2t_model::validate::Validate as _;
 
@@ -17,10 +17,6 @@ fn fails(args: &[&str]) -> String {
     let o = video2track(args);
     assert!(!o.status.success(), "{args:?} succeeded: {}", String::from_utf8_lossy(&o.stdout));
     String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn tempdir(name: &str) -> tempfile::TempDir {
-    common::tempdir("diffusion", name)
 }
 
 fn grounded(dir: &Path, which: &str) -> std::path::PathBuf {

@@ -6,11 +6,7 @@
 
 mod common;
 
-use common::{repo, video2track};
-
-fn tempdir(name: &str) -> tempfile::TempDir {
-    common::tempdir("cli", name)
-}
+use common::{repo, tempdir, video2track};
 
 #[test]
 fn recorded_runs_replay_to_the_same_metrics_and_altered_ones_do_not() {

@@ -6,16 +6,12 @@
 
 mod common;
 
-use common::{repo, text, video2track};
+use common::{repo, tempdir, text, video2track};
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use v2t_vlm::frames::{FrameSettings, extract_frames};
-
-fn tempdir(name: &str) -> tempfile::TempDir {
-    common::tempdir("cli", name)
-}
 
 /// `video2track sim` of the left-turn card: the run file and the time its trace spans, s.
 fn left_turn_run(dir: &Path) -> (PathBuf, f64) {

@@ -9,16 +9,12 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{ok, repo, s, video2track};
+use common::{ok, repo, s, tempdir, video2track};
 
 use v2t_model::geometry::Point2;
 use v2t_model::grounded::{AgentRole, GroundedScenario};
 use v2t_model::kinematics::State;
 use v2t_model::prior::TrajectoryPrior;
-
-fn tempdir(name: &str) -> tempfile::TempDir {
-    common::tempdir("xosc", name)
-}
 
 /// Grounds the example semantics `which` (left_turn, cut_in) into `dir`.
 fn grounded(dir: &Path, which: &str) -> (PathBuf, GroundedScenario) {

@@ -462,6 +462,17 @@ fn context_from_a_grounded_scenario() {
     );
 }
 
+/// Guidance of one agent over 20 steps by the boundary term alone, against one solid line.
+fn one_agent_boundary_only(line: Vec<Point2>) -> Guidance {
+    let config = GuidanceConfig {
+        agents: 1,
+        steps: 20,
+        weights: GuidanceWeights { boundary: 1.0, ..OFF },
+        ..Default::default()
+    };
+    Guidance::new(config, GuidanceContext { boundaries: vec![line], ..Default::default() }).unwrap()
+}
+
 #[test]
 fn signed_distance_conventions_and_a_crossing_is_pushed_back() {
     use v2t_diffusion::guidance::terms::signed_distance;
@@ -484,17 +495,7 @@ fn signed_distance_conventions_and_a_crossing_is_pushed_back() {
     // An agent starting below y = 1 that turns left across it: the boundary gradient steers right.
     let x0s = [State { px: 0.0, py: 0.0, theta_rad: 0.0, speed_mps: 10.0 }];
     let u = vec![Control { accel_mps2: 0.0, yaw_rate_radps: 0.3 }; 20];
-    let config = GuidanceConfig {
-        agents: 1,
-        steps: 20,
-        weights: GuidanceWeights { boundary: 1.0, ..OFF },
-        ..Default::default()
-    };
-    let ctx = GuidanceContext {
-        boundaries: vec![vec![Point2::new(-10.0, 1.0), Point2::new(100.0, 1.0)]],
-        ..Default::default()
-    };
-    let g = Guidance::new(config, ctx).unwrap();
+    let g = one_agent_boundary_only(vec![Point2::new(-10.0, 1.0), Point2::new(100.0, 1.0)]);
     let mut ws = GuidanceWorkspace::new(&g);
     let mut grad = vec![Control::default(); 20];
     let e = g.energy_and_grad(&mut ws, &x0s, &u, &mut grad).unwrap();
@@ -506,17 +507,7 @@ fn signed_distance_conventions_and_a_crossing_is_pushed_back() {
 fn a_boundary_ending_at_a_junction_does_not_reach_across_it() {
     // A road edge along y = 1 ending at x = 0; an agent crosses the line's extension (x < 0) far
     // from its end: no energy. One that drives alongside and crosses it: energy.
-    let config = GuidanceConfig {
-        agents: 1,
-        steps: 20,
-        weights: GuidanceWeights { boundary: 1.0, ..OFF },
-        ..Default::default()
-    };
-    let ctx = GuidanceContext {
-        boundaries: vec![vec![Point2::new(0.0, 1.0), Point2::new(100.0, 1.0)]],
-        ..Default::default()
-    };
-    let g = Guidance::new(config, ctx).unwrap();
+    let g = one_agent_boundary_only(vec![Point2::new(0.0, 1.0), Point2::new(100.0, 1.0)]);
     let mut ws = GuidanceWorkspace::new(&g);
     let mut grad = vec![Control::default(); 20];
     let north = [State { px: -20.0, py: -10.0, theta_rad: std::f64::consts::FRAC_PI_2, speed_mps: 10.0 }];

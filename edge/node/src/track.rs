@@ -70,11 +70,8 @@ impl Tracking {
     ) -> Result<Option<ActuationCommand>, TrackError> {
         let Some(ctx) = self.prior.as_ref() else { return Ok(None) };
         let Some(plan) = plan.filter(|p| p.prior_id == ctx.prior_id) else { return Ok(None) };
-        for (field, value) in [("bv.yaw_rate_radps", bv.yaw_rate_radps), ("bv.steer_rad", bv.steer_rad)] {
-            // The tracker checks the pose and speed it uses; these are refused here.
-            if !value.is_finite() {
-                return Err(TrackError::NotFinite { field, value });
-            }
+        if let Some((field, value)) = bv.non_finite() {
+            return Err(TrackError::NotFinite { field, value });
         }
         let dt = self.last_stamp_ns.map_or(0.02, |t| secs_between(t, bv.header.stamp_ns)).clamp(1e-3, 0.2);
         self.last_stamp_ns = Some(bv.header.stamp_ns);
@@ -238,7 +235,7 @@ mod step_tests {
         let e = tracking.step(&on_path(&prior, 1.0e9, t), Some(&plan(&prior, t)), t).unwrap_err();
         assert!(matches!(e, TrackError::Implausible { field: "state.speed_mps", .. }), "{e}");
         let e = tracking.step(&on_path(&prior, f64::NAN, t), Some(&plan(&prior, t)), t).unwrap_err();
-        assert!(matches!(e, TrackError::NotFinite { field: "state.speed_mps", .. }), "{e}");
+        assert!(matches!(e, TrackError::NotFinite { field: "bv.speed_mps", .. }), "{e}");
         let steer_nan = BvState { steer_rad: f64::NAN, ..on_path(&prior, 8.0, t) };
         let e = tracking.step(&steer_nan, Some(&plan(&prior, t)), t).unwrap_err();
         assert!(matches!(e, TrackError::NotFinite { field: "bv.steer_rad", .. }), "{e}");

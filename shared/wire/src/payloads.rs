@@ -90,9 +90,21 @@ pub struct BvState {
 impl BvState {
     /// Every number finite.
     pub fn is_finite(&self) -> bool {
-        [self.px_m, self.py_m, self.theta_rad, self.speed_mps, self.yaw_rate_radps, self.steer_rad]
-            .iter()
-            .all(|v| v.is_finite())
+        self.non_finite().is_none()
+    }
+
+    /// The first number that is NaN or infinite, with its name.
+    pub fn non_finite(&self) -> Option<(&'static str, f64)> {
+        [
+            ("bv.px_m", self.px_m),
+            ("bv.py_m", self.py_m),
+            ("bv.theta_rad", self.theta_rad),
+            ("bv.speed_mps", self.speed_mps),
+            ("bv.yaw_rate_radps", self.yaw_rate_radps),
+            ("bv.steer_rad", self.steer_rad),
+        ]
+        .into_iter()
+        .find(|(_, v)| !v.is_finite())
     }
 }
 

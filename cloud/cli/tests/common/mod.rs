@@ -30,9 +30,9 @@ pub fn ok(args: &[&str]) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
 
-/// A fresh scratch folder `v2t-<suite>-<name>-…`, removed when dropped.
-pub fn tempdir(suite: &str, name: &str) -> TempDir {
-    tempfile::Builder::new().prefix(&format!("v2t-{suite}-{name}-")).tempdir().unwrap()
+/// A fresh scratch folder `v2t-cli-<name>-…`, removed when dropped.
+pub fn tempdir(name: &str) -> TempDir {
+    tempfile::Builder::new().prefix(&format!("v2t-cli-{name}-")).tempdir().unwrap()
 }
 
 /// A path as `&str`.
