@@ -3,7 +3,9 @@
 //! conflict zone, then its reference speed — over a grid of profiles, on the bundled left turn (or
 //! the card given), with the card's sensor noise and delays. For each VUT model it prints the
 //! smallest and largest PET measured among runs where the BV passed first without collision or
-//! zone overlap, and how many profiles land within ±10 % of each target τ.
+//! zone overlap, and how many profiles land within ±10 % of each target τ. A second table counts
+//! the profiles that land within ±10 % against several models at once (a regulator cannot tell
+//! the models apart before the VUT reacts to the BV), and the rarest of them are listed.
 //!
 //! ```sh
 //! cargo run --release -p v2t-sim --example reachable_pet [-- config/scenarios/cut_in_basic.toml]
@@ -85,21 +87,83 @@ fn main() {
         taus.map(|t| format!("within ±10 % of {t} s")).join(" | ")
     );
     println!("|---|---|---|---|{}", "---|".repeat(taus.len()));
+    // PET of every profile against every VUT model (None: not a safe BV-first run).
+    let mut table: Vec<Vec<Option<f64>>> = Vec::new();
     for model in VutModel::ALL {
-        let mut pets = Vec::new();
+        let mut row = Vec::with_capacity(profiles.len());
         for p in &profiles {
             let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(OpenLoop { p: *p })];
             let mut driver = model.driver();
-            let Ok(out) = run(&scenario, &mut bvs, driver.as_mut(), 1) else { continue };
-            let r = out.result;
-            let bv_first = r.conflicts.iter().all(|c| c.order_matches_style == Some(true));
-            if let (true, None, false, Some(pet)) = (bv_first, r.collision, r.zone_overlap, r.pet_min_s) {
-                pets.push(pet);
-            }
+            let pet = run(&scenario, &mut bvs, driver.as_mut(), 1).ok().and_then(|out| {
+                let r = out.result;
+                let bv_first = r.conflicts.iter().all(|c| c.order_matches_style == Some(true));
+                match (bv_first, r.collision, r.zone_overlap, r.pet_min_s) {
+                    (true, None, false, Some(pet)) => Some(pet),
+                    _ => None,
+                }
+            });
+            row.push(pet);
         }
+        let pets: Vec<f64> = row.iter().flatten().copied().collect();
         let min = pets.iter().copied().fold(f64::INFINITY, f64::min);
         let max = pets.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        let within = taus.map(|t| pets.iter().filter(|p| (**p - t).abs() <= 0.1 * t).count().to_string());
+        let within = taus.map(|t| pets.iter().filter(|p| within_10(**p, t)).count().to_string());
         println!("| {model} | {} | {min:.2} | {max:.2} | {} |", pets.len(), within.join(" | "));
+        table.push(row);
     }
+    // A regulator sees the same VUT until the VUT reacts to it, so a profile that suits one VUT
+    // model only is of little use: count the profiles that land within ±10 % against several
+    // models at once.
+    println!();
+    println!("| profiles within ±10 % against | {} |", taus.map(|t| format!("{t} s")).join(" | "));
+    println!("|---|{}", "---|".repeat(taus.len()));
+    let groups: [(&str, Vec<usize>); 3] = [
+        ("every VUT model", (0..VutModel::ALL.len()).collect()),
+        (
+            "every VUT model but the reactive one",
+            (0..VutModel::ALL.len()).filter(|m| VutModel::ALL[*m] != VutModel::Reactive).collect(),
+        ),
+        (
+            "the three IDM drivers",
+            (0..VutModel::ALL.len())
+                .filter(|m| {
+                    matches!(VutModel::ALL[*m], VutModel::IdmCautious | VutModel::IdmNormal | VutModel::IdmAggressive)
+                })
+                .collect(),
+        ),
+    ];
+    let mut robust: Vec<(&str, f64, usize)> = Vec::new();
+    for (name, models) in &groups {
+        let counts = taus.map(|t| {
+            (0..profiles.len())
+                .filter(|i| models.iter().all(|m| table[*m][*i].is_some_and(|p| within_10(p, t))))
+                .count()
+                .to_string()
+        });
+        println!("| {name} | {} |", counts.join(" | "));
+        robust.extend(taus.iter().flat_map(|t| {
+            (0..profiles.len())
+                .filter(|i| models.iter().all(|m| table[*m][*i].is_some_and(|p| within_10(p, *t))))
+                .map(move |i| (*name, *t, i))
+        }));
+    }
+    // The rare ones, with the PET they give against every model.
+    println!();
+    let rare: Vec<_> =
+        robust.iter().filter(|(name, t, _)| robust.iter().filter(|r| r.0 == *name && r.1 == *t).count() <= 3).collect();
+    for (name, t, i) in rare {
+        let pets: Vec<String> =
+            table.iter().map(|row| row[*i].map_or_else(|| "-".to_owned(), |p| format!("{p:.2}"))).collect();
+        println!("τ {t} s, {name}: {:?} → PET {} ({})", profiles[*i], pets.join(" / "), model_names());
+    }
+}
+
+/// The VUT models, in table order.
+fn model_names() -> String {
+    VutModel::ALL.map(|m| m.to_string()).join(" / ")
+}
+
+/// Whether `pet` lands within ±10 % of `tau`.
+fn within_10(pet: f64, tau: f64) -> bool {
+    (pet - tau).abs() <= 0.1 * tau
 }
