@@ -117,51 +117,43 @@ fn main() {
     println!();
     println!("| profiles within ±10 % against | {} |", taus.map(|t| format!("{t} s")).join(" | "));
     println!("|---|{}", "---|".repeat(taus.len()));
-    let groups: [(&str, Vec<usize>); 3] = [
-        ("every VUT model", (0..VutModel::ALL.len()).collect()),
-        (
-            "every VUT model but the reactive one",
-            (0..VutModel::ALL.len()).filter(|m| VutModel::ALL[*m] != VutModel::Reactive).collect(),
-        ),
-        (
-            "the three IDM drivers",
-            (0..VutModel::ALL.len())
-                .filter(|m| {
-                    matches!(VutModel::ALL[*m], VutModel::IdmCautious | VutModel::IdmNormal | VutModel::IdmAggressive)
-                })
-                .collect(),
-        ),
+    let groups: [(&str, Membership); 3] = [
+        ("every VUT model", |_| true),
+        ("every VUT model but the reactive one", |m| m != VutModel::Reactive),
+        ("the three IDM drivers", |m| {
+            matches!(m, VutModel::IdmCautious | VutModel::IdmNormal | VutModel::IdmAggressive)
+        }),
     ];
-    let mut robust: Vec<(&str, f64, usize)> = Vec::new();
-    for (name, models) in &groups {
+    // Profiles that suit a group at a τ, listed when there are at most three of them.
+    let mut rare: Vec<(&str, f64, usize)> = Vec::new();
+    for (name, member) in groups {
         let counts = taus.map(|t| {
-            (0..profiles.len())
-                .filter(|i| models.iter().all(|m| table[*m][*i].is_some_and(|p| within_10(p, t))))
-                .count()
-                .to_string()
+            let hits: Vec<usize> = (0..profiles.len())
+                .filter(|i| {
+                    VutModel::ALL
+                        .iter()
+                        .zip(&table)
+                        .all(|(m, row)| !member(*m) || row[*i].is_some_and(|p| within_10(p, t)))
+                })
+                .collect();
+            if hits.len() <= 3 {
+                rare.extend(hits.iter().map(|i| (name, t, *i)));
+            }
+            hits.len().to_string()
         });
         println!("| {name} | {} |", counts.join(" | "));
-        robust.extend(taus.iter().flat_map(|t| {
-            (0..profiles.len())
-                .filter(|i| models.iter().all(|m| table[*m][*i].is_some_and(|p| within_10(p, *t))))
-                .map(move |i| (*name, *t, i))
-        }));
     }
-    // The rare ones, with the PET they give against every model.
     println!();
-    let rare: Vec<_> =
-        robust.iter().filter(|(name, t, _)| robust.iter().filter(|r| r.0 == *name && r.1 == *t).count() <= 3).collect();
+    let names = VutModel::ALL.map(|m| m.to_string()).join(" / ");
     for (name, t, i) in rare {
         let pets: Vec<String> =
-            table.iter().map(|row| row[*i].map_or_else(|| "-".to_owned(), |p| format!("{p:.2}"))).collect();
-        println!("τ {t} s, {name}: {:?} → PET {} ({})", profiles[*i], pets.join(" / "), model_names());
+            table.iter().map(|row| row[i].map_or_else(|| "-".to_owned(), |p| format!("{p:.2}"))).collect();
+        println!("τ {t} s, {name}: {:?} → PET {} ({names})", profiles[i], pets.join(" / "));
     }
 }
 
-/// The VUT models, in table order.
-fn model_names() -> String {
-    VutModel::ALL.map(|m| m.to_string()).join(" / ")
-}
+/// Which VUT models belong to a group.
+type Membership = fn(VutModel) -> bool;
 
 /// Whether `pet` lands within ±10 % of `tau`.
 fn within_10(pet: f64, tau: f64) -> bool {
