@@ -3,11 +3,11 @@
 
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
 
+use v2t_lab::sim::run_reference;
+use v2t_sim::files::load_scenario;
 use v2t_sim::scenario::Scenario;
 use v2t_sim::vut::VutModel;
 use v2t_tests::scenario_cards;
-use video2track::files::load_scenario;
-use video2track::sim::run_reference;
 
 fn scenarios() -> Vec<Scenario> {
     let cards = scenario_cards();
@@ -71,10 +71,11 @@ fn vut_models_behave_differently() {
 
 #[test]
 fn two_bvs_each_get_their_own_conflict_and_regulator() {
+    use v2t_files::load_toml;
+    use v2t_files::parse_toml;
     use v2t_model::path::{PathSpec, SegmentSpec};
     use v2t_model::vehicle::VehicleConfig;
-    use v2t_sim::config::{BvCard, ScenarioCard, SimSettings, parse_toml};
-    use video2track::files::load_toml;
+    use v2t_sim::config::{BvCard, ScenarioCard, SimSettings};
 
     let root = v2t_tests::repo_root().join("config");
     let card_path = root.join("scenarios/left_turn_basic.toml");
@@ -94,11 +95,12 @@ fn two_bvs_each_get_their_own_conflict_and_regulator() {
     let bv: VehicleConfig = load_toml(&root.join("vehicles/bv_sedan.toml")).unwrap();
     let scenario = Scenario::from_card(&card, settings, vut, vec![bv.clone(), bv]).unwrap();
     assert_eq!(scenario.conflicts.len(), 2);
-    assert_ne!(scenario.conflicts[0].zone.a, scenario.conflicts[1].zone.a);
+    assert_ne!(scenario.conflicts[0].zone.vut, scenario.conflicts[1].zone.vut);
 
     let settings: v2t_game::regulator::RegulatorParams = load_toml(&root.join("regulator/default.toml")).unwrap();
-    let c =
-        video2track::experiment::steer_case(&settings, &scenario, v2t_model::Style::Yield, 2.0, VutModel::IdmNormal, 1);
-    assert_eq!((c.collisions, c.zone_overlaps, c.unmeasured), (0, 0, 0), "{c:?}");
-    assert_eq!(c.order_ok_frac, 1.0, "both BVs let the VUT through first: {c:?}");
+    let target = v2t_model::Target::new(2.0, v2t_model::Style::Yield).unwrap();
+    let c = v2t_lab::steer::steer_case(&settings, &scenario, target, VutModel::IdmNormal, 1);
+    let s = c.stats;
+    assert_eq!((s.collisions, s.zone_overlaps, s.unmeasured), (0, 0, 0), "{c:?}");
+    assert_eq!(s.order_ok_frac, 1.0, "both BVs let the VUT through first: {c:?}");
 }

@@ -3,12 +3,13 @@
 
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
 
+use v2t_files::load_toml;
 use v2t_game::regulator::RegulatorParams;
 use v2t_model::semantics::{parse_semantics_json, scenario_semantics_schema};
 use v2t_model::vehicle::VehicleConfig;
 use v2t_sim::config::SimSettings;
+use v2t_sim::files::load_scenario;
 use v2t_tests::{files_under, repo_root};
-use video2track::files::{load_scenario, load_toml};
 
 #[test]
 fn every_configuration_file_loads_and_validates() {
@@ -50,11 +51,11 @@ fn every_configuration_file_loads_and_validates() {
             // The demo key pair: the public half is the key of the secret half.
             "keys" if rel.ends_with(".pub") => {
                 let public = std::fs::read_to_string(path).unwrap();
-                let secret = video2track::link::load_signing_key(&path.with_extension("key"))
+                let secret = v2t_supervisor::link::load_signing_key(&path.with_extension("key"))
                     .unwrap_or_else(|e| panic!("{rel}: its secret half: {e}"));
                 let bytes = v2t_wire::link::key_from_hex(&public).unwrap_or_else(|e| panic!("{rel}: {e}"));
                 assert_eq!(bytes, secret.verifying_key().to_bytes(), "{rel} is not the key of its .key");
-                assert!(video2track::link::is_demo_key(&secret), "{rel}: not the demo key the tools warn about");
+                assert!(v2t_supervisor::link::is_demo_key(&secret), "{rel}: not the demo key the tools warn about");
             }
             "keys" if rel.ends_with(".key") => assert!(path.with_extension("pub").exists(), "{rel} has no .pub"),
             "keys" if rel.ends_with("README.md") => {}

@@ -175,7 +175,7 @@ fn one_serve_supervises_two_bvs_each_with_its_own_prior_and_target() {
 }
 
 /// The whole session in closed loop: two BVs, each its full onboard runtime (`v2t-edge launch` with
-/// the uplink node) and a simulated proving ground (`v2t-edge sim-ecu --from-uplink`) that builds
+/// the uplink node) and a simulated proving ground (`v2t-sim-ecu --from-uplink`) that builds
 /// the world from the prior the BV accepted; one `serve` uploads a different τ to each, arms and
 /// starts them, and each BV regulates its own interaction to its own target.
 #[test]
@@ -201,19 +201,9 @@ fn two_simulated_bvs_regulate_their_own_priors_in_closed_loop_under_one_serve() 
         launchers.push(Proc::start(&bin("v2t-edge"), &["launch", "--config", &cfg_arg, "--namespace", &ns], bv));
         let out = dir.join(format!("{bv}.run.json"));
         let seed = (i + 1).to_string();
-        let args = [
-            "sim-ecu",
-            "--config",
-            &cfg_arg,
-            "--namespace",
-            &ns,
-            "--from-uplink",
-            "--seed",
-            &seed,
-            "--engage-timeout-s",
-            "60",
-        ];
-        let mut cmd = std::process::Command::new(bin("v2t-edge"));
+        let args =
+            ["--config", &cfg_arg, "--namespace", &ns, "--from-uplink", "--seed", &seed, "--engage-timeout-s", "60"];
+        let mut cmd = std::process::Command::new(bin("v2t-sim-ecu"));
         cmd.args(args).arg("--out").arg(&out).current_dir(repo_root());
         ecus.push((bv, out, std::thread::spawn(move || cmd.output().unwrap())));
     }

@@ -381,19 +381,21 @@ pub fn make_pki(dir: &Path, clients: &[&str]) {
     }
 }
 
-/// The grounded left turn on the proving ground, and a constant-speed prior along its routes.
+/// The grounded left turn on the proving ground, and a constant-speed prior along its routes
+/// (25 s), valid for 10 minutes.
 pub fn left_turn_upload(prior_id: u64) -> link::PriorUpload {
     let scenario = left_turn_grounded();
     let now = v2t_edge::uplink::unix_ms();
-    v2t_edge::prior::upload_along_routes(&scenario, prior_id, 25.0, (now, now + 600_000)).unwrap()
+    let prior = v2t_model::prior::TrajectoryPrior::along_routes_at_start_speed(&scenario, 25.0).unwrap();
+    let bv_agent = prior.bv_agent(None).unwrap().id.clone();
+    link::PriorUpload { prior_id, bv_agent, valid_from_ms: now, valid_until_ms: now + 600_000, prior }
 }
 
 /// The example left-turn semantics grounded on the proving ground.
 pub fn left_turn_grounded() -> v2t_model::grounded::GroundedScenario {
     let map = v2t_map::Map::load(&repo_root().join("config/maps/proving_ground.xodr")).unwrap();
     let lib = v2t_map::library::TopologyLibrary::build(&map);
-    let text = std::fs::read_to_string(repo_root().join("config/examples/semantics_left_turn.json")).unwrap();
-    let sem = v2t_model::semantics::parse_semantics_json(&text).unwrap();
+    let sem = v2t_files::read_semantics(&repo_root().join("config/examples/semantics_left_turn.json")).unwrap();
     v2t_ground::ground(&map, &lib, &sem).unwrap().scenario
 }
 

@@ -134,8 +134,10 @@ fn priors_and_commands_cross_the_broker(kind: BrokerKind) {
     node.expect_line("connected", Duration::from_secs(15));
     let t = cloud.telemetry("bv1", Duration::from_secs(10));
     assert_eq!(t.prior_id, 41, "the accepted prior survives the broker restart");
-    let retarget =
-        cloud.frame("bv1", CloudBody::Command(CloudCommand::SetTarget { tau_s: 3.5, style: v2t_model::Style::Yield }));
+    let retarget = cloud.frame(
+        "bv1",
+        CloudBody::Command(CloudCommand::SetTarget(v2t_model::Target::new(3.5, v2t_model::Style::Yield).unwrap())),
+    );
     cloud.send("bv1", topics::CMD, retarget);
     assert_eq!(cloud.event("bv1", Duration::from_secs(5))["verdict"], "accepted");
     let retargeted = next_prior(&priors, &bus);

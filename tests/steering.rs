@@ -5,12 +5,13 @@
 
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
 
+use v2t_files::load_toml;
 use v2t_game::regulator::RegulatorParams;
+use v2t_lab::steer::steer_case;
 use v2t_model::Style;
+use v2t_sim::files::load_scenario;
 use v2t_sim::vut::VutModel;
 use v2t_tests::repo_root;
-use video2track::experiment::steer_case;
-use video2track::files::{load_scenario, load_toml};
 
 #[test]
 fn the_regulated_bv_lands_on_the_target_pet() {
@@ -26,13 +27,13 @@ fn the_regulated_bv_lands_on_the_target_pet() {
         (&cut, Style::Yield, 2.0, VutModel::Sampling),
     ];
     for (scenario, style, tau, model) in cases {
-        let c = steer_case(&settings, scenario, style, tau, model, 2);
+        let c = steer_case(&settings, scenario, v2t_model::Target::new(tau, style).unwrap(), model, 2);
         let tag = format!("{} {style} τ={tau} {model}", scenario.name);
-        assert_eq!(c.collisions, 0, "{tag}");
-        assert_eq!(c.zone_overlaps, 0, "{tag}");
-        assert_eq!(c.order_ok_frac, 1.0, "{tag}");
-        assert_eq!(c.unmeasured, 0, "{tag}");
+        assert_eq!(c.stats.collisions, 0, "{tag}");
+        assert_eq!(c.stats.zone_overlaps, 0, "{tag}");
+        assert_eq!(c.stats.order_ok_frac, 1.0, "{tag}");
+        assert_eq!(c.stats.unmeasured, 0, "{tag}");
         let err = c.error_rel.unwrap();
-        assert!(err <= 0.10, "{tag}: mean PET_min {:?} s, error {:.1} %", c.mean_pet_min_s, 100.0 * err);
+        assert!(err <= 0.10, "{tag}: mean PET_min {:?} s, error {:.1} %", c.stats.mean_pet_min_s, 100.0 * err);
     }
 }

@@ -21,7 +21,9 @@ test_exe() {
 }
 
 vcan="$(test_exe v2t-can vcan)"
-runtime="$(test_exe v2t-edge runtime)"
+runtime="$(test_exe v2t-lab runtime)"
+# The runtime test starts the onboard runtime's own binary beside it.
+cargo build -p v2t-edge --bin v2t-edge
 for exe in "$vcan" "$runtime"; do
   if [ -z "$exe" ] || [ ! -x "$exe" ]; then
     echo "bench.sh: could not find a test executable (got '$exe')" >&2

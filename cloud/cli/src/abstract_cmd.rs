@@ -2,37 +2,69 @@
 //! semantics out, through [`v2t_vlm`]: frames with `ffmpeg`, the versioned prompt, an
 //! OpenAI-compatible vision-language model (endpoint from the `V2T_VLM_*` variables), or a recorded
 //! cassette offline.
-//!
-//! ```
-//! use std::path::{Path, PathBuf};
-//! use video2track::abstract_cmd::{AbstractArgs, abstract_video, report};
-//!
-//! let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-//! let args = AbstractArgs {
-//!     video: PathBuf::from("cut_in_4.70.mp4"),
-//!     pet_label_s: 4.70,
-//!     record: None,
-//!     // Offline: the shipped cassette answers, no endpoint is read.
-//!     replay: Some(root.join("config/vlm/cassettes/cut_in")),
-//!     frames: None,
-//!     sampling: None,
-//! };
-//! let result = abstract_video(&args, |name| std::env::var(name).ok())?;
-//! assert!(report(&result).contains("1 request(s), 0 repair(s)"));
-//! assert_eq!(result.semantics.pet_label_s, 4.70);
-//! # Ok::<(), video2track::abstract_cmd::AbstractError>(())
-//! ```
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use v2t_model::semantics::{MAX_PET_LABEL_S, ScenarioSemantics};
+use v2t_model::semantics::ScenarioSemantics;
 use v2t_vlm::config::{ENV_API_KEY, ENV_BASE_URL, ENV_MODEL};
 use v2t_vlm::frames::MAX_FRAMES;
 use v2t_vlm::{Abstraction, ConfigError, FrameError, Mode, VlmConfig, VlmError};
 
+/// `abstract`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct AbstractCmd {
+    /// The video. With --replay only its file name counts: the one the cassette recorded.
+    video: PathBuf,
+    /// The operator's post-encroachment time label for the video, s, in [0.1, 30] (default: from
+    /// the annotation file).
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    pet_label: Option<f64>,
+    /// Annotation file with `pet_label_s` (TOML; default: the video's name with `.labels.toml`).
+    #[arg(long, value_name = "FILE", conflicts_with = "pet_label")]
+    labels: Option<PathBuf>,
+    /// Write the scenario semantics (JSON) here.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Save every exchange with the model into this cassette directory.
+    #[arg(long, value_name = "DIR", conflicts_with = "replay")]
+    record: Option<PathBuf>,
+    /// Replay this cassette directory instead of asking a model (no endpoint, no video needed).
+    #[arg(long, value_name = "DIR")]
+    replay: Option<PathBuf>,
+    /// Frames shown to the model (default 16, at most 64).
+    #[arg(long)]
+    frames: Option<u32>,
+    /// Where the frames are taken: uniform, or half of them where the picture changes most.
+    #[arg(long, value_enum)]
+    sampling: Option<Sampling>,
+}
+
+/// Runs `abstract`: semantics from the video (or the cassette), the report, the file.
+pub fn run(a: AbstractCmd) -> anyhow::Result<()> {
+    let pet_label_s = pet_label(&a.video, a.pet_label, a.labels.as_deref())?;
+    let args = AbstractArgs {
+        video: a.video,
+        pet_label_s,
+        record: a.record,
+        replay: a.replay,
+        frames: a.frames,
+        sampling: a.sampling,
+    };
+    let result = abstract_video(&args, |name| std::env::var(name).ok())?;
+    print!("{}", report(&result));
+    if let Some(dir) = &args.record {
+        println!("recorded {}", dir.display());
+    }
+    if let Some(path) = a.out {
+        write_semantics(&path, &result.semantics)?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
 /// Where the frames shown to the model are taken.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum Sampling {
     /// In the middle of equal slices of the video.
     #[default]
@@ -46,7 +78,7 @@ pub enum Sampling {
 pub struct AbstractArgs {
     /// The video. In a replay only its file name is used: it must be the one the cassette recorded.
     pub video: PathBuf,
-    /// The operator's PET label, s, in (0, 30].
+    /// The operator's PET label, s, in [0.1, 30].
     pub pet_label_s: f64,
     /// Save every exchange of the live run into this cassette directory.
     pub record: Option<PathBuf>,
@@ -164,9 +196,7 @@ pub fn pet_label(video: &Path, pet_label_s: Option<f64>, labels: Option<&Path>) 
 /// record mode only). The label, the options and the video are checked before the endpoint.
 pub fn abstract_video(args: &AbstractArgs, env: impl Fn(&str) -> Option<String>) -> Result<Abstraction, AbstractError> {
     let pet = args.pet_label_s;
-    if !(pet > 0.0 && pet <= MAX_PET_LABEL_S) {
-        return Err(VlmError::PetLabel { value: pet, max: MAX_PET_LABEL_S }.into());
-    }
+    v2t_model::Target::new(pet, v2t_model::Style::Rush).map_err(VlmError::PetLabel)?;
     if let Some(n) = args.frames
         && !(1..=MAX_FRAMES).contains(&n)
     {
@@ -232,6 +262,7 @@ pub fn report(a: &Abstraction) -> String {
         a.repairs,
         if a.schema_in_prompt { "  |  schema in the prompt" } else { "" }
     );
+    let _ = writeln!(out, "provenance {}", a.provenance);
     if let Some(problem) = &a.repaired_problem {
         let _ = writeln!(out, "  first answer repaired: {problem}");
     }

@@ -3,46 +3,63 @@
 //! the [`GroundedScenario`](v2t_model::grounded::GroundedScenario) the generator and the regulator take.
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
+use anyhow::Context as _;
 use serde::Serialize;
 use v2t_ground::{Candidate, Grounding};
-use v2t_model::semantics::{ScenarioSemantics, SemanticsError, parse_semantics_json};
 
-/// The proving ground `ground` uses when no `--map` is given.
-pub const DEFAULT_MAP: &str = "config/maps/proving_ground.xodr";
-
-/// A semantics file that cannot be read or does not validate.
-#[derive(Debug, thiserror::Error)]
-pub enum SemanticsFileError {
-    /// The file could not be read.
-    #[error("{path}: cannot read: {source}")]
-    Read {
-        /// The file.
-        path: PathBuf,
-        /// Why.
-        source: std::io::Error,
-    },
-    /// Not valid semantics.
-    #[error("{path}: {source}")]
-    Invalid {
-        /// The file.
-        path: PathBuf,
-        /// Why.
-        source: SemanticsError,
-    },
+/// `ground`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct GroundArgs {
+    /// Scenario semantics (JSON, as `abstract` writes it), e.g. config/examples/semantics_cut_in.json.
+    semantics: PathBuf,
+    /// The proving ground's map (.xodr); its annotations `<map>.toml` apply when they exist.
+    #[arg(long, default_value = v2t_files::shipped::MAP)]
+    map: PathBuf,
+    /// Hand annotations (TOML; default: the map's name with .toml, when it exists).
+    #[arg(long)]
+    annotations: Option<PathBuf>,
+    /// Write the grounded scenario (JSON) here.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Write the whole grounding (scenario, routes, planned timing, notes, ranking) as JSON here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Show this many ranked fragments with their scores and reasons.
+    #[arg(long, default_value_t = 3)]
+    top: usize,
 }
 
-/// Reads and validates a semantics JSON file (the `video2track abstract` output, or hand-written).
-pub fn load_semantics(path: &Path) -> Result<ScenarioSemantics, SemanticsFileError> {
-    let text =
-        std::fs::read_to_string(path).map_err(|source| SemanticsFileError::Read { path: path.to_owned(), source })?;
-    parse_semantics_json(&text).map_err(|source| SemanticsFileError::Invalid { path: path.to_owned(), source })
+/// Ranks, grounds, prints and writes.
+pub fn run(a: GroundArgs) -> anyhow::Result<()> {
+    let sem = v2t_files::read_semantics(&a.semantics)?;
+    let inspection = v2t_map::inspect(&a.map, a.annotations.as_deref())?;
+    for w in &inspection.map.warnings {
+        eprintln!("warning: {}: {w}", a.map.display());
+    }
+    let ranking = v2t_ground::rank(&inspection.library, &sem);
+    print!("{}", ranking_report(&ranking, a.top));
+    let grounding = v2t_ground::ground(&inspection.map, &inspection.library, &sem)
+        .with_context(|| format!("grounding {} on {}", a.semantics.display(), a.map.display()))?;
+    print!("{}", report(&grounding));
+    if let Some(path) = a.out {
+        crate::write_json(&path, &grounding.scenario)?;
+    }
+    if let Some(path) = a.json {
+        let doc = GroundJson {
+            semantics: a.semantics.display().to_string(),
+            map: a.map.display().to_string(),
+            grounding: &grounding,
+        };
+        crate::write_json(&path, &doc)?;
+    }
+    Ok(())
 }
 
 /// What `--json` writes: the grounded scenario with how it was found.
 #[derive(Debug, Serialize)]
-pub struct GroundJson<'a> {
+struct GroundJson<'a> {
     /// Semantics file.
     pub semantics: String,
     /// Map file.
@@ -54,7 +71,7 @@ pub struct GroundJson<'a> {
 
 /// The ranking view: the best `top` candidates with their per-criterion scores and reasons, then a
 /// count of the rest.
-pub fn ranking_report(ranking: &[Candidate], top: usize) -> String {
+fn ranking_report(ranking: &[Candidate], top: usize) -> String {
     let mut s = String::new();
     let feasible = ranking.iter().filter(|c| c.feasible).count();
     let _ = writeln!(s, "ranking: {} fragments, {} feasible", ranking.len(), feasible);
@@ -69,7 +86,7 @@ pub fn ranking_report(ranking: &[Candidate], top: usize) -> String {
 
 /// The human-readable report of a grounding: the fragment, every agent's start and goal, the
 /// conflicts with their planned passage, and the notes.
-pub fn report(g: &Grounding) -> String {
+fn report(g: &Grounding) -> String {
     let mut s = String::new();
     let sc = &g.scenario;
     let _ = writeln!(
@@ -119,29 +136,18 @@ pub fn report(g: &Grounding) -> String {
 
 #[cfg(test)]
 mod tests {
+    #![allow(clippy::unwrap_used)]
     use super::*;
+    use std::path::Path;
 
     fn root() -> PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
     }
 
     #[test]
-    fn unreadable_and_invalid_semantics_name_the_file() {
-        let missing = root().join("config/examples/no_such.json");
-        let e = load_semantics(&missing).unwrap_err();
-        assert!(matches!(e, SemanticsFileError::Read { .. }) && e.to_string().contains("no_such.json"), "{e}");
-
-        let dir = tempfile::Builder::new().prefix("v2t-ground-cli-").tempdir().unwrap();
-        let bad = dir.path().join("bad.json");
-        std::fs::write(&bad, "{\"road_topology\": ").unwrap();
-        let e = load_semantics(&bad).unwrap_err();
-        assert!(matches!(e, SemanticsFileError::Invalid { .. }) && e.to_string().contains("bad.json"), "{e}");
-    }
-
-    #[test]
     fn reports_show_the_fragment_agents_conflict_and_reasons() {
-        let sem = load_semantics(&root().join("config/examples/semantics_left_turn.json")).unwrap();
-        let i = crate::map::inspect(&root().join(DEFAULT_MAP), None).unwrap();
+        let sem = v2t_files::read_semantics(&root().join("config/examples/semantics_left_turn.json")).unwrap();
+        let i = v2t_map::inspect(&root().join(v2t_files::shipped::MAP), None).unwrap();
         let g = v2t_ground::ground(&i.map, &i.library, &sem).unwrap();
         let text = report(&g);
         assert!(text.starts_with(&format!("grounded on {}", g.scenario.fragment_id)), "{text}");

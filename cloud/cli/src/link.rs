@@ -1,469 +1,235 @@
-//! The cloud's side of the cloud–edge link: the supervisor's Ed25519 key pair, signing with
-//! sequence numbers that keep increasing across processes and restarts, priors read from files, and
-//! one-shot publication (`video2track upload`, `video2track command`) that waits for the BV's
-//! verdict.
+//! `video2track keygen`, `serve`, `upload` and `send`: the cloud's side of the link
+//! ([`v2t_supervisor`]).
 
-use std::io::Read as _;
-use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
-use v2t_model::Style;
-use v2t_model::grounded::{AgentRole, GroundedScenario};
-use v2t_model::prior::TrajectoryPrior;
-use v2t_model::validate::Validate;
-use v2t_wire::link::{
-    self, ALL_BVS, CloudBody, CloudMessage, Command, PriorUpload, SigningKey, VerifyingKey, key_from_hex, key_to_hex,
-    topics,
-};
-use v2t_wire::mqtt::{BrokerUrl, LinkEvent, MqttLink, MqttSettings};
+use anyhow::Context as _;
+use v2t_model::{Style, Target};
+use v2t_supervisor::link::{BvEvent, Connection, Signer};
+use v2t_supervisor::serve::ServeOptions;
+use v2t_wire::link::{ALL_BVS, CloudBody, key_to_hex};
 
-/// A failure of the link's cloud side.
-#[derive(Debug, thiserror::Error)]
-pub enum LinkError {
-    /// A key file could not be read, written or understood.
-    #[error("{path}: {message}")]
-    Key {
-        /// The file.
-        path: PathBuf,
-        /// Why.
-        message: String,
-    },
-    /// A prior file could not be read or used.
-    #[error("{path}: {message}")]
-    Prior {
-        /// The file.
-        path: PathBuf,
-        /// Why.
-        message: String,
-    },
-    /// A bad argument (broker URL, id, τ).
-    #[error("{0}")]
-    Usage(String),
-    /// The broker could not be reached, or the frame not sent.
-    #[error("broker: {0}")]
-    Broker(String),
-    /// A frame could not be made.
-    #[error("frame: {0}")]
-    Frame(#[from] link::LinkError),
-    /// The BV refused it, or did not answer.
-    #[error("{0}")]
-    Refused(String),
-}
+use crate::Usage;
 
-/// Unix time, µs.
-fn unix_us() -> u64 {
-    SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| u64::try_from(d.as_micros()).unwrap_or(u64::MAX))
-}
-
-/// Unix time, ms.
-pub fn unix_ms() -> u64 {
-    unix_us() / 1000
-}
-
-/// Writes a new key pair as `dir/cloud.key` (the secret seed, mode 0600) and `dir/cloud.pub` (the
-/// public key every BV's edge config names); refuses to overwrite either. Returns the public key.
-pub fn keygen(dir: &Path) -> Result<VerifyingKey, LinkError> {
-    let bad = |path: &Path, message: String| LinkError::Key { path: path.to_owned(), message };
-    std::fs::create_dir_all(dir).map_err(|e| bad(dir, e.to_string()))?;
-    let (secret, public) = (dir.join("cloud.key"), dir.join("cloud.pub"));
-    for p in [&secret, &public] {
-        if p.exists() {
-            return Err(bad(p, "exists already; remove it first to replace the key pair".into()));
-        }
-    }
-    let mut seed = [0u8; 32];
-    std::fs::File::open("/dev/urandom")
-        .and_then(|mut f| f.read_exact(&mut seed))
-        .map_err(|e| bad(Path::new("/dev/urandom"), e.to_string()))?;
-    let key = SigningKey::from_bytes(&seed);
-    write_private(&secret, &format!("{}\n", key_to_hex(&seed))).map_err(|e| bad(&secret, e.to_string()))?;
-    let vk = key.verifying_key();
-    std::fs::write(&public, format!("{}\n", key_to_hex(vk.as_bytes()))).map_err(|e| bad(&public, e.to_string()))?;
-    Ok(vk)
-}
-
-fn write_private(path: &Path, text: &str) -> std::io::Result<()> {
-    use std::io::Write as _;
-    use std::os::unix::fs::OpenOptionsExt as _;
-    let mut f = std::fs::OpenOptions::new().write(true).create_new(true).mode(0o600).open(path)?;
-    f.write_all(text.as_bytes())
-}
-
-/// Reads the supervisor's secret key (64 hex digits).
-pub fn load_signing_key(path: &Path) -> Result<SigningKey, LinkError> {
-    let bad = |message: String| LinkError::Key { path: path.to_owned(), message };
-    let text = std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))?;
-    key_from_hex(&text).map(|seed| SigningKey::from_bytes(&seed)).map_err(bad)
-}
-
-/// The public key of the demo key pair in `config/keys/` (public on purpose, for the simulated
-/// session only).
-pub const DEMO_PUBLIC_KEY: &str = "2e99bfa75838d24cc111c8688e17019fd96f84f169011257821a70a0a2af7e1e";
-
-/// Whether `key` is the committed demo key, which must never sign for a real vehicle.
-pub fn is_demo_key(key: &SigningKey) -> bool {
-    key_to_hex(key.verifying_key().as_bytes()) == DEMO_PUBLIC_KEY
-}
-
-/// Signs cloud messages for one fleet. Sequence numbers are the Unix time in µs, or one more than
-/// the last when the clock has not moved on: they keep increasing across `upload`, `command` and a
-/// restarted `serve` signing with the same key, which is what a BV's replay check needs.
-#[derive(Debug)]
-pub struct Signer {
-    key: SigningKey,
+/// Who signs, for which fleet, and how to log in to the broker.
+#[derive(Debug, clap::Args)]
+pub struct LinkArgs {
+    /// Fleet (test session) id: part of every topic.
+    #[arg(long, default_value = "demo")]
     fleet: String,
-    last_seq: u64,
+    /// The supervisor's secret key (`video2track keygen`). The default is the committed demo key,
+    /// for simulated BVs only.
+    #[arg(long, default_value = "config/keys/demo_cloud.key")]
+    key: PathBuf,
+    /// MQTT user name.
+    #[arg(long)]
+    username: Option<String>,
+    /// Environment variable holding the MQTT password.
+    #[arg(long)]
+    password_env: Option<String>,
+    /// CA certificate (PEM) of an mqtts:// broker.
+    #[arg(long)]
+    ca_file: Option<PathBuf>,
+    /// Client certificate (PEM) for brokers that require one.
+    #[arg(long, requires = "client_key")]
+    client_cert: Option<PathBuf>,
+    /// Its key (PEM).
+    #[arg(long, requires = "client_cert")]
+    client_key: Option<PathBuf>,
 }
 
-impl Signer {
-    /// A signer for `fleet`.
-    pub fn new(key: SigningKey, fleet: &str) -> Result<Self, LinkError> {
-        if !topics::valid_id(fleet) {
-            return Err(LinkError::Usage(format!("fleet `{fleet}`: use 1–64 ASCII letters, digits, '_' or '-'")));
+impl LinkArgs {
+    fn signer(&self) -> anyhow::Result<Signer> {
+        let key = v2t_supervisor::link::load_signing_key(&self.key)?;
+        if v2t_supervisor::link::is_demo_key(&key) {
+            eprintln!(
+                "warning: signing with the public demo key {}: for simulated BVs only; make your own with `video2track keygen`",
+                self.key.display()
+            );
         }
-        Ok(Self { key, fleet: fleet.to_owned(), last_seq: 0 })
+        Ok(Signer::new(key, &self.fleet)?)
     }
 
-    /// The fleet.
-    pub fn fleet(&self) -> &str {
-        &self.fleet
-    }
-
-    /// Seals `body` for `bv_id` (or [`ALL_BVS`]); returns the topic, the frame and its sequence number.
-    pub fn seal(&mut self, bv_id: &str, body: CloudBody) -> Result<(String, Vec<u8>, u64), LinkError> {
-        let topic = if bv_id == ALL_BVS {
-            topics::all_cmd(&self.fleet)
-        } else if topics::valid_id(bv_id) {
-            let leaf = if matches!(body, CloudBody::Prior(_)) { topics::PRIOR } else { topics::CMD };
-            topics::bv(&self.fleet, bv_id, leaf)
-        } else {
-            return Err(LinkError::Usage(format!("BV id `{bv_id}`: use 1–64 ASCII letters, digits, '_' or '-'")));
+    fn connection(&self, broker: &str) -> anyhow::Result<Connection> {
+        let tls = v2t_supervisor::link::TlsFiles {
+            ca: self.ca_file.as_deref(),
+            client_cert: self.client_cert.as_deref(),
+            client_key: self.client_key.as_deref(),
         };
-        if bv_id == ALL_BVS && matches!(body, CloudBody::Prior(_)) {
-            return Err(LinkError::Usage("a prior goes to one BV, not to all".into()));
-        }
-        let seq = unix_us().max(self.last_seq + 1);
-        self.last_seq = seq;
-        let msg = CloudMessage { fleet: self.fleet.clone(), bv_id: bv_id.to_owned(), seq, issued_ms: unix_ms(), body };
-        Ok((topic, link::seal(&msg, &self.key)?, seq))
+        Ok(Connection::new(broker, self.username.as_deref(), self.password_env.as_deref(), tls)?)
     }
 }
 
-/// Turns a priors file into the upload for one BV: a `TrajectoryPrior` (the generator's output) or
-/// a `GroundedScenario` (then the constant-speed reference along the grounded routes, the
-/// predefined reference of the TroubleMaker-like baseline). `agent` picks the BV agent it drives
-/// (default: the first BV); `tau_s` and `style` override the file's target.
-pub fn prior_from_file(
-    path: &Path,
-    agent: Option<&str>,
-    target: (Option<f64>, Option<Style>),
+/// One signed frame sent to a broker, waiting for the BV's verdict (`upload`, `send`).
+#[derive(Debug, clap::Args)]
+pub struct OneShotArgs {
+    #[command(flatten)]
+    link: LinkArgs,
+    /// The broker.
+    #[arg(long, default_value = "mqtt://127.0.0.1:1883")]
+    broker: String,
+    /// Wait this long for the BV's verdict, s (0, or `--bv all`: do not wait).
+    #[arg(long, default_value_t = 3.0)]
+    wait_s: f64,
+}
+
+impl OneShotArgs {
+    /// Signs `body` for `bv`, sends it and reports the BV's verdict.
+    fn send(&self, bv: &str, body: CloudBody) -> anyhow::Result<()> {
+        let mut signer = self.link.signer()?;
+        if !(0.0..=600.0).contains(&self.wait_s) {
+            return Err(Usage(format!("--wait-s must lie in [0, 600], got {}", self.wait_s)).into());
+        }
+        let wait = std::time::Duration::from_secs_f64(self.wait_s);
+        let conn = self.link.connection(&self.broker)?;
+        let answer = v2t_supervisor::link::send_once(&conn, &mut signer, bv, body, wait)?;
+        verdict(bv, answer)
+    }
+}
+
+fn verdict(bv: &str, answer: Option<BvEvent>) -> anyhow::Result<()> {
+    match answer {
+        Some(e) if e.verdict == "accepted" => {
+            println!("{bv}: accepted {}", e.detail);
+            Ok(())
+        }
+        Some(e) => Err(anyhow::anyhow!("{bv} refused it: {}", e.detail)),
+        None => {
+            println!("sent");
+            Ok(())
+        }
+    }
+}
+
+/// `keygen`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct KeygenArgs {
+    /// Where to write the pair.
+    #[arg(long, default_value = "keys")]
+    out: PathBuf,
+}
+
+/// Makes the key pair and says where it went.
+pub fn keygen(a: KeygenArgs) -> anyhow::Result<()> {
+    let vk = v2t_supervisor::link::keygen(&a.out)?;
+    println!("wrote {0}/cloud.key (secret, mode 600) and {0}/cloud.pub", a.out.display());
+    println!("public key {}: name cloud.pub as `cloud_key` in every BV's [uplink] section", key_to_hex(vk.as_bytes()));
+    Ok(())
+}
+
+/// `serve`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct ServeArgs {
+    #[command(flatten)]
+    link: LinkArgs,
+    /// An external broker (mqtt://host:port or mqtts://…) instead of the embedded one.
+    #[arg(long)]
+    broker: Option<String>,
+    /// Address of the embedded broker.
+    #[arg(long, default_value = "127.0.0.1:1883")]
+    listen: std::net::SocketAddr,
+    /// Log every message received as JSON lines here.
+    #[arg(long)]
+    log: Option<PathBuf>,
+    /// Print the fleet table every this many seconds (0: only on `status`).
+    #[arg(long, default_value_t = 2.0)]
+    status_period_s: f64,
+    /// A prior uploaded from the console stays valid this long, s.
+    #[arg(long, default_value_t = 600.0)]
     valid_s: f64,
-    prior_id: u64,
-) -> Result<PriorUpload, LinkError> {
-    let bad = |message: String| LinkError::Prior { path: path.to_owned(), message };
-    let text = std::fs::read_to_string(path).map_err(|e| bad(format!("cannot read: {e}")))?;
-    let value: serde_json::Value = serde_json::from_str(&text).map_err(|e| bad(format!("not JSON: {e}")))?;
-    let (mut prior, _) = priors_document(&value)
-        .unwrap_or_else(|| {
-            Err("neither a trajectory prior (`dt_s`) nor a grounded scenario (`fragment_id`, `agents`)".into())
-        })
-        .map_err(bad)?;
-    let bv_agent = match agent {
-        Some(a) => prior
-            .agents
-            .iter()
-            .find(|t| t.id == a && t.role == AgentRole::Bv)
-            .map(|t| t.id.clone())
-            .ok_or_else(|| bad(format!("has no BV agent `{a}`")))?,
-        None => prior
-            .agents
-            .iter()
-            .find(|t| t.role == AgentRole::Bv)
-            .map(|t| t.id.clone())
-            .ok_or_else(|| bad("has no BV agent".into()))?,
+}
+
+/// Runs the supervisor until `quit` or Ctrl-C.
+pub fn serve(a: ServeArgs) -> anyhow::Result<()> {
+    if !(0.0..=3600.0).contains(&a.status_period_s) {
+        return Err(Usage(format!("--status-period-s must lie in [0, 3600], got {}", a.status_period_s)).into());
+    }
+    let signer = a.link.signer()?;
+    let (url, embedded) = match a.broker {
+        Some(b) => (b, None),
+        None => (format!("mqtt://{}", a.listen), Some(a.listen)),
     };
-    if let Some(tau) = target.0 {
-        if !(tau > 0.0 && tau <= 10.0) {
-            return Err(LinkError::Usage(format!("--tau must lie in (0, 10] s, got {tau}")));
-        }
-        prior.tau_s = tau;
-    }
-    if let Some(style) = target.1 {
-        prior.style = style;
-    }
-    if !(valid_s > 0.0 && valid_s <= 86_400.0) {
-        return Err(LinkError::Usage(format!("--valid-s must lie in (0, 86400] s, got {valid_s}")));
-    }
-    let now = unix_ms();
-    Ok(PriorUpload { prior_id, bv_agent, valid_from_ms: now, valid_until_ms: now + (valid_s * 1e3) as u64, prior })
-}
-
-/// Reads a priors document: a `TrajectoryPrior` (it has `dt_s`), or a `GroundedScenario` (it has
-/// `fragment_id` and `agents`), which becomes its [`stand_in_prior`] and comes back too. `None`:
-/// the document is neither.
-pub fn priors_document(
-    value: &serde_json::Value,
-) -> Option<Result<(TrajectoryPrior, Option<GroundedScenario>), String>> {
-    use serde::Deserialize as _;
-    if value.get("dt_s").is_some() {
-        let p = TrajectoryPrior::deserialize(value).map_err(|e| format!("not a trajectory prior: {e}"));
-        Some(p.and_then(|p| p.validate().map(|()| (p, None)).map_err(|e| e.to_string())))
-    } else if value.get("agents").is_some() && value.get("fragment_id").is_some() {
-        let g = GroundedScenario::deserialize(value).map_err(|e| format!("not a grounded scenario: {e}"));
-        Some(g.and_then(|g| {
-            g.validate().map_err(|e| e.to_string())?;
-            Ok((stand_in_prior(&g)?, Some(g)))
-        }))
-    } else {
-        None
-    }
-}
-
-/// The constant-speed prior along the grounded routes, keeping the grounded timing, over
-/// [`TrajectoryPrior::stand_in_horizon_s`]: the predefined reference of the TroubleMaker-like baseline and the
-/// stand-in where no diffusion prior exists.
-pub fn stand_in_prior(g: &GroundedScenario) -> Result<TrajectoryPrior, String> {
-    TrajectoryPrior::along_routes_at_start_speed(g, TrajectoryPrior::stand_in_horizon_s(g)).map_err(|e| e.to_string())
-}
-
-/// Where the cloud's client connects and how it logs in.
-#[derive(Debug, Clone)]
-pub struct Connection {
-    /// `mqtt://…` or `mqtts://…`.
-    pub broker: BrokerUrl,
-    /// User name and password.
-    pub credentials: Option<(String, String)>,
-    /// CA certificate (PEM) for `mqtts://`.
-    pub ca_pem: Option<Vec<u8>>,
-    /// Client certificate and key (PEM) for mutual TLS.
-    pub client_auth: Option<(Vec<u8>, Vec<u8>)>,
-}
-
-/// Where the supervisor's TLS files are: CA, and the client certificate and key for mutual TLS.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct TlsFiles<'a> {
-    /// CA certificate (PEM).
-    pub ca: Option<&'a Path>,
-    /// Client certificate (PEM).
-    pub client_cert: Option<&'a Path>,
-    /// Client key (PEM).
-    pub client_key: Option<&'a Path>,
-}
-
-impl Connection {
-    /// From the command line's `--broker`, `--username`, `--password-env` and TLS files.
-    pub fn new(
-        broker: &str,
-        username: Option<&str>,
-        password_env: Option<&str>,
-        tls: TlsFiles<'_>,
-    ) -> Result<Self, LinkError> {
-        let broker = BrokerUrl::parse(broker).map_err(LinkError::Usage)?;
-        let credentials = match username {
-            Some(u) => {
-                let password = match password_env {
-                    Some(var) => std::env::var(var)
-                        .map_err(|_| LinkError::Usage(format!("the password variable {var} is not set")))?,
-                    None => String::new(),
-                };
-                Some((u.to_owned(), password))
-            }
-            None => None,
-        };
-        let read = |p: &Path| std::fs::read(p).map_err(|e| LinkError::Usage(format!("{}: {e}", p.display())));
-        let ca_pem = tls.ca.map(read).transpose()?;
-        let client_auth = match (tls.client_cert, tls.client_key) {
-            (Some(c), Some(k)) => Some((read(c)?, read(k)?)),
-            (None, None) => None,
-            _ => return Err(LinkError::Usage("--client-cert and --client-key go together".into())),
-        };
-        if broker.tls && ca_pem.is_none() {
-            return Err(LinkError::Usage("an mqtts:// broker needs --ca-file".into()));
-        }
-        if !broker.tls && (ca_pem.is_some() || client_auth.is_some()) {
-            return Err(LinkError::Usage("certificates need an mqtts:// broker".into()));
-        }
-        Ok(Self { broker, credentials, ca_pem, client_auth })
-    }
-
-    /// The client settings for `client_id`.
-    pub fn settings(&self, client_id: &str, persistent: bool) -> MqttSettings {
-        MqttSettings {
-            broker: self.broker.clone(),
-            client_id: client_id.to_owned(),
-            credentials: self.credentials.clone(),
-            ca_pem: self.ca_pem.clone(),
-            client_auth: self.client_auth.clone(),
-            persistent,
-        }
-    }
-}
-
-/// What a BV said about one frame (its `event` message).
-#[derive(Debug, Clone, PartialEq, serde::Deserialize, serde::Serialize)]
-pub struct BvEvent {
-    /// The BV.
-    pub bv_id: String,
-    /// When, Unix ms.
-    pub stamp_ms: u64,
-    /// The frame's sequence number, when the BV could read it.
-    pub seq: Option<u64>,
-    /// `accepted` or `refused`.
-    pub verdict: String,
-    /// What, or why not.
-    pub detail: String,
-}
-
-/// Publishes one sealed frame and, unless `wait` is zero, waits for the BV's verdict on it. For a
-/// frame to [`ALL_BVS`] nothing is awaited.
-pub fn send_once(
-    conn: &Connection,
-    signer: &mut Signer,
-    bv_id: &str,
-    body: CloudBody,
-    wait: Duration,
-) -> Result<Option<BvEvent>, LinkError> {
-    let fleet = signer.fleet().to_owned();
-    let event_topic = topics::bv(&fleet, bv_id, topics::EVENT);
-    let awaits = bv_id != ALL_BVS && !wait.is_zero();
-    let subscribe = if awaits { vec![event_topic] } else { Vec::new() };
-    let client_id = format!("v2t-{fleet}-cli-{}", std::process::id());
-    let mqtt = MqttLink::start(&conn.settings(&client_id, false), subscribe).map_err(LinkError::Broker)?;
-    let deadline = Instant::now() + Duration::from_secs(5);
-    loop {
-        match mqtt.wait(deadline.saturating_duration_since(Instant::now())) {
-            Some(LinkEvent::Connected) => break,
-            Some(LinkEvent::Down(why)) => return Err(LinkError::Broker(why)),
-            Some(LinkEvent::Frame { .. }) => {}
-            None => return Err(LinkError::Broker("no connection within 5 s".into())),
-        }
-    }
-    // `Connected` comes once the event subscription is acknowledged: the BV's answer cannot miss it.
-    let (topic, frame, seq) = signer.seal(bv_id, body)?;
-    mqtt.publish(&topic, frame, true).map_err(LinkError::Broker)?;
-    let answer = if awaits {
-        let deadline = Instant::now() + wait;
-        loop {
-            match mqtt.wait(deadline.saturating_duration_since(Instant::now())) {
-                Some(LinkEvent::Frame { payload, .. }) => {
-                    let Ok(ev) = serde_json::from_slice::<BvEvent>(&payload) else { continue };
-                    if ev.seq == Some(seq) || (ev.seq.is_none() && ev.verdict == "refused") {
-                        break Some(ev);
-                    }
-                }
-                Some(_) => {}
-                None => {
-                    mqtt.disconnect();
-                    return Err(LinkError::Refused(format!(
-                        "{bv_id} did not answer within {:.1} s (is its uplink node running and connected to {}:{}?)",
-                        wait.as_secs_f64(),
-                        conn.broker.host,
-                        conn.broker.port
-                    )));
-                }
-            }
-        }
-    } else {
-        // Let the QoS 1 publication leave before the client goes.
-        std::thread::sleep(Duration::from_millis(200));
-        None
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst)).context("installing the Ctrl-C handler")?;
+    let opts = ServeOptions {
+        connection: a.link.connection(&url)?,
+        embedded,
+        signer,
+        log: a.log,
+        status_period: std::time::Duration::from_secs_f64(a.status_period_s),
+        prior_valid_s: a.valid_s,
     };
-    mqtt.disconnect();
-    std::thread::sleep(Duration::from_millis(20));
-    Ok(answer)
+    Ok(v2t_supervisor::serve::serve(opts, &stop)?)
 }
 
-/// A supervision command from its words: `arm`, `start`, `abort`, or `target` with τ and style.
-pub fn command(action: &str, tau_s: Option<f64>, style: Option<Style>) -> Result<Command, LinkError> {
-    match action {
-        "arm" => Ok(Command::Arm),
-        "start" => Ok(Command::Start),
-        "abort" => Ok(Command::Abort),
-        "target" => {
-            let tau_s = tau_s.ok_or_else(|| LinkError::Usage("target needs --tau".into()))?;
-            if !(tau_s > 0.0 && tau_s <= 10.0) {
-                return Err(LinkError::Usage(format!("τ must lie in (0, 10] s, got {tau_s}")));
-            }
-            let style = style.ok_or_else(|| LinkError::Usage("target needs --style rush|yield".into()))?;
-            Ok(Command::SetTarget { tau_s, style })
-        }
-        other => Err(LinkError::Usage(format!("unknown command `{other}`: arm, start, abort or target"))),
-    }
+/// `upload`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct UploadArgs {
+    /// The priors file.
+    priors: PathBuf,
+    /// The BV it is for.
+    #[arg(long)]
+    bv: String,
+    /// The prior's BV agent this BV drives (default: the first BV).
+    #[arg(long)]
+    agent: Option<String>,
+    /// Target PET τ, s (default: the file's).
+    #[arg(long, value_parser = Target::parse_tau, allow_negative_numbers = true)]
+    tau: Option<f64>,
+    /// Style, rush or yield (default: the file's).
+    #[arg(long)]
+    style: Option<Style>,
+    /// Identifier the BV reports back (default: from the clock).
+    #[arg(long)]
+    prior_id: Option<u64>,
+    /// Valid for this long from now, s.
+    #[arg(long, default_value_t = 600.0)]
+    valid_s: f64,
+    #[command(flatten)]
+    shot: OneShotArgs,
 }
 
-/// `rush` or `yield`.
-pub fn parse_style(s: &str) -> Result<Style, LinkError> {
-    match s {
-        "rush" => Ok(Style::Rush),
-        "yield" => Ok(Style::Yield),
-        other => Err(LinkError::Usage(format!("style `{other}`: rush or yield"))),
-    }
+/// Signs the prior and sends it.
+pub fn upload(a: UploadArgs) -> anyhow::Result<()> {
+    let id = a.prior_id.unwrap_or_else(|| (v2t_supervisor::link::unix_ms() % 1_000_000_000).max(1));
+    let up = v2t_supervisor::link::prior_from_file(&a.priors, a.agent.as_deref(), (a.tau, a.style), a.valid_s, id)?;
+    println!(
+        "prior {id}: {} agents, {:.1} s, τ {} s, {:?}, {} drives {}",
+        up.prior.agents.len(),
+        up.prior.duration_s(),
+        up.prior.tau_s,
+        up.prior.style,
+        a.bv,
+        up.bv_agent
+    );
+    a.shot.send(&a.bv, CloudBody::Prior(up))
 }
 
-#[cfg(test)]
-mod tests {
-    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
-    use super::*;
-    use v2t_wire::link::{Receiver, Window};
+/// `send`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct SendArgs {
+    /// What.
+    #[arg(value_parser = ["arm", "start", "abort", "target"])]
+    action: String,
+    /// The BV, or `all`.
+    #[arg(long, default_value = "all")]
+    bv: String,
+    /// New target PET τ, s (target).
+    #[arg(long, value_parser = Target::parse_tau, allow_negative_numbers = true)]
+    tau: Option<f64>,
+    /// New style (target).
+    #[arg(long)]
+    style: Option<Style>,
+    #[command(flatten)]
+    shot: OneShotArgs,
+}
 
-    /// A path that does not exist yet, in a scratch folder removed when the guard drops.
-    fn tempdir(name: &str) -> (tempfile::TempDir, PathBuf) {
-        let scratch = tempfile::Builder::new().prefix(&format!("v2t-cli-link-{name}-")).tempdir().unwrap();
-        let d = scratch.path().join("keys");
-        (scratch, d)
-    }
-
-    #[test]
-    fn keygen_writes_a_pair_the_edge_reads_and_refuses_to_overwrite() {
-        let (_scratch, dir) = tempdir("keygen");
-        let vk = keygen(&dir).unwrap();
-        let sk = load_signing_key(&dir.join("cloud.key")).unwrap();
-        assert_eq!(sk.verifying_key(), vk);
-        let public = std::fs::read_to_string(dir.join("cloud.pub")).unwrap();
-        assert_eq!(key_from_hex(&public).unwrap(), *vk.as_bytes());
-        use std::os::unix::fs::PermissionsExt as _;
-        let mode = std::fs::metadata(dir.join("cloud.key")).unwrap().permissions().mode();
-        assert_eq!(mode & 0o077, 0, "the secret key is readable by others: {mode:o}");
-        assert!(matches!(keygen(&dir), Err(LinkError::Key { .. })));
-        assert!(!is_demo_key(&sk));
-        std::fs::write(dir.join("bad.key"), "not hex").unwrap();
-        assert!(load_signing_key(&dir.join("bad.key")).is_err());
-    }
-
-    #[test]
-    fn sequence_numbers_keep_increasing_across_signers_and_bvs_accept_them() {
-        let key = SigningKey::from_bytes(&[9; 32]);
-        let mut rx = Receiver::new(key.verifying_key(), "bv1", Window { max_age_ms: 10_000, max_skew_ms: 1_000 });
-        let mut last = 0;
-        for round in 0..3 {
-            // A new signer per round, as a new `upload` process or a restarted `serve` would be.
-            let mut s = Signer::new(key.clone(), "pg").unwrap();
-            for _ in 0..50 {
-                let (topic, frame, seq) = s.seal("bv1", CloudBody::Command(Command::Arm)).unwrap();
-                assert_eq!(topic, "v2t/pg/bv/bv1/cmd");
-                assert!(seq > last, "round {round}: {seq} after {last}");
-                last = seq;
-                rx.open(&frame, unix_ms()).unwrap();
-            }
-        }
-        let mut s = Signer::new(key, "pg").unwrap();
-        assert_eq!(s.seal(ALL_BVS, CloudBody::Command(Command::Abort)).unwrap().0, "v2t/pg/all/cmd");
-        assert!(s.seal("bv/1", CloudBody::Command(Command::Abort)).is_err());
-        assert!(Signer::new(SigningKey::from_bytes(&[1; 32]), "a+b").is_err());
-    }
-
-    #[test]
-    fn commands_and_styles_parse_or_say_why_not() {
-        assert_eq!(command("abort", None, None).unwrap(), Command::Abort);
-        assert_eq!(
-            command("target", Some(3.5), Some(Style::Yield)).unwrap(),
-            Command::SetTarget { tau_s: 3.5, style: Style::Yield }
-        );
-        for (a, t, s) in
-            [("target", None, Some(Style::Rush)), ("target", Some(f64::NAN), Some(Style::Rush)), ("go", None, None)]
-        {
-            assert!(command(a, t, s).is_err(), "{a} {t:?}");
-        }
-        assert!(parse_style("rush").is_ok() && parse_style("fast").is_err());
-    }
+/// Signs the command and sends it.
+pub fn send(a: SendArgs) -> anyhow::Result<()> {
+    let cmd = v2t_supervisor::link::command(&a.action, a.tau, a.style)?;
+    let bv = if a.bv == "all" { ALL_BVS.to_owned() } else { a.bv };
+    a.shot.send(&bv, CloudBody::Command(cmd))
 }

@@ -1,32 +1,51 @@
 //! `video2track map inspect`: parse a proving ground's OpenDRIVE map, build its topology library
 //! and report what is in it (fragments by kind, anchors, warnings, parse and build time).
 
-use std::path::Path;
-use std::time::{Duration, Instant};
+use std::path::{Path, PathBuf};
 
 use serde::Serialize;
-use v2t_map::annotate::Annotations;
+use v2t_map::Inspection;
 use v2t_map::library::{AnchorKind, FragmentKind, TopologyLibrary};
-use v2t_map::{Map, MapError};
 
-/// A map, its library and how long they took.
-#[derive(Debug)]
-pub struct Inspection {
-    /// The map.
-    pub map: Map,
-    /// Its fragments.
-    pub library: TopologyLibrary,
-    /// Reading and parsing the file, lane graph included.
-    pub parse: Duration,
-    /// Building the library.
-    pub build: Duration,
-    /// The annotations applied, if a TOML was found or given.
-    pub annotations: Option<String>,
+/// `map`'s commands.
+#[derive(Debug, clap::Subcommand)]
+pub enum MapCommand {
+    /// Parse an OpenDRIVE map, build its topology library and report fragments, anchors and timings.
+    Inspect {
+        /// The map (.xodr).
+        map: PathBuf,
+        /// Write the topology library (fragments, anchors, maneuver paths) as JSON here.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Draw lanes, marks, fragments and anchors as SVG here.
+        #[arg(long)]
+        svg: Option<PathBuf>,
+        /// Hand annotations (TOML; default: the map's name with .toml, when it exists).
+        #[arg(long)]
+        annotations: Option<PathBuf>,
+    },
+}
+
+/// Runs a `map` command.
+pub fn run(command: MapCommand) -> anyhow::Result<()> {
+    use anyhow::Context as _;
+    let MapCommand::Inspect { map, json: json_out, svg, annotations } = command;
+    let inspection = v2t_map::inspect(&map, annotations.as_deref())?;
+    print!("{}", report(&map, &inspection));
+    if let Some(path) = json_out {
+        crate::write_json(&path, &json(&map, &inspection))?;
+    }
+    if let Some(path) = svg {
+        let text = v2t_map::svg::render(&inspection.map, &inspection.library);
+        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
 }
 
 /// What `--json` writes: the library with the map's warnings and timings.
 #[derive(Debug, Serialize)]
-pub struct InspectJson<'a> {
+struct InspectJson<'a> {
     /// Map file.
     pub file: String,
     /// OpenDRIVE revision.
@@ -43,29 +62,8 @@ pub struct InspectJson<'a> {
     pub library: &'a TopologyLibrary,
 }
 
-/// Loads `path`, builds the library and applies annotations (`annotations`, or `<map>.toml`
-/// beside the map when it exists).
-pub fn inspect(path: &Path, annotations: Option<&Path>) -> Result<Inspection, MapError> {
-    let t0 = Instant::now();
-    let map = Map::load(path)?;
-    let parse = t0.elapsed();
-    let t1 = Instant::now();
-    let mut library = TopologyLibrary::build(&map);
-    let build = t1.elapsed();
-    let beside = path.with_extension("toml");
-    let notes_path = annotations.map(Path::to_path_buf).or_else(|| beside.exists().then_some(beside));
-    let mut applied = None;
-    if let Some(p) = notes_path {
-        let text =
-            std::fs::read_to_string(&p).map_err(|source| MapError::Io { path: p.display().to_string(), source })?;
-        library.annotate(&Annotations::parse(&text, &p.display().to_string())?)?;
-        applied = Some(p.display().to_string());
-    }
-    Ok(Inspection { map, library, parse, build, annotations: applied })
-}
-
 /// The `--json` document.
-pub fn json<'a>(file: &Path, i: &'a Inspection) -> InspectJson<'a> {
+fn json<'a>(file: &Path, i: &'a Inspection) -> InspectJson<'a> {
     InspectJson {
         file: file.display().to_string(),
         revision: format!("{}.{}", i.map.document.revision.0, i.map.document.revision.1),
@@ -78,7 +76,7 @@ pub fn json<'a>(file: &Path, i: &'a Inspection) -> InspectJson<'a> {
 }
 
 /// The human-readable report.
-pub fn report(file: &Path, i: &Inspection) -> String {
+fn report(file: &Path, i: &Inspection) -> String {
     use std::fmt::Write;
     let m = &i.map;
     let lib = &i.library;

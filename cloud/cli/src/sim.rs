@@ -1,82 +1,112 @@
-//! `video2track sim`: one scenario in the simulated proving ground with a BV that follows its
-//! reference, and a plain-text report of what happened.
+//! `video2track sim`, `replay` and `render`: one run in the simulated proving ground, measured
+//! again from its recording, or drawn as a video.
 
-use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
 
-use v2t_model::metrics::{ConflictKind, PetOutcome};
-use v2t_sim::bv::{BvController, ReferenceFollower};
-use v2t_sim::runner::{FirstThrough, RunError, RunOutcome, run};
-use v2t_sim::scenario::Scenario;
+use v2t_sim::recording;
 use v2t_sim::vut::VutModel;
 
-/// Runs `scenario` with reference-following BVs and the given (or the card's) VUT model.
-pub fn run_reference(scenario: &Scenario, vut: Option<VutModel>, seed: u64) -> Result<RunOutcome, RunError> {
-    let model = vut.unwrap_or(scenario.vut.default_model);
-    let mut driver = model.driver();
-    let mut bvs: Vec<Box<dyn BvController>> =
-        scenario.bvs.iter().map(|_| Box::new(ReferenceFollower::default()) as Box<dyn BvController>).collect();
-    run(scenario, &mut bvs, driver.as_mut(), seed)
+use crate::write_json;
+
+/// `sim`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct SimArgs {
+    /// Scenario card (TOML), e.g. config/scenarios/left_turn_basic.toml.
+    card: PathBuf,
+    /// Random seed of sensor noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// VUT driver model (default: the card's).
+    #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(VutModel::names()))]
+    vut: Option<String>,
+    /// Write the results and the full trace as JSON to this file.
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Record the run as MCAP (truth, scene, commands, predicted PET) to this file.
+    #[arg(long)]
+    mcap: Option<PathBuf>,
 }
 
-fn who(f: Option<FirstThrough>) -> &'static str {
-    match f {
-        Some(FirstThrough::Bv) => "BV",
-        Some(FirstThrough::Vut) => "VUT",
-        None => "nobody",
+/// Runs the card and prints what happened.
+pub fn run(a: SimArgs) -> anyhow::Result<()> {
+    let scenario = v2t_sim::files::load_scenario(&a.card)?;
+    let model = match a.vut {
+        Some(name) => Some(name.parse::<VutModel>().map_err(crate::Usage)?),
+        None => None,
+    };
+    let outcome = v2t_lab::sim::run_reference(&scenario, model, a.seed)?;
+    print!("{}", v2t_lab::sim::report(&outcome));
+    if let Some(path) = a.mcap {
+        recording::write(&outcome, &path)?;
+        println!("wrote {}", path.display());
     }
+    if let Some(path) = a.json {
+        write_json(&path, &outcome)?;
+    }
+    Ok(())
 }
 
-/// A short human-readable report of a run.
-pub fn report(outcome: &RunOutcome) -> String {
-    let r = &outcome.result;
-    let mut out = String::new();
-    let _ = writeln!(
-        out,
-        "scenario {}  |  VUT {}  |  BV {}  |  seed {}  |  style {} (target PET {:.2} s)",
-        r.scenario, r.vut_model, r.bv_controller, r.seed, r.style, r.tau_s
-    );
-    for c in &r.conflicts {
-        let pet = match c.pet {
-            PetOutcome::Measured { pet_s, overlap: false, .. } => format!("PET {pet_s:.2} s"),
-            PetOutcome::Measured { pet_s, overlap: true, .. } => {
-                format!("PET {pet_s:.2} s (both vehicles in the zone at once)")
-            }
-            PetOutcome::Censored { pet_lower_bound_s, .. } => {
-                format!("PET > {pet_lower_bound_s:.2} s (the second vehicle never entered)")
-            }
-            PetOutcome::NotReached => "PET undefined (nobody reached the zone)".to_owned(),
-        };
-        let order = match c.order_matches_style {
-            Some(true) => "order as the style asks",
-            Some(false) => "order OPPOSITE to the style",
-            None => "no order",
-        };
-        let _ = writeln!(
-            out,
-            "  conflict with {} ({}): {} first through, {}, {}",
-            c.bv_id,
-            match c.kind {
-                ConflictKind::Crossing => "crossing",
-                ConflictKind::Merge => "merge",
-            },
-            who(c.first),
-            pet,
-            order
-        );
+/// `replay`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct ReplayArgs {
+    /// The recording (.mcap).
+    recording: PathBuf,
+    /// Write the recomputed result as JSON here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+/// Measures the recording again; an error when anything differs.
+pub fn replay(a: ReplayArgs) -> anyhow::Result<()> {
+    let r = recording::replay(&a.recording)?;
+    print!("{}", recording::report(&a.recording, &r));
+    if let Some(path) = a.json {
+        write_json(&path, &r.recomputed)?;
     }
-    let fmt_opt = |v: Option<f64>| v.map_or_else(|| "n/a".to_owned(), |x| format!("{x:.2} s"));
-    let _ = writeln!(
-        out,
-        "  PET_min {}  |  min distance {:.2} m at {:.1} s  |  min TTC {}  |  collision {}  |  {} after {:.1} s",
-        fmt_opt(r.pet_min_s),
-        r.min_distance_m,
-        r.min_distance_t_s,
-        fmt_opt(r.min_ttc_s),
-        r.collision
-            .as_ref()
-            .map_or_else(|| "none".to_owned(), |c| format!("{} and {} at {:.2} s", c.agents[0], c.agents[1], c.t_s)),
-        if r.completed { "completed" } else { "stopped" },
-        r.duration_s
+    if r.matches() { Ok(()) } else { anyhow::bail!("the recomputed metrics differ from the recorded ones") }
+}
+
+/// `render`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct RenderArgs {
+    /// The run (JSON written by `video2track sim --json`).
+    run: PathBuf,
+    /// The video to write, e.g. run.mp4.
+    #[arg(short, long)]
+    out: PathBuf,
+    /// Frames per second (poses between the run's 10 Hz samples are interpolated).
+    #[arg(long, default_value_t = 10)]
+    fps: u32,
+    /// Width, px (even); the height is 9/16 of it.
+    #[arg(long, default_value_t = 960)]
+    width: u32,
+    /// The run's scenario card: footprints and routes (default: 4.8 m × 1.85 m, driven paths).
+    #[arg(long)]
+    card: Option<PathBuf>,
+    /// A map (.xodr) whose lanes are drawn underneath.
+    #[arg(long)]
+    map: Option<PathBuf>,
+}
+
+/// Draws the run and pipes the frames to ffmpeg.
+pub fn render(a: RenderArgs) -> anyhow::Result<()> {
+    use v2t_export::video;
+    let opts = video::RenderOptions { fps: a.fps, width: a.width };
+    opts.validate()?;
+    let scene = video::load_scene(&a.run, a.card.as_deref(), a.map.as_deref())?;
+    let done = video::encode(&scene, &opts, &a.out, Path::new("ffmpeg"))?;
+    let (t0, t1) = scene.time_span();
+    println!(
+        "{}: {} vehicles, {:.1} s  |  {} frames at {} fps, {}x{}, {}",
+        scene.name,
+        scene.vehicles.len(),
+        t1 - t0,
+        done.frames,
+        a.fps,
+        done.width,
+        done.height,
+        done.encoder
     );
-    out
+    println!("wrote {}", a.out.display());
+    Ok(())
 }

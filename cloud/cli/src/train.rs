@@ -1,9 +1,9 @@
-//! `video2track train`: the denoiser of `v2t-diffusion` trained on a corpus (by default the
+//! `video2track train` and `realism`: the denoiser of `v2t-diffusion` trained on a corpus (by default the
 //! **synthetic** corpus generated on the proving ground), with a progress bar, checkpoints, a
 //! held-out split and a metrics file.
 
 use std::io::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use v2t_diffusion::denoiser::DenoiserConfig;
 use v2t_diffusion::synth::{SyntheticCorpus, generate_corpus, read_jsonl_file};
@@ -14,8 +14,101 @@ use v2t_diffusion::weights;
 pub const DEFAULT_EPISODES: usize = 1000;
 /// … its seed.
 pub const DEFAULT_CORPUS_SEED: u64 = 1;
-/// Where the shipped weights live.
-pub const SHIPPED_WEIGHTS: &str = "config/diffusion/denoiser.safetensors";
+
+/// `train`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct TrainCmd {
+    #[command(flatten)]
+    corpus: CorpusSource,
+    /// Optimizer steps.
+    #[arg(long, default_value_t = 5000)]
+    steps: usize,
+    /// Windows per step.
+    #[arg(long, default_value_t = 64)]
+    batch: usize,
+    /// Peak learning rate.
+    #[arg(long, default_value_t = 1e-3)]
+    lr: f64,
+    /// Seed of initialization, batches and noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Channels of the network.
+    #[arg(long, default_value_t = 64)]
+    hidden: usize,
+    /// Residual blocks.
+    #[arg(long, default_value_t = 4)]
+    blocks: usize,
+    /// Held-out loss (and a metrics line) every this many steps.
+    #[arg(long, default_value_t = 250)]
+    eval_every: usize,
+    /// A checkpoint every this many steps (0: none).
+    #[arg(long, default_value_t = 1000)]
+    checkpoint_every: usize,
+    /// Output directory.
+    #[arg(long, default_value = "target/train")]
+    out: PathBuf,
+}
+
+/// `realism`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct RealismCmd {
+    /// Denoiser weights (safetensors).
+    #[arg(long, default_value = v2t_files::shipped::WEIGHTS)]
+    weights: PathBuf,
+    #[command(flatten)]
+    corpus: CorpusSource,
+    /// Held-out windows compared (one per held-out episode).
+    #[arg(long, default_value_t = 100)]
+    windows: usize,
+    /// Sampling seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Write the rows as JSON here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+/// `train`: trains, writes, says what it did.
+pub fn train(a: TrainCmd) -> anyhow::Result<()> {
+    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    let args = TrainArgs {
+        corpus: a.corpus,
+        options: TrainOptions {
+            steps: a.steps,
+            batch: a.batch,
+            learning_rate: a.lr,
+            seed: a.seed,
+            eval_every: a.eval_every,
+            ..TrainOptions::default()
+        },
+        config: DenoiserConfig { hidden: a.hidden, blocks: a.blocks, ..DenoiserConfig::default() },
+        stride: 5,
+        out: a.out,
+        checkpoint_every: a.checkpoint_every,
+        command,
+    };
+    let done = run_training(&args)?;
+    println!(
+        "trained {} parameters in {:.0} s, held-out loss {:.4}; wrote {} and {}",
+        done.parameters,
+        done.elapsed_s,
+        done.heldout_loss,
+        done.weights.display(),
+        done.metrics.display()
+    );
+    Ok(())
+}
+
+/// `realism`: the table, and the JSON when asked.
+pub fn realism(a: RealismCmd) -> anyhow::Result<()> {
+    let args = RealismArgs { weights: a.weights, corpus: a.corpus, windows: a.windows, seed: a.seed };
+    let rows = realism_rows(&args)?;
+    print!("{}", realism_table(&rows));
+    if let Some(path) = a.json {
+        crate::write_json(&path, &rows)?;
+    }
+    Ok(())
+}
 
 /// The corpus `train` learns from and `realism` compares with (also the command-line options).
 #[derive(Debug, Clone, clap::Args)]
@@ -25,7 +118,7 @@ pub struct CorpusSource {
     #[arg(long)]
     pub data: Option<PathBuf>,
     /// The corpus's map (routes come from its topology library).
-    #[arg(long, default_value = crate::ground::DEFAULT_MAP)]
+    #[arg(long, default_value = v2t_files::shipped::MAP)]
     pub map: PathBuf,
     /// Episodes of the generated corpus.
     #[arg(long, default_value_t = DEFAULT_EPISODES)]
@@ -35,9 +128,9 @@ pub struct CorpusSource {
     pub corpus_seed: u64,
 }
 
-/// What `train` needs.
+/// What training needs.
 #[derive(Debug, Clone)]
-pub struct TrainArgs {
+struct TrainArgs {
     /// The corpus.
     pub corpus: CorpusSource,
     /// Optimizer settings.
@@ -56,7 +149,7 @@ pub struct TrainArgs {
 
 /// What training produced.
 #[derive(Debug, Clone)]
-pub struct TrainOutcome {
+struct TrainOutcome {
     /// The weights file.
     pub weights: PathBuf,
     /// The metrics file.
@@ -116,7 +209,7 @@ fn progress(m: &TrainMetrics, total: usize) {
 }
 
 /// Trains and writes the weights, checkpoints and metrics under `args.out`.
-pub fn train(args: &TrainArgs) -> anyhow::Result<TrainOutcome> {
+fn run_training(args: &TrainArgs) -> anyhow::Result<TrainOutcome> {
     let started = std::time::Instant::now();
     let map = v2t_map::Map::load(&args.corpus.map)?;
     let library = v2t_map::library::TopologyLibrary::build(&map);
@@ -166,14 +259,9 @@ pub fn train(args: &TrainArgs) -> anyhow::Result<TrainOutcome> {
     })
 }
 
-/// The default weights path, relative to the working directory (the repository root).
-pub fn shipped_weights() -> &'static Path {
-    Path::new(SHIPPED_WEIGHTS)
-}
-
-/// What `realism` needs.
+/// What the realism measurement needs.
 #[derive(Debug, Clone)]
-pub struct RealismArgs {
+struct RealismArgs {
     /// Weights to evaluate.
     pub weights: PathBuf,
     /// The corpus they were trained on.
@@ -186,9 +274,9 @@ pub struct RealismArgs {
 
 /// The realism table (W₁ against the held-out split of the corpus the weights were trained on)
 /// for no guidance, anchors only and full guidance.
-pub fn realism(args: &RealismArgs) -> anyhow::Result<Vec<v2t_diffusion::realism::RealismRow>> {
+fn realism_rows(args: &RealismArgs) -> anyhow::Result<Vec<v2t_diffusion::realism::RealismRow>> {
     use v2t_diffusion::guidance::GuidanceWeights;
-    let model = crate::generate::load_model(&args.weights)?;
+    let model = weights::load(&args.weights)?;
     let map = v2t_map::Map::load(&args.corpus.map)?;
     let library = v2t_map::library::TopologyLibrary::build(&map);
     let (corpus, _) = load_corpus(&args.corpus, &map)?;
@@ -212,7 +300,7 @@ pub fn realism(args: &RealismArgs) -> anyhow::Result<Vec<v2t_diffusion::realism:
 }
 
 /// The realism rows as a markdown table.
-pub fn realism_table(rows: &[v2t_diffusion::realism::RealismRow]) -> String {
+fn realism_table(rows: &[v2t_diffusion::realism::RealismRow]) -> String {
     let f = |v: Option<f64>, unit: &str| v.map_or("-".to_owned(), |x| format!("{x:.3} {unit}"));
     let mut out = String::from(
         "| vs held-out | windows | W1 acceleration | W1 jerk | W1 yaw rate | median anchor error |\n|---|---|---|---|---|---|\n",

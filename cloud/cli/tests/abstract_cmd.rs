@@ -48,7 +48,7 @@ fn replaying_the_shipped_cassettes_writes_their_semantics_byte_for_byte() {
         for needle in [
             &format!("video {video}") as &str,
             "frames 16, 32x18 at ",
-            "model gpt-5.4",
+            "model none: hand-written exchange",
             "prompt semantics-v1",
             "1 request(s), 0 repair(s)",
             &format!("PET label {pet} s"),
@@ -97,9 +97,14 @@ fn expect_input_error(args: &[&str], needles: &[&str]) {
 #[test]
 fn bad_labels_are_input_errors() {
     let replay = ["abstract", "cut_in_4.70.mp4", "--replay", "config/vlm/cassettes/cut_in", "--pet-label"];
-    for (label, needle) in
-        [("nan", "NaN"), ("0", "PET label"), ("-1", "PET label"), ("30.5", "(0, 30]"), ("soon", "soon")]
-    {
+    for (label, needle) in [
+        ("nan", "NaN"),
+        ("0", "PET label"),
+        ("-1", "PET label"),
+        ("0.05", "[0.1, 30]"),
+        ("30.5", "[0.1, 30]"),
+        ("soon", "soon"),
+    ] {
         expect_input_error(&[&replay[..], &[label]].concat(), &[needle]);
         // Checked before the video and the endpoint.
         expect_input_error(&["abstract", "no/such/video.mp4", "--pet-label", label], &[needle]);

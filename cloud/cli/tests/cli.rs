@@ -213,9 +213,12 @@ fn experiment_options_an_experiment_would_ignore_are_refused() {
     for (args, needle) in [
         (&["experiment", "fidelity", "--tau", "3"][..], "--tau applies to `experiment steerability` only"),
         (&["experiment", "adversariality", "--card", "config/scenarios/cut_in_basic.toml"][..], "--card applies"),
+        (&["experiment", "steerability", "--tau", "0"][..], "τ must lie in [0.1, 30] s"),
+        (&["experiment", "steerability", "--tau", "NaN"][..], "τ must lie in [0.1, 30] s"),
+        (&["experiment", "steerability", "--repeats", "0"][..], "--repeats must be at least 1"),
         (
             &["experiment", "steerability", "--methods", "--card", "config/scenarios/cut_in_basic.toml"][..],
-            "the four methods run on the two recorded scenarios",
+            "the four methods run on the paper's two scenarios",
         ),
     ] {
         let o = video2track(args);

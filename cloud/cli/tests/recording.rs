@@ -42,14 +42,14 @@ fn recorded_runs_replay_to_the_same_metrics_and_altered_ones_do_not() {
     }
     // The replay measures the recorded truth, it does not echo the recorded result: a run whose
     // truth is shifted (the VUT 2 m further along its route at every step) replays differently.
-    let scenario = video2track::files::load_scenario(&repo().join("config/scenarios/left_turn_basic.toml")).unwrap();
-    let mut run = video2track::sim::run_reference(&scenario, None, 1).unwrap();
+    let scenario = v2t_sim::files::load_scenario(&repo().join("config/scenarios/left_turn_basic.toml")).unwrap();
+    let mut run = v2t_lab::sim::run_reference(&scenario, None, 1).unwrap();
     for s in &mut run.truth.agents[0].s_m {
         *s += 2.0;
     }
     let shifted = dir.join("shifted.mcap");
-    video2track::recording::write(&run, &shifted).unwrap();
-    let r = video2track::recording::replay(&shifted).unwrap();
+    v2t_sim::recording::write(&run, &shifted).unwrap();
+    let r = v2t_sim::recording::replay(&shifted).unwrap();
     assert!(!r.matches(), "a shifted truth replayed to the recorded result");
     assert_ne!(r.recorded["pet_min_s"], r.recomputed["pet_min_s"]);
     let o = video2track(&["replay", shifted.to_str().unwrap()]);

@@ -66,6 +66,9 @@ pub enum GenerateError {
     /// Sampling failed.
     #[error(transparent)]
     Sample(#[from] SampleError),
+    /// No variant was generated (zero asked for).
+    #[error("no variant generated")]
+    NoVariant,
 }
 
 /// The weights of full guidance: the kinematic term counts four times, so that guidance trades
@@ -516,6 +519,53 @@ pub fn measure(
 /// limits, every conflict in the style's order.
 pub fn acceptable(m: &PriorMetrics) -> bool {
     m.boundary_crossings == 0 && m.agents_within_limits == m.agents && m.order_ok == m.conflicts
+}
+
+/// The variant to hand on: the one with the smallest worst anchor error among the [`acceptable`]
+/// ones (else the smallest overall).
+pub fn best(generated: &[Generated]) -> Option<&Generated> {
+    let worst = |g: &Generated| g.metrics.anchor_errors_m.iter().copied().fold(0.0, f64::max);
+    let by_worst = |a: &&Generated, b: &&Generated| worst(a).total_cmp(&worst(b));
+    generated.iter().filter(|g| acceptable(&g.metrics)).min_by(by_worst).or_else(|| generated.iter().min_by(by_worst))
+}
+
+/// Summary over variants.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Summary {
+    /// Variants generated.
+    pub variants: usize,
+    /// Median anchor error over every anchor of every variant, m.
+    pub median_anchor_error_m: f64,
+    /// Largest anchor error, m.
+    pub max_anchor_error_m: f64,
+    /// Agents crossing a solid boundary, over all variants.
+    pub boundary_crossings: usize,
+    /// Fraction of agent trajectories within the vehicle limits.
+    pub within_limits_frac: f64,
+    /// Fraction of conflicts passed in the style's order.
+    pub order_ok_frac: f64,
+    /// Variants drawn again because they crossed a boundary, left the limits or the order.
+    pub redrawn: usize,
+    /// Wall time of the sampling (all variants), s.
+    pub sampling_s: f64,
+}
+
+/// The summary of generated variants, `redrawn` of which were drawn again, sampled in `sampling_s`.
+pub fn summarize(generated: &[Generated], redrawn: usize, sampling_s: f64) -> Summary {
+    let mut errors: Vec<f64> = generated.iter().flat_map(|g| g.metrics.anchor_errors_m.iter().copied()).collect();
+    let agents: usize = generated.iter().map(|g| g.metrics.agents).sum();
+    let conflicts: usize = generated.iter().map(|g| g.metrics.conflicts).sum();
+    Summary {
+        variants: generated.len(),
+        max_anchor_error_m: errors.iter().copied().fold(0.0, f64::max),
+        median_anchor_error_m: crate::stats::median(&mut errors).unwrap_or(f64::NAN),
+        boundary_crossings: generated.iter().map(|g| g.metrics.boundary_crossings).sum(),
+        within_limits_frac: generated.iter().map(|g| g.metrics.agents_within_limits).sum::<usize>() as f64
+            / agents.max(1) as f64,
+        order_ok_frac: generated.iter().map(|g| g.metrics.order_ok).sum::<usize>() as f64 / conflicts.max(1) as f64,
+        redrawn,
+        sampling_s,
+    }
 }
 
 /// `options.variants` priors for `scenario`, with the number of variants drawn again.

@@ -202,8 +202,8 @@ fn quadratic_fit_rms(points: &[(f64, f64)]) -> f64 {
 
 /// PET at a zone and who went first; `None` unless both passed.
 fn measure(a: &Driven<'_>, b: &Driven<'_>, zone: &ConflictZone, t_end: f64) -> Option<(bool, f64, f64)> {
-    let pa = passage(&a.times, &a.s, &zone.a);
-    let pb = passage(&b.times, &b.s, &zone.b);
+    let pa = passage(&a.times, &a.s, &zone.vut);
+    let pb = passage(&b.times, &b.s, &zone.bv);
     match pet(pa, pb, t_end) {
         PetOutcome::Measured { first, pet_s, .. } => {
             let a_first = first == v2t_model::metrics::Side::A;
@@ -214,7 +214,8 @@ fn measure(a: &Driven<'_>, b: &Driven<'_>, zone: &ConflictZone, t_end: f64) -> O
     }
 }
 
-/// Interactions where `b` joins `a` or the two cross.
+/// Interactions where `b` joins `a` or the two cross. In the zones, `a` takes the VUT's side and
+/// `b` the BV's (the side that may join the other's lane).
 /// Joins come with how much the joining path weaves around the join (to tell, when both
 /// directions report one, which vehicle moved over).
 fn zones_of(a: &Driven<'_>, b: &Driven<'_>, opts: &MiningOptions, crossings: bool, out: &mut Vec<(Interaction, f64)>) {
@@ -228,12 +229,12 @@ fn zones_of(a: &Driven<'_>, b: &Driven<'_>, opts: &MiningOptions, crossings: boo
         }
         let (id_a, id_b) = (a.track.id.clone(), b.track.id.clone());
         let first = if a_first { id_a.clone() } else { id_b.clone() };
-        let s_b = 0.5 * (zone.b.enter_s_m + zone.b.exit_s_m);
+        let s_b = 0.5 * (zone.bv.enter_s_m + zone.bv.exit_s_m);
         let weave = b.weave(s_b - 3.0 * opts.approach_m, s_b + 2.0 * opts.approach_m);
         let kind_actor = match zone.kind {
             ConflictKind::Crossing if crossings => {
-                let ta = a.turn(zone.a.enter_s_m, zone.a.exit_s_m, 15.0);
-                let tb = b.turn(zone.b.enter_s_m, zone.b.exit_s_m, 15.0);
+                let ta = a.turn(zone.vut.enter_s_m, zone.vut.exit_s_m, 15.0);
+                let tb = b.turn(zone.bv.enter_s_m, zone.bv.exit_s_m, 15.0);
                 if ta.max(tb) >= opts.left_turn_min_rad {
                     Some((InteractionKind::LeftTurn, if ta >= tb { (id_a, id_b) } else { (id_b, id_a) }))
                 } else {
@@ -242,7 +243,7 @@ fn zones_of(a: &Driven<'_>, b: &Driven<'_>, opts: &MiningOptions, crossings: boo
             }
             ConflictKind::Crossing => None,
             ConflictKind::Merge => {
-                let s_a = 0.5 * (zone.a.enter_s_m + zone.a.exit_s_m);
+                let s_a = 0.5 * (zone.vut.enter_s_m + zone.vut.exit_s_m);
                 if s_b < 1.0 || s_a < 1.0 {
                     None // following in one lane from the start, or `a` appears at the join
                 } else {

@@ -149,6 +149,14 @@ pub enum WeightsError {
     /// The tensor library failed.
     #[error("weights: {0}")]
     Tensor(String),
+    /// A weights file that is not usable, and why.
+    #[error("{path}: {source}")]
+    File {
+        /// The file.
+        path: String,
+        /// Why.
+        source: Box<WeightsError>,
+    },
 }
 
 fn tensor_err(e: candle_core::Error) -> WeightsError {
@@ -257,7 +265,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Model, WeightsError> {
 pub fn load(path: &std::path::Path) -> Result<Model, WeightsError> {
     let bytes = std::fs::read(path)
         .map_err(|e| WeightsError::Io { path: path.display().to_string(), message: e.to_string() })?;
-    from_bytes(&bytes)
+    from_bytes(&bytes).map_err(|e| WeightsError::File { path: path.display().to_string(), source: Box::new(e) })
 }
 
 #[cfg(test)]

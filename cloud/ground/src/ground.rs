@@ -326,10 +326,11 @@ fn zone(
             .min_by(|a, b| a.anchor.dist(anchor.position).total_cmp(&b.anchor.dist(anchor.position)))
     };
     if let Some(z) = nearest(conflict_zones(vut, opt.vut, bv, opt.bv, &options)) {
-        return Ok((z.kind, z.a, z.b));
+        return Ok((z.kind, z.vut, z.bv));
     }
+    // The VUT's route joining the BV's lane: the BV's path plays the joined side, so the sides swap.
     if let Some(z) = nearest(conflict_zones(bv, opt.bv, vut, opt.vut, &options)) {
-        return Ok((z.kind, z.b, z.a));
+        return Ok((z.kind, z.bv, z.vut));
     }
     // The corridors do not overlap near the anchor (it should not happen): the footprints at the anchor.
     let s_v = vut.project(anchor.position).ok_or("anchor is not finite")?.s_m;

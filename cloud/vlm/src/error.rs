@@ -18,14 +18,9 @@ pub enum VlmError {
     /// The prompt file is unusable.
     #[error(transparent)]
     Prompt(#[from] PromptError),
-    /// The operator's PET label is out of range.
-    #[error("PET label must lie in (0, {max}] s, got {value}")]
-    PetLabel {
-        /// The label given.
-        value: f64,
-        /// The largest accepted.
-        max: f64,
-    },
+    /// The operator's PET label is out of range (the range of a target τ).
+    #[error("PET label: {0}")]
+    PetLabel(v2t_model::TargetError),
     /// The server answered with a status that retrying does not fix (400, 401, 404, …).
     #[error("the VLM server answered HTTP {status}: {body}")]
     Http {

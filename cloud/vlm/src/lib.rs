@@ -45,7 +45,7 @@ pub mod transport;
 
 use std::path::{Path, PathBuf};
 
-use v2t_model::semantics::{MAX_PET_LABEL_S, ScenarioSemantics, SourceMetadata};
+use v2t_model::semantics::{ScenarioSemantics, SourceMetadata};
 
 pub use crate::answer::AnswerProblem;
 pub use crate::config::{ApiKey, ConfigError, RequestSettings, RetryPolicy, StructuredOutput, Timeouts, VlmConfig};
@@ -103,16 +103,17 @@ pub struct Abstraction {
     pub prompt_version: String,
     /// The model asked for.
     pub model: String,
+    /// Where the answer comes from: a live exchange with the endpoint, or the cassette's own
+    /// provenance note (`recorded`, or what a hand-written cassette says it is).
+    pub provenance: String,
 }
 
 /// Turns a video into scenario semantics. `pet_label_s` is the operator's PET label for the video
-/// (from the command line or an annotation file), in (0, 30] s.
+/// (from the command line or an annotation file), in the range of a target τ (0.1–30 s).
 ///
 /// In [`Mode::Replay`] the video file is not read: only its file name must be the recorded one.
 pub fn abstract_video(video: &Path, pet_label_s: f64, cfg: &VlmConfig, mode: &Mode) -> Result<Abstraction, VlmError> {
-    if !(pet_label_s > 0.0 && pet_label_s <= MAX_PET_LABEL_S) {
-        return Err(VlmError::PetLabel { value: pet_label_s, max: MAX_PET_LABEL_S });
-    }
+    v2t_model::Target::new(pet_label_s, v2t_model::Style::Rush).map_err(VlmError::PetLabel)?;
     let prompt = match &cfg.prompt_file {
         Some(path) => Prompt::load(path)?,
         None => Prompt::builtin()?,
@@ -122,7 +123,9 @@ pub fn abstract_video(video: &Path, pet_label_s: f64, cfg: &VlmConfig, mode: &Mo
             cfg.validate()?;
             let (info, frames) = frames::extract_frames(video, &cfg.frames)?;
             let mut transport = HttpTransport::new(&cfg.base_url, cfg.api_key.clone(), cfg.timeouts);
-            let input = RunInput { video, info: &info, frames: &frames, pet_label_s, settings: &cfg.request };
+            let provenance = format!("live exchange with {} at {}", cfg.request.model, cfg.base_url);
+            let input =
+                RunInput { video, info: &info, frames: &frames, pet_label_s, settings: &cfg.request, provenance };
             run(&mut transport, input, cfg, &prompt)
         }
         Mode::Record(dir) => {
@@ -130,7 +133,9 @@ pub fn abstract_video(video: &Path, pet_label_s: f64, cfg: &VlmConfig, mode: &Mo
             let (info, frames) = frames::extract_frames(video, &cfg.frames)?;
             let transport = HttpTransport::new(&cfg.base_url, cfg.api_key.clone(), cfg.timeouts);
             let mut recorder = Recorder::new(transport, cfg.api_key.is_some());
-            let input = RunInput { video, info: &info, frames: &frames, pet_label_s, settings: &cfg.request };
+            let provenance = format!("live exchange with {} at {}, recorded", cfg.request.model, cfg.base_url);
+            let input =
+                RunInput { video, info: &info, frames: &frames, pet_label_s, settings: &cfg.request, provenance };
             let result = run(&mut recorder, input, cfg, &prompt);
             let manifest = Manifest {
                 format: cassette::FORMAT.into(),
@@ -198,7 +203,8 @@ fn replay(
     }
     let frames = cassette.frames()?;
     let mut replayer = Replayer::new(&cassette, bless);
-    let input = RunInput { video, info: &m.video, frames: &frames, pet_label_s, settings: &m.settings };
+    let provenance = format!("replayed cassette {}: {}", dir.display(), m.provenance);
+    let input = RunInput { video, info: &m.video, frames: &frames, pet_label_s, settings: &m.settings, provenance };
     let abstraction = run(&mut replayer, input, cfg, prompt)?;
     replayer.finish()?;
     Ok((abstraction, replayer))
@@ -211,6 +217,7 @@ struct RunInput<'a> {
     frames: &'a [Frame],
     pet_label_s: f64,
     settings: &'a RequestSettings,
+    provenance: String,
 }
 
 fn run(
@@ -219,7 +226,7 @@ fn run(
     cfg: &VlmConfig,
     prompt: &Prompt,
 ) -> Result<Abstraction, VlmError> {
-    let RunInput { video, info, frames, pet_label_s, settings } = input;
+    let RunInput { video, info, frames, pet_label_s, settings, provenance } = input;
     let source = SourceMetadata {
         video: file_name(video),
         dataset: None,
@@ -257,6 +264,7 @@ fn run(
         schema_in_prompt,
         prompt_version: prompt.version().into(),
         model: settings.model.clone(),
+        provenance,
     })
 }
 

@@ -29,9 +29,11 @@ fn shipped_cassettes_replay_to_the_example_semantics() {
         }
         let cassette = Cassette::load(&dir).unwrap();
         assert!(cassette.manifest.provenance.starts_with("HAND-WRITTEN, not real model output"), "{name}");
+        assert!(cassette.manifest.settings.model.contains("hand-written"), "{name}: names no real model");
 
         let a = abstract_video(Path::new(video), pet, &VlmConfig::default(), &Mode::Replay(dir.clone())).unwrap();
         assert_eq!((a.requests, a.repairs), (1, 0), "{name}");
+        assert!(a.provenance.contains("HAND-WRITTEN"), "{name}: a replay says where its answer comes from");
         let replayed = semantics_text(&a.semantics).unwrap();
 
         // The document the cassette recorded ...

@@ -263,7 +263,7 @@ fn a_bad_pet_label_or_config_fails_before_any_request() {
     let server = Server::start(vec![Reply::chat(&cut_in())]);
     let cfg = config(&server);
     for pet in [0.0, -1.0, 31.0, f64::NAN] {
-        assert!(matches!(abstract_video(video(), pet, &cfg, &Mode::Live), Err(VlmError::PetLabel { .. })));
+        assert!(matches!(abstract_video(video(), pet, &cfg, &Mode::Live), Err(VlmError::PetLabel(_))));
     }
     let mut no_model = cfg.clone();
     no_model.request.model = " ".into();
@@ -307,7 +307,9 @@ fn a_recorded_run_replays_offline_byte_for_byte_and_keeps_the_key_out() {
     // Offline: no server, no video file, no endpoint in the config.
     let offline = Mode::Replay(dir.to_path_buf());
     let replayed = abstract_video(std::path::Path::new("clip.mp4"), 4.7, &VlmConfig::default(), &offline).unwrap();
-    assert_eq!(replayed, recorded);
+    assert!(recorded.provenance.starts_with("live exchange with vision-model-x"), "{}", recorded.provenance);
+    assert!(replayed.provenance.ends_with(": recorded"), "a replay says it replays: {}", replayed.provenance);
+    assert_eq!(v2t_vlm::Abstraction { provenance: recorded.provenance.clone(), ..replayed.clone() }, recorded);
     let written = std::fs::read_to_string(dir.join("semantics.json")).unwrap();
     assert_eq!(semantics_text(&replayed.semantics).unwrap(), written);
 
@@ -339,6 +341,6 @@ fn a_recorded_timeout_replays_as_a_timeout() {
 
     let started = Instant::now();
     let replayed = abstract_video(video(), 2.0, &VlmConfig::default(), &Mode::Replay(dir.to_path_buf())).unwrap();
-    assert_eq!(replayed, recorded);
+    assert_eq!(v2t_vlm::Abstraction { provenance: recorded.provenance.clone(), ..replayed }, recorded);
     assert!(started.elapsed() < Duration::from_millis(300), "a replay does not wait");
 }

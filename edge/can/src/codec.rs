@@ -202,7 +202,7 @@ pub struct SteerCmd {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct ControlState {
     /// Gate state code: 0 disengaged, 1 engaged, 2 minimal-risk stop, 3 fault
-    /// (the codes of [`crate::gate::GateState`] and `v2t_wire::GateState`).
+    /// (the codes of [`v2t_wire::GateState`]).
     pub gate_state: u8,
     /// The gate wants the DBW in automatic mode.
     pub engage_request: bool,

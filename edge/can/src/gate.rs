@@ -43,6 +43,7 @@
 use serde::{Deserialize, Serialize};
 use v2t_model::validate::{Validate, ValidationError, in_range};
 use v2t_model::vehicle::VehicleConfig;
+pub use v2t_wire::{GateReason, GateState};
 
 /// Settings of the gate (`config/can/gate.toml`); the vehicle limits come from the vehicle file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -168,85 +169,6 @@ impl Envelope {
         }
     }
 }
-
-/// State of the gate (codes as `v2t_wire::GateState`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum GateState {
-    /// Commands do not reach the actuators (`enable = false`).
-    Disengaged = 0,
-    /// Commands inside the envelope reach the actuators.
-    Engaged = 1,
-    /// The gate brakes the vehicle to a standstill on its own profile.
-    MinimalRiskStop = 2,
-    /// Latched for good: the gate cannot work (invalid configuration, or an internal error).
-    Fault = 3,
-}
-
-/// Why the gate is where it is: the last transition (codes as `v2t_wire::GateReason`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum GateReason {
-    /// Start-up.
-    Init = 0,
-    /// Engaged on request.
-    EngageRequest = 1,
-    /// Disengaged on request (`Disengage` or `Reset`).
-    DisengageRequest = 2,
-    /// The command timed out.
-    CommandTimeout = 3,
-    /// The vehicle feedback timed out (or its speed was not finite).
-    FeedbackTimeout = 4,
-    /// A non-finite command arrived.
-    NonFiniteCommand = 5,
-    /// A minimal-risk stop was requested.
-    StopRequest = 6,
-    /// Emergency stop.
-    EStop = 7,
-    /// The DBW reported a fault, an override or an unknown mode.
-    DbwFault = 8,
-    /// Engage refused: inputs not fresh or not finite, or the DBW not ready.
-    EngageRefused = 9,
-    /// CAN bus error.
-    BusError = 10,
-}
-
-macro_rules! codes {
-    ($ty:ident, [$($v:ident),* $(,)?]) => {
-        impl $ty {
-            /// Every value, in code order.
-            pub const ALL: &'static [Self] = &[$(Self::$v),*];
-
-            /// The wire code.
-            pub const fn code(self) -> u8 {
-                self as u8
-            }
-
-            /// The value of a wire code.
-            pub fn from_code(code: u8) -> Option<Self> {
-                Self::ALL.iter().copied().find(|v| v.code() == code)
-            }
-        }
-    };
-}
-
-codes!(GateState, [Disengaged, Engaged, MinimalRiskStop, Fault]);
-codes!(
-    GateReason,
-    [
-        Init,
-        EngageRequest,
-        DisengageRequest,
-        CommandTimeout,
-        FeedbackTimeout,
-        NonFiniteCommand,
-        StopRequest,
-        EStop,
-        DbwFault,
-        EngageRefused,
-        BusError,
-    ]
-);
 
 /// DBW mode codes of `DBW_Feedback.Mode` (as `v2t_wire::DbwMode`).
 pub mod dbw_mode {

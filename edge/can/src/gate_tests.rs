@@ -69,19 +69,6 @@ fn an_invalid_config_latches_fault() {
 }
 
 #[test]
-fn codes_match_the_wire_codes() {
-    assert_eq!(GateState::ALL.iter().map(|s| s.code()).collect::<Vec<_>>(), [0, 1, 2, 3]);
-    assert_eq!(GateReason::ALL.len(), 11);
-    for (i, r) in GateReason::ALL.iter().enumerate() {
-        assert_eq!(usize::from(r.code()), i);
-        assert_eq!(GateReason::from_code(r.code()), Some(*r));
-    }
-    assert_eq!(GateState::from_code(4), None);
-    assert_eq!(GateReason::BusError.code(), 10);
-    assert_eq!(GateState::MinimalRiskStop.code(), 2);
-}
-
-#[test]
 fn engage_is_refused_with_stale_missing_or_bad_inputs() {
     let cfg = config();
     let now = 10.0;

@@ -32,6 +32,7 @@ use v2t_can::codec::{
 use v2t_can::gate::{Command, GateConfig, GateInput, GateReason, GateState, SafetyGate};
 use v2t_can::transport::{CanError, CanTransport, FrameKind, SocketCanBus};
 use v2t_model::vehicle::VehicleConfig;
+use v2t_wire::Code as _;
 
 /// A frame to inject, what the decoder must say about it.
 type FrameCase = (&'static str, CanFrame, fn(&Result<Message, CodecError>) -> bool);

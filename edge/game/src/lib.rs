@@ -10,7 +10,7 @@
 //!
 //! ```
 //! use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams, RegulatorStatus};
-//! use v2t_model::Style;
+//! use v2t_model::{Style, Target};
 //! use v2t_model::metrics::{ConflictKind, OccupancyInterval};
 //!
 //! let mut regulator = Regulator::new(RegulatorParams::default()).unwrap();
@@ -23,8 +23,7 @@
 //!     zone_bv: OccupancyInterval { enter_s_m: 40.0, exit_s_m: 50.0 },
 //!     zone_vut: OccupancyInterval { enter_s_m: 60.0, exit_s_m: 70.0 },
 //!     zone_kind: ConflictKind::Crossing,
-//!     tau_s: 2.0,
-//!     style: Style::Rush,
+//!     target: Target::new(2.0, Style::Rush).unwrap(),
 //!     reference_speed_mps: 10.0,
 //!     reference_key_time_s: None,
 //! });
@@ -34,10 +33,6 @@
 //! assert!((decision.predicted_pet_s.unwrap() - 2.0).abs() < 0.05);
 //! ```
 
-#[cfg(feature = "sim")]
-pub mod bench;
 pub mod fixtures;
 pub mod qp;
 pub mod regulator;
-#[cfg(feature = "sim")]
-pub mod sim;

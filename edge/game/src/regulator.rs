@@ -37,9 +37,9 @@
 //! Every outcome is a [`RegulatorStatus`] with a defined plan; the acceleration returned is always
 //! finite and within the BV's limits.
 
-use v2t_model::Style;
 use v2t_model::metrics::{ConflictKind, OccupancyInterval};
 use v2t_model::validate::{Validate, ValidationError, in_range, positive};
+use v2t_model::{Style, Target};
 
 use crate::qp::{EventKind, LongitudinalQp, QpError, QpInput, QpShape, QpStatus};
 
@@ -172,10 +172,8 @@ pub struct RegulatorInput {
     pub zone_vut: OccupancyInterval,
     /// Crossing or merge (after a rushing merge the BV is the VUT's lead vehicle).
     pub zone_kind: ConflictKind,
-    /// Target PET τ, s.
-    pub tau_s: f64,
-    /// Who passes first.
-    pub style: Style,
+    /// Target PET τ and who passes first.
+    pub target: Target,
     /// The BV's reference speed now, m/s.
     pub reference_speed_mps: f64,
     /// When the BV's reference reaches its key point, s from now (`None`: no realism pull).
@@ -349,7 +347,7 @@ impl Regulator {
     fn follower(&mut self, inp: &RegulatorInput, key_t: Option<f64>) -> Option<(Option<f64>, f64)> {
         let vut = inp.vut;
         let lim = self.params.vut;
-        let (qp, station, probe) = match inp.style {
+        let (qp, station, probe) = match inp.target.style() {
             // Not in the zone before the BV is out: s_V(T) ≤ entry.
             Style::Rush => (&mut self.follower_upper, inp.zone_vut.enter_s_m, inp.zone_vut.enter_s_m),
             // Out of the zone before the BV comes: s_V(T) ≥ exit.
@@ -393,8 +391,8 @@ impl Regulator {
                 // reference ramps through the average so the key time stays the same; it overshoots
                 // the arrival speed by `MERGE_RAMP_GAIN`, because the plan follows its reference
                 // loosely (speed weight 0.2 against effort and jerk) and would arrive well below it.
-                let v_arrive = if inp.style == Style::Rush && inp.zone_kind == ConflictKind::Merge {
-                    (self.params.vut_headway_s * inp.vut.v_mps / inp.tau_s)
+                let v_arrive = if inp.target.style() == Style::Rush && inp.zone_kind == ConflictKind::Merge {
+                    (self.params.vut_headway_s * inp.vut.v_mps / inp.target.tau_s())
                         .max(inp.vut.v_mps + MERGE_SPEED_MARGIN_MPS)
                         .clamp(v_avg, v_max)
                 } else {
@@ -501,13 +499,9 @@ impl Regulator {
             inp.zone_bv.exit_s_m,
             inp.zone_vut.enter_s_m,
             inp.zone_vut.exit_s_m,
-            inp.tau_s,
             inp.reference_speed_mps,
         ];
-        if finite.iter().any(|x| !x.is_finite())
-            || inp.reference_key_time_s.is_some_and(|t| !t.is_finite())
-            || inp.tau_s <= 0.0
-        {
+        if finite.iter().any(|x| !x.is_finite()) || inp.reference_key_time_s.is_some_and(|t| !t.is_finite()) {
             return self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps);
         }
         if inp.bv.age_s > self.params.max_input_age_s || inp.vut.age_s > self.params.max_input_age_s {
@@ -524,15 +518,15 @@ impl Regulator {
             let beyond_s = (inp.bv.s_m - inp.zone_bv.exit_s_m) / inp.bv.v_mps.max(0.1);
             self.bv_exit_t_s = Some(inp.t_s - beyond_s.min(self.params.dt_s));
         }
-        let bv_key = match inp.style {
+        let bv_key = match inp.target.style() {
             Style::Rush => inp.zone_bv.exit_s_m,
             Style::Yield => inp.zone_bv.enter_s_m,
         };
         // Past the interaction: follow the reference.
         let vut_gone = inp.vut.s_m >= inp.zone_vut.exit_s_m;
         if inp.bv.s_m >= bv_key
-            || (inp.style == Style::Rush && vut_gone)
-            || (inp.style == Style::Yield && inp.bv.s_m >= inp.zone_bv.enter_s_m)
+            || (inp.target.style() == Style::Rush && vut_gone)
+            || (inp.target.style() == Style::Yield && inp.bv.s_m >= inp.zone_bv.enter_s_m)
         {
             let after = self.after_merge(inp);
             return match self.lead(&after, None, 0.0) {
@@ -541,12 +535,12 @@ impl Regulator {
             };
         }
         // Rush, but the VUT is already in the zone: give way until it has left.
-        if inp.style == Style::Rush && inp.vut.s_m >= inp.zone_vut.enter_s_m {
+        if inp.target.style() == Style::Rush && inp.vut.s_m >= inp.zone_vut.enter_s_m {
             return self.give_way(inp);
         }
 
         // 1–2: follower response and the leader's key time (fixed-point step).
-        let tau = inp.tau_s;
+        let tau = inp.target.tau_s();
         let pull = |t_adv: f64, w_adv: f64, w_real: f64| match inp.reference_key_time_s {
             Some(t_ref) if w_real > 0.0 => (w_adv * t_adv + w_real * t_ref) / (w_adv + w_real),
             _ => t_adv,
@@ -556,7 +550,7 @@ impl Regulator {
         // Whether `t_vut` came from a follower solve whose order constraint did not bind (then the
         // safety check need not solve again when its constraint cannot bind either).
         let mut free_response = false;
-        if inp.style == Style::Yield
+        if inp.target.style() == Style::Yield
             && let Some(t_exit) = self.vut_exit_t_s
         {
             t_vut = Some(t_exit - inp.t_s);
@@ -565,13 +559,13 @@ impl Regulator {
             // Rush: the VUT's best response to the BV's key time (it may have to wait for the BV).
             // Yield: the BV is the one that gives way, so the VUT is predicted unconstrained.
             for _ in 0..2 {
-                let order = (inp.style == Style::Rush).then_some(key_t);
+                let order = (inp.target.style() == Style::Rush).then_some(key_t);
                 let Some((t_v, _)) = self.follower(inp, order) else {
                     return self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps);
                 };
                 t_vut = t_v;
                 let Some(tv) = t_v else { break };
-                if inp.style == Style::Yield {
+                if inp.target.style() == Style::Yield {
                     free_response = true;
                     break;
                 }
@@ -588,7 +582,7 @@ impl Regulator {
         }
         let Some(t_v) = t_vut else {
             // The VUT is predicted never to reach (rush) or leave (yield) the zone.
-            return match inp.style {
+            return match inp.target.style() {
                 // Rush with a VUT that stays away: nothing to regulate against; go at the reference.
                 Style::Rush => match self.lead(inp, None, 0.0) {
                     QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
@@ -597,7 +591,7 @@ impl Regulator {
                 Style::Yield => self.wait(inp),
             };
         };
-        if inp.style == Style::Yield {
+        if inp.target.style() == Style::Yield {
             key_t =
                 pull(t_v + tau, self.params.w_adv, self.params.w_real).max(t_v + self.params.safety_margin_s).max(0.0);
         }
@@ -605,7 +599,10 @@ impl Regulator {
         // Rushing into a merge and already inside the zone: clear it, never slow down in it for a
         // VUT that comes later than predicted (the VUT follows the BV from here on: a BV that
         // slows in front of it brakes it more, which only makes the PET longer still).
-        if inp.style == Style::Rush && inp.zone_kind == ConflictKind::Merge && inp.bv.s_m >= inp.zone_bv.enter_s_m {
+        if inp.target.style() == Style::Rush
+            && inp.zone_kind == ConflictKind::Merge
+            && inp.bv.s_m >= inp.zone_bv.enter_s_m
+        {
             key_t = key_t.min((bv_key - inp.bv.s_m) / inp.bv.v_mps.max(IN_ZONE_MIN_MPS));
         }
 
@@ -620,13 +617,13 @@ impl Regulator {
 
         // 4: safety against the follower's best response to the planned key time.
         let margin = self.params.safety_margin_s;
-        let probe_t = match (inp.style, planned_key) {
+        let probe_t = match (inp.target.style(), planned_key) {
             (Style::Rush, Some(tb)) => tb + margin,
             (Style::Yield, Some(tb)) => (tb - margin).max(0.0),
             (_, None) => key_t,
         };
         let cannot_bind = free_response
-            && match inp.style {
+            && match inp.target.style() {
                 Style::Rush => t_v > probe_t + BINDING_TOL_S,
                 Style::Yield => t_v < probe_t - BINDING_TOL_S,
             };
@@ -638,7 +635,7 @@ impl Regulator {
             };
             check
         };
-        let pet = match (inp.style, planned_key, t_v_check.or(Some(t_v))) {
+        let pet = match (inp.target.style(), planned_key, t_v_check.or(Some(t_v))) {
             (Style::Rush, Some(tb), Some(tv)) => Some(tv - tb),
             (Style::Yield, Some(tb), _) => Some(tb - t_v),
             _ => None,
@@ -659,12 +656,15 @@ impl Regulator {
     /// PET that is still to be measured. Anything else: the input as it is.
     fn after_merge(&self, inp: &RegulatorInput) -> RegulatorInput {
         let mut after = *inp;
-        if inp.style != Style::Rush || inp.zone_kind != ConflictKind::Merge || inp.vut.s_m >= inp.zone_vut.enter_s_m {
+        if inp.target.style() != Style::Rush
+            || inp.zone_kind != ConflictKind::Merge
+            || inp.vut.s_m >= inp.zone_vut.enter_s_m
+        {
             return after;
         }
         let Some(bv_exit) = self.bv_exit_t_s else { return after };
         let vut_in = inp.t_s + (inp.zone_vut.enter_s_m - inp.vut.s_m) / inp.vut.v_mps.max(0.1);
-        if vut_in - bv_exit > inp.tau_s {
+        if vut_in - bv_exit > inp.target.tau_s() {
             after.reference_speed_mps = after.reference_speed_mps.max(self.params.bv.max_speed_mps);
         }
         after

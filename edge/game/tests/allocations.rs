@@ -9,7 +9,7 @@ use std::cell::Cell;
 
 use v2t_game::qp::{EventKind, LongitudinalQp, QpInput, QpShape};
 use v2t_game::regulator::{Regulator, RegulatorParams};
-use v2t_model::Style;
+use v2t_model::{Style, Target};
 
 thread_local! {
     static COUNT: Cell<u64> = const { Cell::new(0) };
@@ -77,7 +77,7 @@ fn allocations_per_decision_come_only_from_the_solver() {
     }
     // The regulator over an approach, after warm-up.
     let mut reg = Regulator::new(RegulatorParams::default()).unwrap();
-    let mut inp = v2t_game::fixtures::left_turn_start(Style::Rush, 2.0);
+    let mut inp = v2t_game::fixtures::left_turn_start(Target::new(2.0, Style::Rush).unwrap());
     let mut worst = 0;
     for k in 0..120 {
         let (d, n) = count(|| reg.decide(&inp));

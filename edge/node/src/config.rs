@@ -5,9 +5,9 @@
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
+use v2t_files::{load_toml, relative_to};
 use v2t_model::validate::{Validate, ValidationError, in_range};
 use v2t_model::vehicle::VehicleConfig;
-use v2t_sim::files::{load_toml, relative_to};
 
 use crate::error::EdgeError;
 
@@ -183,4 +183,28 @@ pub fn load(path: &Path) -> Result<Loaded, EdgeError> {
     }
     let uplink = edge.uplink.as_ref().map(|u| crate::uplink::UplinkSettings::load(u, path)).transpose()?;
     Ok(Loaded { path: path.to_owned(), edge, vehicle, vut_vehicle, regulator, tracker, gate, iceoryx2, uplink })
+}
+
+/// What a process's command line may change in a configuration.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Overrides<'a> {
+    /// Another service namespace.
+    pub namespace: Option<&'a str>,
+    /// A SocketCAN interface (`can0`, `vcan0`) instead of the configured CAN transport.
+    pub can_iface: Option<&'a str>,
+}
+
+/// Loads `path` for one process of the runtime: [`load`], the command line's `overrides` (checked
+/// like the file), and the iceoryx2 settings of the configuration installed for this process.
+pub fn load_for_process(path: &Path, overrides: Overrides<'_>) -> Result<Loaded, EdgeError> {
+    let mut cfg = load(path)?;
+    if let Some(ns) = overrides.namespace {
+        ns.clone_into(&mut cfg.edge.namespace);
+    }
+    if let Some(interface) = overrides.can_iface {
+        cfg.edge.can = CanLink::Socketcan { interface: interface.to_owned() };
+    }
+    cfg.edge.validate().map_err(|e| input(path, format!("with the command line's options: {e}")))?;
+    crate::ports::use_iceoryx2_config(&cfg.iceoryx2)?;
+    Ok(cfg)
 }

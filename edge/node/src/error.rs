@@ -31,15 +31,21 @@ pub enum EdgeError {
         /// iceoryx2's error.
         detail: String,
     },
-    /// The CAN transport failed.
+    /// The SocketCAN interface failed.
     #[error("CAN: {0}")]
-    Can(String),
-    /// A prior could not be built or accepted.
+    Can(#[from] v2t_can::transport::CanError),
+    /// A frame could not be encoded.
+    #[error("CAN frame: {0}")]
+    Codec(#[from] v2t_can::codec::CodecError),
+    /// A prior could not be accepted or decoded.
     #[error("prior: {0}")]
-    Prior(String),
+    Prior(#[from] crate::prior::PriorError),
     /// The regulator could not be built.
     #[error("regulator: {0}")]
-    Regulator(String),
+    Regulator(#[from] v2t_game::qp::QpError),
+    /// The MQTT client could not start.
+    #[error("uplink: {0}")]
+    Mqtt(String),
 }
 
 impl EdgeError {

@@ -127,27 +127,27 @@ impl Gateway {
     /// The frames that carry `out`.
     pub fn frames(&mut self, out: &GateOutput) -> Result<[CanFrame; 3], EdgeError> {
         self.heartbeat = self.heartbeat.wrapping_add(1);
-        let can = |e: v2t_can::codec::CodecError| EdgeError::Can(e.to_string());
-        let accel = self.encoder.accel(&AccelCmd { accel_mps2: out.accel_mps2, enable: out.enable }).map_err(can)?;
-        let steer = self.encoder.steer(&SteerCmd { steer_rad: out.steer_rad, enable: out.enable }).map_err(can)?;
-        let control = self
-            .encoder
-            .control(&ControlState {
-                gate_state: out.state.code(),
-                engage_request: out.enable,
-                heartbeat: self.heartbeat,
-            })
-            .map_err(can)?;
+        let accel = self.encoder.accel(&AccelCmd { accel_mps2: out.accel_mps2, enable: out.enable })?;
+        let steer = self.encoder.steer(&SteerCmd { steer_rad: out.steer_rad, enable: out.enable })?;
+        let control = self.encoder.control(&ControlState {
+            gate_state: out.state.code(),
+            engage_request: out.enable,
+            heartbeat: self.heartbeat,
+        })?;
         Ok([accel, steer, control])
     }
 }
 
-fn open_transport<S: Service + 'static>(cfg: &Loaded, bus: &Bus<S>) -> Result<Box<dyn CanTransport>, EdgeError> {
+/// The CAN transport of `cfg` for this end of the bus: the SocketCAN interface, or the iceoryx2
+/// virtual bus.
+pub fn open_transport<S: Service + 'static>(
+    cfg: &Loaded,
+    bus: &Bus<S>,
+    end: End,
+) -> Result<Box<dyn CanTransport>, EdgeError> {
     Ok(match &cfg.edge.can {
-        CanLink::Socketcan { interface } => {
-            Box::new(SocketCanBus::open(interface).map_err(|e| EdgeError::Can(format!("{interface}: {e}")))?)
-        }
-        CanLink::Ipc => Box::new(IpcCanBus::open(bus, End::Gateway)?),
+        CanLink::Socketcan { interface } => Box::new(SocketCanBus::open(interface)?),
+        CanLink::Ipc => Box::new(IpcCanBus::open(bus, end)?),
     })
 }
 
@@ -159,7 +159,7 @@ pub fn run<S: Service + 'static>(cfg: &Loaded) -> Result<(), EdgeError> {
     let wake = bus.listener(services::WAKE_GATEWAY)?;
     let feedback_out = bus.publisher::<VehicleFeedback>(services::FEEDBACK)?;
     let report_out = bus.publisher::<GateReport>(services::GATE)?;
-    let mut transport = open_transport(cfg, &bus)?;
+    let mut transport = open_transport(cfg, &bus, End::Gateway)?;
     let t = cfg.edge.timing;
     let mut heart = Heart::new(&bus, NodeKind::Gateway, t.heartbeat_period_s)?;
     let mut gw = Gateway::new(cfg);

@@ -1,6 +1,7 @@
-//! The BV's onboard runtime: separate processes (state, regulator, tracker, CAN gateway, monitor)
-//! that talk over iceoryx2 zero-copy shared memory, a launcher that supervises them, and a
-//! simulated drive-by-wire ECU that closes the loop through the simulated proving ground.
+//! The BV's onboard runtime: separate processes (state, regulator, tracker, CAN gateway, monitor,
+//! uplink) that talk over iceoryx2 zero-copy shared memory, and a launcher that supervises them.
+//! It does not link the simulator: the simulated drive-by-wire ECU that closes the loop without a
+//! vehicle, and the benches, are the lab's (`v2t-lab`, binaries `v2t-sim-ecu` and `v2t-bench`).
 //!
 //! Node code is generic over the iceoryx2 service type: `ipc::Service` between processes,
 //! `local::Service` inside one test process. Every node runs the same way: open its ports, then
@@ -11,11 +12,9 @@
 use serde::{Deserialize, Serialize};
 use v2t_wire::NodeKind;
 
-pub mod bench;
 pub mod canbus;
 pub mod clock;
 pub mod config;
-pub mod ecu;
 pub mod error;
 pub mod gateway;
 pub mod heart;

@@ -63,7 +63,7 @@ impl Regulation {
     /// A regulator with `params` and no prior yet, for a BV whose lateral acceleration is limited
     /// to `lat_accel_mps2` (its plans slow down for the curves of the path ahead).
     pub fn new(params: RegulatorParams, lat_accel_mps2: f64) -> Result<Self, EdgeError> {
-        let regulator = Regulator::new(params).map_err(|e| EdgeError::Regulator(e.to_string()))?;
+        let regulator = Regulator::new(params)?;
         Ok(Self {
             regulator,
             prior: None,
@@ -137,8 +137,7 @@ impl Regulation {
             zone_bv: ctx.zone_bv,
             zone_vut: ctx.zone_vut,
             zone_kind: ctx.zone_kind,
-            tau_s: ctx.tau_s,
-            style: ctx.style,
+            target: ctx.target,
             reference_speed_mps: ctx.reference_speed_at(bv_s),
             reference_key_time_s: None,
         };
@@ -226,11 +225,8 @@ mod tests {
 
     fn setup() -> (Regulation, ActivePrior) {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config");
-        let sc = v2t_sim::files::load_scenario(&dir.join("scenarios/left_turn_basic.toml")).unwrap();
-        let params: RegulatorParams = v2t_sim::files::load_toml(&dir.join("regulator/default.toml")).unwrap();
-        let (bv, vut) = v2t_game::sim::RegulatedBv::limits_for(&sc, 0).unwrap();
-        let prior = crate::prior::from_scenario(&sc, 0, 1, 0).unwrap();
-        (Regulation::new(params.with_limits(bv, vut), 4.5).unwrap(), prior)
+        let cfg = crate::config::load(&dir.join("edge/bv1.toml")).unwrap();
+        (Regulation::new(cfg.regulator, 4.5).unwrap(), crate::prior::fixtures::left_turn(1))
     }
 
     fn bv_at(prior: &ActivePrior, i: usize, stamp_ns: u64) -> BvState {

@@ -192,8 +192,7 @@ mod step_tests {
     fn setup() -> (Tracking, ActivePrior) {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config");
         let cfg = crate::config::load(&dir.join("edge/bv1.toml")).unwrap();
-        let sc = v2t_sim::files::load_scenario(&dir.join("scenarios/left_turn_basic.toml")).unwrap();
-        (Tracking::new(&cfg), crate::prior::from_scenario(&sc, 0, 1, 0).unwrap())
+        (Tracking::new(&cfg), crate::prior::fixtures::left_turn(1))
     }
 
     fn on_path(prior: &ActivePrior, speed_mps: f64, stamp_ns: u64) -> BvState {

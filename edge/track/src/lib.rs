@@ -11,8 +11,8 @@
 //!
 //! Pure: no IO, no clock, no threads, no allocation per cycle; the cycle length comes in as an
 //! argument. Bad input (NaN, a non-positive or stalled cycle, a vehicle that cannot be located on
-//! the path) is a [`TrackError`], never a NaN request. With feature `sim`, `sim::TrackedBv` lets
-//! a BV of the simulated proving ground (`v2t-sim`) follow its reference with the tracker.
+//! the path) is a [`TrackError`], never a NaN request. The lab (`v2t-lab`) drives a BV of the
+//! simulated proving ground with it to measure it against the plant, noise and actuator lag.
 //!
 //! ```
 //! use v2t_model::kinematics::State;
@@ -46,8 +46,6 @@
 mod latency;
 pub mod lateral;
 pub mod longitudinal;
-#[cfg(feature = "sim")]
-pub mod sim;
 mod tracker;
 
 pub use lateral::{LateralGains, Stanley, StanleyInput, SteeringModel};

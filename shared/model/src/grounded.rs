@@ -105,6 +105,11 @@ pub struct GroundedScenario {
 }
 
 impl GroundedScenario {
+    /// τ and style as a [`crate::Target`] (an error only for a scenario that does not validate).
+    pub fn target(&self) -> Result<crate::Target, crate::TargetError> {
+        crate::Target::new(self.tau_s, self.style)
+    }
+
     /// The VUT.
     pub fn vut(&self) -> Option<&GroundedAgent> {
         self.agents.iter().find(|a| a.role == AgentRole::Vut)
@@ -182,10 +187,6 @@ impl Validate for GroundedScenario {
         if self.conflicts.is_empty() {
             return Err(ValidationError::new("conflicts", "needs at least one conflict"));
         }
-        if self.tau_s > 0.0 && self.tau_s <= 30.0 {
-            Ok(())
-        } else {
-            Err(ValidationError::new("tau_s", format!("must lie in (0, 30] s, got {}", self.tau_s)))
-        }
+        crate::Target::check_tau("tau_s", self.tau_s)
     }
 }

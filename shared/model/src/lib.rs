@@ -10,6 +10,7 @@
 //! - [`path`]: arc-length parameterised reference paths with a robust Frenet projection;
 //! - [`metrics`]: conflict zones, post-encroachment time (PET), time to collision, distances;
 //! - [`vehicle`]: vehicle geometry and limits;
+//! - [`target`]: the test target, τ and style, with its one range;
 //! - [`validate`]: range checks that name the field at fault.
 //!
 //! ```
@@ -27,24 +28,8 @@ pub mod metrics;
 pub mod path;
 pub mod prior;
 pub mod semantics;
+pub mod target;
 pub mod validate;
 pub mod vehicle;
 
-/// Who passes the conflict zone first: the BV (`rush`) or the VUT (`yield`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum Style {
-    /// The BV passes the conflict zone first.
-    Rush,
-    /// The VUT passes the conflict zone first.
-    Yield,
-}
-
-impl std::fmt::Display for Style {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Self::Rush => "rush",
-            Self::Yield => "yield",
-        })
-    }
-}
+pub use target::{Style, Target, TargetError};

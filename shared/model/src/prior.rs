@@ -42,6 +42,22 @@ pub struct TrajectoryPrior {
 }
 
 impl TrajectoryPrior {
+    /// τ and style as a [`crate::Target`] (an error only for a prior that does not validate).
+    pub fn target(&self) -> Result<crate::Target, crate::TargetError> {
+        crate::Target::new(self.tau_s, self.style)
+    }
+
+    /// The BV agent `agent` names, or the first BV when `None`.
+    pub fn bv_agent(&self, agent: Option<&str>) -> Result<&AgentTrajectory, ValidationError> {
+        let mut bvs = self.agents.iter().filter(|a| a.role == AgentRole::Bv);
+        match agent {
+            Some(id) => bvs
+                .find(|a| a.id == id)
+                .ok_or_else(|| ValidationError::new("agents", format!("has no BV agent `{id}`"))),
+            None => bvs.next().ok_or_else(|| ValidationError::new("agents", "has no BV agent")),
+        }
+    }
+
     /// The predefined reference of the TroubleMaker-like baseline and the stand-in where no
     /// diffusion prior exists: every agent of `scenario` drives its route at its start speed (the
     /// route's end holds it), sampled at 10 Hz over `horizon_s`; controls are the yaw rates of the
@@ -107,6 +123,14 @@ impl TrajectoryPrior {
             tau_s: scenario.tau_s,
             style: scenario.style,
         }
+    }
+
+    /// The constant-speed stand-in prior of `g`: every agent drives its grounded route at its start
+    /// speed, keeping the grounded start times, until every one has reached its route's end
+    /// ([`Self::stand_in_horizon_s`]). The predefined reference of the baselines, and what a
+    /// grounded scenario becomes where a prior is expected.
+    pub fn stand_in(g: &GroundedScenario) -> Result<Self, ValidationError> {
+        Self::along_routes_at_start_speed(g, Self::stand_in_horizon_s(g))
     }
 
     /// How long [`Self::along_routes_at_start_speed`] must run for every agent of `g` to reach its
@@ -183,7 +207,7 @@ impl Validate for TrajectoryPrior {
             return Err(ValidationError::new(format!("agents[{i}].controls"), "every agent must share one time grid"));
         }
         self.conflicts.validate().map_err(|e| e.within("conflicts"))?;
-        in_range("tau_s", self.tau_s, 1e-3, 30.0)
+        crate::Target::check_tau("tau_s", self.tau_s)
     }
 }
 

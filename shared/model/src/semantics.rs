@@ -20,13 +20,11 @@
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::Style;
 use crate::validate::{Validate, ValidationError, in_range, positive};
+use crate::{Style, Target};
 
 /// Highest speed estimate accepted, m/s (252 km/h); anything faster is a misreading.
 pub const MAX_SPEED_MPS: f64 = 70.0;
-/// Largest PET label accepted, s.
-pub const MAX_PET_LABEL_S: f64 = 30.0;
 /// Most interacting BVs in one scenario.
 pub const MAX_INTERACTING_BVS: usize = 2;
 /// Most lanes per direction accepted.
@@ -82,10 +80,10 @@ pub struct ScenarioSemantics {
     /// where, and who passes the conflict point first (M).
     #[schemars(length(min = 1))]
     pub event_description: String,
-    /// Post-encroachment time (PET) measured in the source video, s, in (0, 30]. An annotation the
+    /// Post-encroachment time (PET) measured in the source video, s, in [0.1, 30]. An annotation the
     /// operator supplies with the video: copy the value given in the request exactly; never infer,
     /// estimate or round it from the video.
-    #[schemars(range(max = 30.0), extend("exclusiveMinimum" = 0.0))]
+    #[schemars(range(min = 0.1, max = 30.0))]
     pub pet_label_s: f64,
     /// Where this document comes from.
     pub source: SourceMetadata,
@@ -353,13 +351,7 @@ impl Validate for ScenarioSemantics {
         self.ego.validate_on(&self.road_topology).map_err(|e| e.within("ego"))?;
         self.validate_bvs()?;
         non_blank("event_description", &self.event_description)?;
-        let pet = self.pet_label_s;
-        if !(pet > 0.0 && pet <= MAX_PET_LABEL_S) {
-            return Err(ValidationError::new(
-                "pet_label_s",
-                format!("must lie in (0, {MAX_PET_LABEL_S}] s, got {pet}: copy the operator's label"),
-            ));
-        }
+        Target::check_tau("pet_label_s", self.pet_label_s)?;
         self.source.validate().map_err(|e| e.within("source"))
     }
 }
@@ -702,7 +694,7 @@ mod tests {
         let Err(SemanticsError::Invalid(e)) = parse_semantics_json(&text) else { panic!("accepted a zero PET") };
         assert_eq!(e.field, "pet_label_s");
         let mut s = cut_in();
-        for pet in [-1.0, 30.01, f64::NAN, f64::INFINITY] {
+        for pet in [-1.0, 0.05, 30.01, f64::NAN, f64::INFINITY] {
             s.pet_label_s = pet;
             assert_eq!(rejected_field(&s), "pet_label_s");
         }
@@ -809,7 +801,7 @@ mod tests {
             (select(RoadType::ALL), 1..=MAX_LANES_PER_DIRECTION, 3u8..=6, any::<bool>(), select(SignalControl::ALL));
         let ego = (1..=MAX_LANES_PER_DIRECTION, of(select(Approach::ALL)), select(Maneuver::ALL), decimal(0, 7000));
         let source = (text(), of(text()), of(decimal(1, 60_000)), of(1u32..=10_000), of(text()), of(text()));
-        (bvs, road, ego, text(), decimal(1, 3000), source).prop_map(|(bvs, road, ego, event, pet, source)| {
+        (bvs, road, ego, text(), decimal(10, 3000), source).prop_map(|(bvs, road, ego, event, pet, source)| {
             let (mut road_type, lanes_per_direction, arms, with_arms, signal_control) = road;
             // What depends on other parts: a left-turn conflict needs a junction, the lane index the lane count.
             if bvs.iter().any(|bv| bv.interaction_type == InteractionType::UnprotectedLeftTurn)

@@ -1,41 +1,10 @@
 //! Simulation settings and scenario cards, as written in TOML under `config/sim/` and
-//! `config/scenarios/`. Parsing is pure (`&str` in, typed and validated value out); reading the
-//! files is the caller's job, which passes the file name along so that every error names it.
+//! `config/scenarios/` (read with `v2t-files`, which names the file, line and field of every error).
 
-use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use v2t_model::Style;
 use v2t_model::path::PathSpec;
 use v2t_model::validate::{Validate, ValidationError, in_range, non_negative, positive};
-
-/// A configuration file that did not parse or did not validate.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum ConfigError {
-    /// TOML syntax, a missing or unknown field, a wrong type.
-    #[error("{origin}: {message}")]
-    Parse {
-        /// The file (or other origin) of the text.
-        origin: String,
-        /// The parser's message (names the line, column and key).
-        message: String,
-    },
-    /// Parsed, but a value is out of range.
-    #[error("{origin}: {source}")]
-    Invalid {
-        /// The file (or other origin) of the text.
-        origin: String,
-        /// The field and the problem.
-        source: ValidationError,
-    },
-}
-
-/// Parses TOML text into `T` and validates it. `origin` (usually the file path) prefixes every error.
-pub fn parse_toml<T: DeserializeOwned + Validate>(text: &str, origin: &str) -> Result<T, ConfigError> {
-    let value: T = toml::from_str(text)
-        .map_err(|e| ConfigError::Parse { origin: origin.to_owned(), message: e.to_string().trim_end().to_owned() })?;
-    value.validate().map_err(|source| ConfigError::Invalid { origin: origin.to_owned(), source })?;
-    Ok(value)
-}
 
 /// Global settings of the simulated proving ground.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -192,7 +161,7 @@ impl Validate for ScenarioCard {
         }
         positive("duration_s", self.duration_s)?;
         in_range("duration_s", self.duration_s, 0.1, 600.0)?;
-        in_range("tau_s", self.tau_s, 0.1, 30.0)?;
+        v2t_model::Target::check_tau("tau_s", self.tau_s)?;
         self.vut.validate().map_err(|e| e.within("vut"))?;
         if !(1..=2).contains(&self.bvs.len()) {
             return Err(ValidationError::new("bvs", format!("needs 1 or 2 BVs, got {}", self.bvs.len())));
@@ -210,6 +179,7 @@ impl Validate for ScenarioCard {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use v2t_files::{ConfigError, parse_toml};
 
     const SETTINGS: &str = r#"
 plant_dt_s = 0.01

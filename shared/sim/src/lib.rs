@@ -10,7 +10,8 @@
 //! ```
 //! use v2t_model::vehicle::VehicleConfig;
 //! use v2t_sim::bv::{BvController, ReferenceFollower};
-//! use v2t_sim::config::{parse_toml, ScenarioCard, SimSettings};
+//! use v2t_files::parse_toml;
+//! use v2t_sim::config::{ScenarioCard, SimSettings};
 //! use v2t_sim::runner::run;
 //! use v2t_sim::scenario::Scenario;
 //! use v2t_sim::vut::VutModel;

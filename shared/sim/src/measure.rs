@@ -78,8 +78,8 @@ pub fn measure(setup: &MeasureSetup, log: &TruthLog) -> RunResult {
     let mut conflicts = Vec::with_capacity(setup.conflicts.len());
     for c in &setup.conflicts {
         let (Some(vut), Some(bv)) = (log.agents.first(), log.agents.get(c.bv_index + 1)) else { continue };
-        let vut_passage = passage(times, &vut.s_m, &c.zone.a);
-        let bv_passage = passage(times, &bv.s_m, &c.zone.b);
+        let vut_passage = passage(times, &vut.s_m, &c.zone.vut);
+        let bv_passage = passage(times, &bv.s_m, &c.zone.bv);
         let outcome = pet(vut_passage, bv_passage, t_end);
         let first = outcome.first().map(|s| match s {
             Side::A => FirstThrough::Vut,

@@ -454,8 +454,8 @@ impl<'s> Simulation<'s> {
             vut_model: vut_model.to_owned(),
             bv_controller: bv_controller.to_owned(),
             seed: self.seed,
-            style: scenario.style,
-            tau_s: scenario.tau_s,
+            style: scenario.target.style(),
+            tau_s: scenario.target.tau_s(),
             conflicts: scenario
                 .conflicts
                 .iter()
@@ -488,7 +488,7 @@ fn fill_predicted_pet(scenario: &Scenario, trace: &mut [TraceSample]) {
         .iter()
         .map(|c| {
             let (bv_s, bv_v) = series(c.bv_index + 1);
-            predicted_pet_series(&times, (&vut_s, &vut_v), &c.zone.a, (&bv_s, &bv_v), &c.zone.b)
+            predicted_pet_series(&times, (&vut_s, &vut_v), &c.zone.vut, (&bv_s, &bv_v), &c.zone.bv)
                 .into_iter()
                 .map(|p| p.map(|(_, pet)| pet))
                 .collect()

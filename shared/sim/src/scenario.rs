@@ -1,9 +1,9 @@
 //! A scenario ready to run: routes built, vehicles resolved, conflict zones computed.
 
-use v2t_model::Style;
 use v2t_model::metrics::{ConflictOptions, ConflictZone, Dimensions, conflict_zones};
 use v2t_model::path::{PathError, ReferencePath};
 use v2t_model::vehicle::VehicleConfig;
+use v2t_model::{Target, TargetError};
 
 use crate::config::{ScenarioCard, SimSettings};
 use crate::vut::VutModel;
@@ -33,6 +33,9 @@ pub enum ScenarioError {
     /// The card names a VUT model that does not exist.
     #[error("vut.model: {0}")]
     UnknownModel(String),
+    /// τ or the style of the card is not a target.
+    #[error("tau_s: {0}")]
+    Target(#[from] TargetError),
     /// The number of vehicle configurations does not match the card.
     #[error("{expected} BV vehicle configurations expected, {got} given")]
     VehicleCount {
@@ -131,7 +134,7 @@ pub struct VutSetup {
     pub default_model: VutModel,
 }
 
-/// The conflict between one BV and the VUT: zone side `a` is the VUT's route, side `b` the BV's.
+/// The conflict between one BV and the VUT.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Conflict {
     /// Index of the BV in [`Scenario::bvs`].
@@ -147,10 +150,8 @@ pub struct Scenario {
     pub name: String,
     /// Description from the card.
     pub description: String,
-    /// Target PET τ, s.
-    pub tau_s: f64,
-    /// Intended passing order.
-    pub style: Style,
+    /// Target PET τ and the intended passing order.
+    pub target: Target,
     /// Simulated duration, s.
     pub duration_s: f64,
     /// Simulation settings.
@@ -204,8 +205,7 @@ impl Scenario {
         Ok(Self {
             name: card.name.clone(),
             description: card.description.clone(),
-            tau_s: card.tau_s,
-            style: card.style,
+            target: Target::new(card.tau_s, card.style)?,
             duration_s: card.duration_s,
             settings,
             vut,
@@ -246,8 +246,7 @@ impl Scenario {
         Ok(Self {
             name: paths.name,
             description: "built from a prior's paths".into(),
-            tau_s: paths.tau_s,
-            style: paths.style,
+            target: paths.target,
             duration_s: paths.duration_s,
             settings,
             vut,
@@ -267,10 +266,8 @@ impl Scenario {
 pub struct ScenarioPaths {
     /// Name of the run.
     pub name: String,
-    /// Target PET τ, s.
-    pub tau_s: f64,
-    /// Intended passing order.
-    pub style: Style,
+    /// Target PET τ and the intended passing order.
+    pub target: Target,
     /// Simulated duration, s.
     pub duration_s: f64,
     /// The VUT's route.
@@ -285,9 +282,9 @@ pub struct ScenarioPaths {
     pub bv_route: ReferencePath,
     /// The BV's reference speed over time.
     pub bv_reference: SpeedProfile,
-    /// The conflict zone the BV regulates (`a` along the VUT route, `b` along the BV path), when the
-    /// prior fixes it; `None`: the first zone of the two paths. Measuring the zone the BV regulates
-    /// matters when the paths share more than one (a generated lane change that runs alongside).
+    /// The conflict zone the BV regulates, when the prior fixes it; `None`: the first zone of the
+    /// two paths. Measuring the zone the BV regulates matters when the paths share more than one
+    /// (a generated lane change that runs alongside).
     pub conflict: Option<ConflictZone>,
 }
 

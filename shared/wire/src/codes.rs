@@ -34,7 +34,8 @@ pub trait Code: Sized + Copy + 'static {
 macro_rules! wire_enum {
     ($(#[$m:meta])* $name:ident, $what:literal { $($(#[$vm:meta])* $var:ident = $code:literal),+ $(,)? }) => {
         $(#[$m])*
-        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+        #[serde(rename_all = "snake_case")]
         pub enum $name {
             $($(#[$vm])* $var),+
         }
@@ -58,6 +59,24 @@ wire_enum!(
     }
 );
 
+impl From<v2t_model::Style> for StyleCode {
+    fn from(s: v2t_model::Style) -> Self {
+        match s {
+            v2t_model::Style::Rush => Self::Rush,
+            v2t_model::Style::Yield => Self::Yield,
+        }
+    }
+}
+
+impl From<StyleCode> for v2t_model::Style {
+    fn from(s: StyleCode) -> Self {
+        match s {
+            StyleCode::Rush => Self::Rush,
+            StyleCode::Yield => Self::Yield,
+        }
+    }
+}
+
 wire_enum!(
     /// Kind of conflict zone.
     ZoneKind, "zone kind" {
@@ -67,6 +86,24 @@ wire_enum!(
         Merge = 2,
     }
 );
+
+impl From<v2t_model::metrics::ConflictKind> for ZoneKind {
+    fn from(k: v2t_model::metrics::ConflictKind) -> Self {
+        match k {
+            v2t_model::metrics::ConflictKind::Crossing => Self::Crossing,
+            v2t_model::metrics::ConflictKind::Merge => Self::Merge,
+        }
+    }
+}
+
+impl From<ZoneKind> for v2t_model::metrics::ConflictKind {
+    fn from(k: ZoneKind) -> Self {
+        match k {
+            ZoneKind::Crossing => Self::Crossing,
+            ZoneKind::Merge => Self::Merge,
+        }
+    }
+}
 
 wire_enum!(
     /// Outcome of one regulator decision.
@@ -105,41 +142,41 @@ wire_enum!(
 );
 
 wire_enum!(
-    /// State of the actuation safety gate.
+    /// State of the actuation safety gate (`v2t-can`'s gate works in these).
     GateState, "gate state" {
-        /// Commands are not passed to the actuators.
+        /// Commands do not reach the actuators (`enable = false`).
         Disengaged = 0,
-        /// Commands within the envelope reach the actuators.
+        /// Commands inside the envelope reach the actuators.
         Engaged = 1,
-        /// The gate brakes the BV to a standstill on its own profile.
+        /// The gate brakes the vehicle to a standstill on its own profile.
         MinimalRiskStop = 2,
-        /// A fault latched; only a reset leaves it.
+        /// Latched for good: the gate cannot work (invalid configuration, or an internal error).
         Fault = 3,
     }
 );
 
 wire_enum!(
-    /// Why the gate is where it is (the last transition).
+    /// Why the gate is where it is: the last transition.
     GateReason, "gate reason" {
         /// Start-up.
         Init = 0,
         /// Engaged on request.
         EngageRequest = 1,
-        /// Disengaged on request.
+        /// Disengaged on request (`Disengage` or `Reset`).
         DisengageRequest = 2,
-        /// The actuation command timed out.
+        /// The command timed out.
         CommandTimeout = 3,
-        /// Vehicle feedback timed out.
+        /// The vehicle feedback timed out (or its speed was not finite).
         FeedbackTimeout = 4,
         /// A non-finite command arrived.
         NonFiniteCommand = 5,
-        /// The monitor or the operator asked for a stop.
+        /// A minimal-risk stop was requested.
         StopRequest = 6,
         /// Emergency stop.
         EStop = 7,
-        /// The DBW system reported a fault or an override.
+        /// The DBW reported a fault, an override or an unknown mode.
         DbwFault = 8,
-        /// Engage refused: inputs not fresh or DBW not ready.
+        /// Engage refused: inputs not fresh or not finite, or the DBW not ready.
         EngageRefused = 9,
         /// CAN bus error.
         BusError = 10,

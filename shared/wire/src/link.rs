@@ -24,7 +24,7 @@
 use ed25519_dalek::Signer as _;
 pub use ed25519_dalek::{SigningKey, VerifyingKey};
 use serde::{Deserialize, Serialize};
-use v2t_model::Style;
+use v2t_model::Target;
 use v2t_model::prior::TrajectoryPrior;
 
 /// The link version this build speaks.
@@ -142,13 +142,8 @@ pub enum Command {
     Start,
     /// Stop now: the minimal-risk stop.
     Abort,
-    /// Re-target the running interaction.
-    SetTarget {
-        /// New target PET, s.
-        tau_s: f64,
-        /// New style.
-        style: Style,
-    },
+    /// Re-target the running interaction (a τ out of range does not decode).
+    SetTarget(Target),
 }
 
 /// What a BV reports at 10 Hz.
@@ -419,6 +414,7 @@ pub fn key_to_hex(key: &[u8; 32]) -> String {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+    use v2t_model::Style;
     use v2t_model::grounded::AgentRole;
     use v2t_model::kinematics::{Control, State, rollout};
     use v2t_model::prior::AgentTrajectory;
@@ -536,6 +532,20 @@ mod tests {
         assert!(key_from_hex(&"zz".repeat(32)).is_err());
     }
 
+    #[test]
+    fn a_signed_target_out_of_range_does_not_decode() {
+        let m = msg(3, 5_000, CloudBody::Command(Command::SetTarget(Target::new(3.0, Style::Rush).unwrap())));
+        let mut frame = encode(FrameKind::Cloud, &m).unwrap();
+        let three = 3.0f64.to_le_bytes();
+        let at = frame.windows(8).position(|w| w == three).unwrap();
+        for bad in [f64::NAN, 0.0, 1e9] {
+            frame.splice(at..at + 8, bad.to_le_bytes());
+            let mut signed = frame.clone();
+            signed.extend(key().sign(&frame).to_bytes());
+            assert!(matches!(rx().open(&signed, 5_000), Err(LinkError::Decode(_))), "{bad}");
+        }
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(300))]
 
@@ -554,7 +564,7 @@ mod tests {
         #[test]
         fn set_target_round_trips(tau in 0.5f64..10.0, rush in any::<bool>(), seq in 1u64..u64::MAX) {
             let style = if rush { Style::Rush } else { Style::Yield };
-            let m = msg(seq, 5_000, CloudBody::Command(Command::SetTarget { tau_s: tau, style }));
+            let m = msg(seq, 5_000, CloudBody::Command(Command::SetTarget(Target::new(tau, style).unwrap())));
             prop_assert_eq!(rx().open(&seal(&m, &key()).unwrap(), 5_000).unwrap(), m);
         }
     }

@@ -3,7 +3,7 @@
 use iceoryx2::prelude::ZeroCopySend;
 use iceoryx2_bb_container::vector::{StaticVec, Vector};
 
-use crate::Header;
+use crate::{Code as _, Header};
 
 /// Most points of a path in an [`ActivePrior`].
 pub const MAX_PATH_POINTS: usize = 512;
@@ -178,7 +178,19 @@ pub struct ActivePrior {
 }
 
 impl ActivePrior {
-    /// Every number finite, both paths with at least two points, intervals ordered, τ positive.
+    /// τ and the style, decoded and range-checked.
+    pub fn target(&self) -> Result<v2t_model::Target, PriorCodeError> {
+        let style = crate::StyleCode::from_code(self.style)?;
+        Ok(v2t_model::Target::new(self.tau_s, style.into())?)
+    }
+
+    /// Sets τ and the style.
+    pub fn set_target(&mut self, target: v2t_model::Target) {
+        self.tau_s = target.tau_s();
+        self.style = crate::StyleCode::from(target.style()).code();
+    }
+
+    /// Every number finite, both paths with at least two points, intervals ordered, τ in range.
     pub fn check(&self) -> Result<(), &'static str> {
         let numbers = [
             self.tau_s,
@@ -194,9 +206,8 @@ impl ActivePrior {
         if self.vut_speed_mps < 0.0 {
             return Err("negative VUT speed");
         }
-        let tau_ok = self.tau_s > 0.0;
-        if !tau_ok {
-            return Err("target PET must be positive");
+        if v2t_model::Target::check_tau("tau_s", self.tau_s).is_err() {
+            return Err("target PET out of range");
         }
         if !(self.bv_zone_enter_s_m < self.bv_zone_exit_s_m && self.vut_zone_enter_s_m < self.vut_zone_exit_s_m) {
             return Err("zone interval with enter >= exit");
@@ -218,6 +229,17 @@ impl ActivePrior {
         }
         Ok(())
     }
+}
+
+/// A prior whose target or zone kind does not decode.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PriorCodeError {
+    /// An unknown style or zone-kind code.
+    #[error(transparent)]
+    Code(#[from] crate::CodeError),
+    /// τ out of range.
+    #[error(transparent)]
+    Target(#[from] v2t_model::TargetError),
 }
 
 /// What the regulator decided from one BV state.
@@ -376,7 +398,13 @@ mod tests {
         assert_eq!(p.check(), Err("non-finite target or zone interval"));
         let mut p = prior();
         p.tau_s = 0.0;
-        assert_eq!(p.check(), Err("target PET must be positive"));
+        assert_eq!(p.check(), Err("target PET out of range"));
+        assert!(p.target().is_err());
+        let mut p = prior();
+        p.style = 9;
+        assert_eq!(p.target().unwrap_err().to_string(), "unknown style code 9");
+        p.set_target(v2t_model::Target::new(3.5, v2t_model::Style::Yield).unwrap());
+        assert_eq!(p.target().unwrap(), v2t_model::Target::new(3.5, v2t_model::Style::Yield).unwrap());
         let mut p = prior();
         p.vut_zone_exit_s_m = 20.0;
         assert_eq!(p.check(), Err("zone interval with enter >= exit"));

@@ -98,12 +98,12 @@ pub(crate) fn left_turn(f: &Fragment, rng: &mut ChaCha8Rng) -> Option<Vec<AgentS
         .into_iter()
         .filter(|z| z.kind == ConflictKind::Crossing)
         .min_by(|a, b| {
-            let da = (0.5 * (a.a.enter_s_m + a.a.exit_s_m) - s_t).abs();
-            let db = (0.5 * (b.a.enter_s_m + b.a.exit_s_m) - s_t).abs();
+            let da = (0.5 * (a.vut.enter_s_m + a.vut.exit_s_m) - s_t).abs();
+            let db = (0.5 * (b.vut.enter_s_m + b.vut.exit_s_m) - s_t).abs();
             da.total_cmp(&db)
         });
     let (own, theirs) =
-        zone.map_or((around(s_t, 0.5 * dt.length_m + 2.0), around(s_o, 0.5 * d_o.length_m + 2.0)), |z| (z.a, z.b));
+        zone.map_or((around(s_t, 0.5 * dt.length_m + 2.0), around(s_o, 0.5 * d_o.length_m + 2.0)), |z| (z.vut, z.bv));
     let d_turner = DriverParams::sample(rng, nominal);
     let d_other = DriverParams::sample(rng, nominal);
     let t_arrive = uniform(rng, 3.0, 6.0);

@@ -15,8 +15,7 @@ fn input(style: Style, tau: f64) -> RegulatorInput {
         zone_bv: zone(40.0, 50.0),
         zone_vut: zone(60.0, 70.0),
         zone_kind: ConflictKind::Crossing,
-        tau_s: tau,
-        style,
+        target: Target::new(tau, style).unwrap(),
         reference_speed_mps: 10.0,
         reference_key_time_s: None,
     }

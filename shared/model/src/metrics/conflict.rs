@@ -12,8 +12,8 @@ use crate::path::ReferencePath;
 pub enum ConflictKind {
     /// The corridors cross and separate again (left turn, crossing traffic).
     Crossing,
-    /// Path `b` joins path `a` and they share the lane afterwards (cut-in, on-ramp merge). The zone
-    /// is the encroachment point where `b`'s corridor first enters `a`'s.
+    /// The BV's path joins the VUT's and they share the lane afterwards (cut-in, on-ramp merge). The
+    /// zone is the encroachment point where the BV's corridor first enters the VUT's.
     Merge,
 }
 
@@ -34,15 +34,15 @@ impl OccupancyInterval {
     }
 }
 
-/// One conflict zone between path `a` and path `b`.
+/// One conflict zone between the VUT's path and a BV's, each side named by its role.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ConflictZone {
     /// Crossing or merge.
     pub kind: ConflictKind,
-    /// Occupancy interval of the vehicle on path `a`.
-    pub a: OccupancyInterval,
-    /// Occupancy interval of the vehicle on path `b`.
-    pub b: OccupancyInterval,
+    /// Occupancy interval of the VUT along its own path.
+    pub vut: OccupancyInterval,
+    /// Occupancy interval of the BV along its own path.
+    pub bv: OccupancyInterval,
     /// A representative point of the zone (centroid of the shared area).
     pub anchor: Point2,
 }
@@ -196,35 +196,39 @@ fn merge_zone(
     let s_a = a.project(point)?.s_m;
     Some(ConflictZone {
         kind: ConflictKind::Merge,
-        a: OccupancyInterval { enter_s_m: s_a - 0.5 * a_dims.length_m, exit_s_m: s_a + 0.5 * a_dims.length_m },
-        b: OccupancyInterval { enter_s_m: s_b - 0.5 * b_dims.length_m, exit_s_m: s_b + 0.5 * b_dims.length_m },
+        vut: OccupancyInterval { enter_s_m: s_a - 0.5 * a_dims.length_m, exit_s_m: s_a + 0.5 * a_dims.length_m },
+        bv: OccupancyInterval { enter_s_m: s_b - 0.5 * b_dims.length_m, exit_s_m: s_b + 0.5 * b_dims.length_m },
         anchor: point,
     })
 }
 
 /// The zone of `zones` nearest `hint` (a grounded conflict point), or without a hint the first
-/// along path `a`.
+/// along the VUT's path.
 pub fn nearest_zone(zones: Vec<ConflictZone>, hint: Option<Point2>) -> Option<ConflictZone> {
-    let key = |z: &ConflictZone| hint.map_or(z.a.enter_s_m, |h| z.anchor.dist(h));
+    let key = |z: &ConflictZone| hint.map_or(z.vut.enter_s_m, |h| z.anchor.dist(h));
     zones.into_iter().min_by(|a, b| key(a).total_cmp(&key(b)))
 }
 
-/// All conflict zones between a vehicle of size `a_dims` on path `a` and one of size `b_dims` on
-/// path `b`, in order along `b`.
+/// All conflict zones between the VUT (size `vut_dims`) on path `vut` and a BV (size `bv_dims`)
+/// on path `bv`, in order along the BV's path.
 ///
 /// For a crossing, the zone is the intersection of the two corridors (each path swept by its
 /// vehicle's width); a vehicle occupies it while its footprint overlaps it, i.e. while its
 /// reference point is within half its length of the area's extent along its path. A shared area
-/// after which `b` stays on `a`'s centreline is a [`ConflictKind::Merge`]; its zone is the
-/// encroachment point where `b`'s corridor first enters `a`'s (a cut-in's PET is measured there:
-/// following in one lane afterwards is not a conflict).
+/// after which the BV stays on the VUT's centreline is a [`ConflictKind::Merge`]; its zone is the
+/// encroachment point where the BV's corridor first enters the VUT's (a cut-in's PET is measured
+/// there: following in one lane afterwards is not a conflict).
+///
+/// Where neither vehicle is a BV (mining real traffic), the vehicle that may join the other's lane
+/// plays the BV's side.
 pub fn conflict_zones(
-    a: &ReferencePath,
-    a_dims: Dimensions,
-    b: &ReferencePath,
-    b_dims: Dimensions,
+    vut: &ReferencePath,
+    vut_dims: Dimensions,
+    bv: &ReferencePath,
+    bv_dims: Dimensions,
     options: &ConflictOptions,
 ) -> Vec<ConflictZone> {
+    let (a, a_dims, b, b_dims) = (vut, vut_dims, bv, bv_dims);
     let (a_hw, b_hw) = (0.5 * a_dims.width_m, 0.5 * b_dims.width_m);
     let n_b = b.points().len().saturating_sub(1);
     let sb = vertex_s(b);
@@ -247,8 +251,8 @@ pub fn conflict_zones(
         let sum = run.iter().flat_map(|p| p.polygon.iter()).fold(Point2::default(), |acc, p| acc.add(*p));
         zones.push(ConflictZone {
             kind: ConflictKind::Crossing,
-            a: OccupancyInterval { enter_s_m: a_lo - 0.5 * a_dims.length_m, exit_s_m: a_hi + 0.5 * a_dims.length_m },
-            b: OccupancyInterval { enter_s_m: b_lo - 0.5 * b_dims.length_m, exit_s_m: b_hi + 0.5 * b_dims.length_m },
+            vut: OccupancyInterval { enter_s_m: a_lo - 0.5 * a_dims.length_m, exit_s_m: a_hi + 0.5 * a_dims.length_m },
+            bv: OccupancyInterval { enter_s_m: b_lo - 0.5 * b_dims.length_m, exit_s_m: b_hi + 0.5 * b_dims.length_m },
             anchor: sum.scale(1.0 / n_vertices as f64),
         });
     }
@@ -273,10 +277,10 @@ mod tests {
         let z = zones[0];
         assert_eq!(z.kind, ConflictKind::Crossing);
         let (hw, hl) = (0.9, 2.25);
-        assert!((z.a.enter_s_m - (50.0 - hw - hl)).abs() < 1e-9, "{z:?}");
-        assert!((z.a.exit_s_m - (50.0 + hw + hl)).abs() < 1e-9);
-        assert!((z.b.enter_s_m - (40.0 - hw - hl)).abs() < 1e-9);
-        assert!((z.b.exit_s_m - (40.0 + hw + hl)).abs() < 1e-9);
+        assert!((z.vut.enter_s_m - (50.0 - hw - hl)).abs() < 1e-9, "{z:?}");
+        assert!((z.vut.exit_s_m - (50.0 + hw + hl)).abs() < 1e-9);
+        assert!((z.bv.enter_s_m - (40.0 - hw - hl)).abs() < 1e-9);
+        assert!((z.bv.exit_s_m - (40.0 + hw + hl)).abs() < 1e-9);
         assert!(z.anchor.dist(Point2::new(50.0, 0.0)) < 1e-9);
     }
 
@@ -308,12 +312,12 @@ mod tests {
         assert!((z.anchor.y - 0.9).abs() < 1e-6, "{z:?}");
         assert!((z.anchor.x - x_touch).abs() < 1.0, "{} vs {x_touch}", z.anchor.x);
         assert!(
-            (z.a.enter_s_m - (z.anchor.x - 2.25)).abs() < 1e-6 && (z.a.exit_s_m - (z.anchor.x + 2.25)).abs() < 1e-6
+            (z.vut.enter_s_m - (z.anchor.x - 2.25)).abs() < 1e-6 && (z.vut.exit_s_m - (z.anchor.x + 2.25)).abs() < 1e-6
         );
-        assert!((z.b.exit_s_m - z.b.enter_s_m - CAR.length_m).abs() < 1e-9);
+        assert!((z.bv.exit_s_m - z.bv.enter_s_m - CAR.length_m).abs() < 1e-9);
         // The point lies on b's corridor edge, 0.9 m along b's tilted normal: its arc length on b
         // is ahead of its x by at most 0.9·sin(max slope) plus the extra length of the curve.
-        let s_b = z.b.enter_s_m + 2.25;
+        let s_b = z.bv.enter_s_m + 2.25;
         assert!(s_b > z.anchor.x && s_b - z.anchor.x < 0.5, "{s_b} vs {}", z.anchor.x);
     }
 
@@ -328,20 +332,20 @@ mod tests {
         assert_eq!(zones.len(), 1, "{zones:?}");
         assert_eq!(zones[0].kind, ConflictKind::Crossing);
         let z = zones[0];
-        assert!(z.a.exit_s_m - z.a.enter_s_m > CAR.length_m + CAR.width_m - 1e-6);
+        assert!(z.vut.exit_s_m - z.vut.enter_s_m > CAR.length_m + CAR.width_m - 1e-6);
     }
 
     #[test]
-    fn nearest_zone_follows_the_hint_else_the_first_along_a() {
+    fn nearest_zone_follows_the_hint_else_the_first_along_the_vut() {
         let zone = |enter: f64, x: f64| ConflictZone {
             kind: ConflictKind::Crossing,
-            a: OccupancyInterval { enter_s_m: enter, exit_s_m: enter + 5.0 },
-            b: OccupancyInterval { enter_s_m: 0.0, exit_s_m: 5.0 },
+            vut: OccupancyInterval { enter_s_m: enter, exit_s_m: enter + 5.0 },
+            bv: OccupancyInterval { enter_s_m: 0.0, exit_s_m: 5.0 },
             anchor: Point2::new(x, 0.0),
         };
         let zones = || vec![zone(40.0, 40.0), zone(10.0, 10.0), zone(70.0, 70.0)];
-        assert_eq!(nearest_zone(zones(), None).unwrap().a.enter_s_m, 10.0);
-        assert_eq!(nearest_zone(zones(), Some(Point2::new(66.0, 3.0))).unwrap().a.enter_s_m, 70.0);
+        assert_eq!(nearest_zone(zones(), None).unwrap().vut.enter_s_m, 10.0);
+        assert_eq!(nearest_zone(zones(), Some(Point2::new(66.0, 3.0))).unwrap().vut.enter_s_m, 70.0);
         assert!(nearest_zone(Vec::new(), None).is_none());
     }
 }

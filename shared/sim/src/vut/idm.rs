@@ -194,19 +194,19 @@ impl IdmDriver {
         let p = self.params;
         let decision = self.decisions.get_mut(index)?;
         let (s, v) = (own.s_m, own.state.speed_mps.max(0.0));
-        if s >= zone.a.enter_s_m || *decision == Decision::Committed {
+        if s >= zone.vut.enter_s_m || *decision == Decision::Committed {
             *decision = Decision::Committed;
             return None;
         }
         let go = bv.is_none_or(|bv| gap_accepted(&p, zone, bv, s, v, v0, *decision == Decision::Go));
         if go {
-            let cannot_stop = v * v / (2.0 * p.comfort_decel_mps2.max(0.1)) > zone.a.enter_s_m - s;
+            let cannot_stop = v * v / (2.0 * p.comfort_decel_mps2.max(0.1)) > zone.vut.enter_s_m - s;
             *decision = if cannot_stop { Decision::Committed } else { Decision::Go };
             None
         } else {
             *decision = Decision::Yield;
             // The IDM keeps `s0` to a standing obstacle: place it `s0` beyond the stop point.
-            Some(zone.a.enter_s_m - STOP_MARGIN_M - s + p.min_gap_m)
+            Some(zone.vut.enter_s_m - STOP_MARGIN_M - s + p.min_gap_m)
         }
     }
 
@@ -218,7 +218,7 @@ impl IdmDriver {
         for c in obs.scenario.conflicts.iter().filter(|c| c.zone.kind == ConflictKind::Merge) {
             let Some(bv) = obs.bvs.get(c.bv_index) else { continue };
             let v_b = bv.state.speed_mps.max(0.0);
-            let b = &c.zone.b;
+            let b = &c.zone.bv;
             if bv.s_m < b.enter_s_m - v_b * MERGE_PREVIEW_S || bv.s_m > b.exit_s_m {
                 continue;
             }
@@ -248,19 +248,19 @@ impl IdmDriver {
 fn gap_accepted(p: &IdmParams, zone: &ConflictZone, bv: &Perceived, s: f64, v: f64, v0: f64, was_going: bool) -> bool {
     let v_b = bv.state.speed_mps.max(0.0);
     let s_b = bv.s_m + v_b * bv.age_s.max(0.0);
-    if s_b >= zone.b.exit_s_m {
+    if s_b >= zone.bv.exit_s_m {
         return true;
     }
     let (t_in_b, t_out_b) = if v_b < STOPPED_MPS {
-        if s_b < zone.b.enter_s_m {
+        if s_b < zone.bv.enter_s_m {
             return true; // Standing before its zone.
         }
         (0.0, f64::INFINITY)
     } else {
-        ((zone.b.enter_s_m - s_b).max(0.0) / v_b, (zone.b.exit_s_m - s_b) / v_b)
+        ((zone.bv.enter_s_m - s_b).max(0.0) / v_b, (zone.bv.exit_s_m - s_b) / v_b)
     };
-    let t_in_v = travel_time(zone.a.enter_s_m - s, v, p.max_accel_mps2, v0);
-    let t_out_v = travel_time(zone.a.exit_s_m - s, v, p.max_accel_mps2, v0);
+    let t_in_v = travel_time(zone.vut.enter_s_m - s, v, p.max_accel_mps2, v0);
+    let t_out_v = travel_time(zone.vut.exit_s_m - s, v, p.max_accel_mps2, v0);
     let relief = if was_going { GAP_HYSTERESIS_S } else { 0.0 };
     t_in_b - t_out_v >= p.critical_gap_s - relief || t_in_v - t_out_b >= p.commit_margin_s - relief
 }
@@ -304,7 +304,7 @@ impl VutDriver for IdmDriver {
         }
         accel = accel.min(self.merge_accel(obs, v, v0));
         for (i, c) in obs.scenario.conflicts.iter().enumerate() {
-            if c.zone.kind != ConflictKind::Crossing || obs.own.s_m > c.zone.a.exit_s_m {
+            if c.zone.kind != ConflictKind::Crossing || obs.own.s_m > c.zone.vut.exit_s_m {
                 continue;
             }
             if let Some(gap) = self.crossing_gap(i, &c.zone, obs.bvs.get(c.bv_index), &obs.own, v0) {
@@ -358,9 +358,9 @@ mod tests {
         let zone = sc.conflicts[0].zone;
         // The VUT at desired speed clears the zone 2 s before the BV enters.
         let s = 10.0;
-        let t_out = (zone.a.exit_s_m - s) / VUT_SPEED;
+        let t_out = (zone.vut.exit_s_m - s) / VUT_SPEED;
         let v_b = 5.0;
-        let bv = [crossing_bv_at(zone.b.enter_s_m - v_b * (t_out + 2.0), v_b)];
+        let bv = [crossing_bv_at(zone.bv.enter_s_m - v_b * (t_out + 2.0), v_b)];
         let mut aggressive = IdmDriver::new(IdmParams::aggressive());
         let mut cautious = IdmDriver::new(IdmParams::cautious());
         let a_aggr = accel(&mut aggressive, &sc, vut_at(s, VUT_SPEED), &bv);
@@ -374,13 +374,13 @@ mod tests {
     fn commits_once_it_cannot_stop_comfortably() {
         let sc = crossing(BV_SLIGHTLY_FIRST);
         let zone = sc.conflicts[0].zone;
-        let s = zone.a.enter_s_m - 12.0; // Comfortable stop from 10 m/s takes 25 m.
+        let s = zone.vut.enter_s_m - 12.0; // Comfortable stop from 10 m/s takes 25 m.
         let far = [crossing_bv_at(0.0, 1.0)];
         let mut d = IdmDriver::new(IdmParams::normal());
         assert!(accel(&mut d, &sc, vut_at(s, VUT_SPEED), &far).abs() < 1e-6);
         assert_eq!(d.decisions, vec![Decision::Committed]);
         // The BV speeds up and now arrives with the VUT: a committed VUT goes on, a fresh one brakes.
-        let rushing = [crossing_bv_at(zone.b.enter_s_m - 12.0, VUT_SPEED)];
+        let rushing = [crossing_bv_at(zone.bv.enter_s_m - 12.0, VUT_SPEED)];
         assert!(accel(&mut d, &sc, vut_at(s + 1.0, VUT_SPEED), &rushing).abs() < 1e-6);
         let mut fresh = IdmDriver::new(IdmParams::normal());
         assert!(accel(&mut fresh, &sc, vut_at(s + 1.0, VUT_SPEED), &rushing) < -3.0);

@@ -136,22 +136,22 @@ fn yield_target(
 ) -> Option<f64> {
     let (s, v) = (own.s_m, own.state.speed_mps.max(0.0));
     let v_b = bv.state.speed_mps.max(0.0);
-    let bv_gone = bv.s_m >= zone.b.exit_s_m;
-    let bv_stays_out = v_b < STOPPED_MPS && bv.s_m < zone.b.enter_s_m;
-    let cannot_stop = v * v / (2.0 * p.max_brake_mps2.max(0.1)) > zone.a.enter_s_m - s;
-    if bv_gone || bv_stays_out || s >= zone.a.enter_s_m || (cannot_stop && !*yielding) {
+    let bv_gone = bv.s_m >= zone.bv.exit_s_m;
+    let bv_stays_out = v_b < STOPPED_MPS && bv.s_m < zone.bv.enter_s_m;
+    let cannot_stop = v * v / (2.0 * p.max_brake_mps2.max(0.1)) > zone.vut.enter_s_m - s;
+    if bv_gone || bv_stays_out || s >= zone.vut.enter_s_m || (cannot_stop && !*yielding) {
         *yielding = false;
         return None;
     }
     let (t_in_b, t_out_b) = if v_b < STOPPED_MPS {
         (0.0, f64::INFINITY) // Standing inside the zone.
     } else {
-        ((zone.b.enter_s_m - bv.s_m).max(0.0) / v_b, (zone.b.exit_s_m - bv.s_m) / v_b)
+        ((zone.bv.enter_s_m - bv.s_m).max(0.0) / v_b, (zone.bv.exit_s_m - bv.s_m) / v_b)
     };
     if !*yielding {
         let v_pred = v.max(MIN_PREDICTION_SPEED_MPS);
-        let t_in_v = (zone.a.enter_s_m - s) / v_pred;
-        let t_out_v = (zone.a.exit_s_m - s) / v_pred;
+        let t_in_v = (zone.vut.enter_s_m - s) / v_pred;
+        let t_out_v = (zone.vut.exit_s_m - s) / v_pred;
         let bv_first = t_in_b < t_in_v;
         let pet = if bv_first { t_in_v - t_out_b } else { t_in_b - t_out_v };
         *yielding = pet < p.pet_threshold_s && (bv_first || t_in_b - t_in_v < p.simultaneous_window_s);
@@ -159,7 +159,7 @@ fn yield_target(
     if !*yielding {
         return None;
     }
-    let d = (zone.a.enter_s_m - STOP_MARGIN_M - s).max(0.0);
+    let d = (zone.vut.enter_s_m - STOP_MARGIN_M - s).max(0.0);
     let arrive_after = t_out_b + p.yield_margin_s;
     let target = if arrive_after.is_finite() { d / arrive_after.max(TIME_EPS_S) } else { 0.0 };
     Some(target.min((2.0 * STOP_PROFILE_DECEL_MPS2 * d).sqrt()))
@@ -258,11 +258,11 @@ mod tests {
         let zone = sc.conflicts[0].zone;
         let mut d = ReactiveDriver::new(ReactiveParams { reaction_time_s: 0.0, ..ReactiveParams::default() });
         // The VUT clears the zone 1 s before the BV enters: PET 1 s, but the VUT is clearly first.
-        let t_out = zone.a.exit_s_m / VUT_SPEED;
-        let t_in_v = zone.a.enter_s_m / VUT_SPEED;
+        let t_out = zone.vut.exit_s_m / VUT_SPEED;
+        let t_in_v = zone.vut.enter_s_m / VUT_SPEED;
         let t_in_b = t_out + 1.0;
         assert!(t_in_b - t_in_v > 1.0);
-        let bv = [crossing_bv_at(zone.b.enter_s_m - 8.0 * t_in_b, 8.0)];
+        let bv = [crossing_bv_at(zone.bv.enter_s_m - 8.0 * t_in_b, 8.0)];
         assert!(d.control(&observe(&sc, 0.0, vut_at(0.0, VUT_SPEED), &bv)).accel_mps2.abs() < 1e-9);
         assert!(d.control(&observe(&sc, 0.1, vut_at(0.0, 6.0), &[])).accel_mps2 > 1.0);
     }

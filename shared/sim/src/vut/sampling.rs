@@ -148,7 +148,7 @@ impl SamplingPlanner {
         let route = &sc.vut.agent.route;
         for (i, (bv, setup)) in obs.bvs.iter().zip(&sc.bvs).enumerate() {
             let crossing = sc.conflict_of(i).filter(|c| c.zone.kind == ConflictKind::Crossing);
-            self.vut_zones.push(crossing.map(|c| c.zone.a));
+            self.vut_zones.push(crossing.map(|c| c.zone.vut));
             let v_b = bv.state.speed_mps.max(0.0);
             let margin = v_b * self.params.zone_time_margin_s;
             let geo = &setup.agent.vehicle.geometry;
@@ -159,7 +159,7 @@ impl SamplingPlanner {
                 let footprint =
                     OrientedBox { center, heading_rad: heading, length_m: geo.length_m, width_m: geo.width_m };
                 let in_zone =
-                    crossing.is_some_and(|c| s_b >= c.zone.b.enter_s_m - margin && s_b <= c.zone.b.exit_s_m + margin);
+                    crossing.is_some_and(|c| s_b >= c.zone.bv.enter_s_m - margin && s_b <= c.zone.bv.exit_s_m + margin);
                 let in_lane = route
                     .project(center)
                     .filter(|f| f.l_m.abs() < LANE_HALF_WIDTH_M)

@@ -1,7 +1,7 @@
-//! `v2t-edge bench-latency`: state-in → CAN-frame-out latency through the real processes.
+//! `v2t-bench latency`: state-in → CAN-frame-out latency through the real processes.
 //!
-//! It starts the launcher (every node as its own process) and the simulated ECU in a fresh
-//! namespace, runs the scenario, and reads every gateway report that carried a new tracker
+//! It starts the onboard runtime's launcher (`v2t-edge launch`, every node as its own process) and
+//! the simulated ECU (`v2t-sim-ecu`) in a fresh namespace, runs the scenario, and reads every gateway report that carried a new tracker
 //! command: latency = when the gateway finished writing the frames − when the state node received
 //! the GNSS/INS fix the command was computed from. The regulator is not on that path (the tracker
 //! follows its newest plan); its decision times are reported separately from the plans.
@@ -13,10 +13,34 @@ use std::time::Duration;
 use iceoryx2::prelude::ipc;
 use v2t_wire::{GateReport, RegulatedPlan, services};
 
-use crate::config::Loaded;
-use crate::error::EdgeError;
-use crate::launch::send_signal;
-use crate::ports::Bus;
+use v2t_edge::config::Loaded;
+use v2t_edge::error::EdgeError;
+use v2t_edge::launch::send_signal;
+use v2t_edge::ports::Bus;
+
+/// Why the bench could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    /// iceoryx2 or the configuration failed.
+    #[error(transparent)]
+    Edge(#[from] EdgeError),
+    /// A process could not be started or waited for.
+    #[error("{exe}: {source}")]
+    Spawn {
+        /// The program.
+        exe: String,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The simulated ECU failed.
+    #[error("the simulated ECU failed ({status}): {output}")]
+    Ecu {
+        /// Its exit status.
+        status: String,
+        /// What it printed.
+        output: String,
+    },
+}
 
 /// Percentiles of a set of durations, µs.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
@@ -69,24 +93,33 @@ impl LatencyReport {
     }
 }
 
-fn spawn(exe: &Path, args: &[&str]) -> Result<Child, EdgeError> {
+fn spawn(exe: &Path, args: &[&str]) -> Result<Child, BenchError> {
     Command::new(exe)
         .args(args)
         .stdout(std::process::Stdio::piped())
         .spawn()
-        .map_err(|e| EdgeError::Can(format!("cannot start {}: {e}", exe.display())))
+        .map_err(|source| BenchError::Spawn { exe: exe.display().to_string(), source })
+}
+
+/// The two programs the bench starts.
+#[derive(Debug, Clone, Copy)]
+pub struct Programs<'a> {
+    /// `v2t-edge`, the onboard runtime.
+    pub edge: &'a Path,
+    /// `v2t-sim-ecu`, the simulated drive-by-wire ECU.
+    pub ecu: &'a Path,
 }
 
 /// Runs the bench with `cfg` (its namespace gets a unique suffix) on `scenario`.
-pub fn latency(cfg: &Loaded, exe: &Path, scenario: &Path) -> Result<LatencyReport, EdgeError> {
+pub fn latency(cfg: &Loaded, programs: Programs<'_>, scenario: &Path) -> Result<LatencyReport, BenchError> {
     let ns = format!("{}/bench{}", cfg.edge.namespace, std::process::id());
     let config = cfg.path.display().to_string();
     let bus = Bus::<ipc::Service>::new("bench", &ns)?;
     let reports = bus.subscriber::<GateReport>(services::GATE)?;
     let plans = bus.subscriber::<RegulatedPlan>(services::PLAN)?;
-    let mut launcher = spawn(exe, &["launch", "--config", &config, "--namespace", &ns])?;
+    let mut launcher = spawn(programs.edge, &["launch", "--config", &config, "--namespace", &ns])?;
     let scenario = scenario.display().to_string();
-    let mut ecu = spawn(exe, &["sim-ecu", "--config", &config, "--namespace", &ns, "--scenario", &scenario])?;
+    let mut ecu = spawn(programs.ecu, &["--config", &config, "--namespace", &ns, "--scenario", &scenario])?;
     let (mut path_ns, mut solve_ns) = (Vec::new(), Vec::new());
     let status = loop {
         while let Ok(Some(r)) = reports.receive() {
@@ -102,7 +135,9 @@ pub fn latency(cfg: &Loaded, exe: &Path, scenario: &Path) -> Result<LatencyRepor
         }
         if !bus.wait(Duration::from_millis(5)) {
             let _ = ecu.kill();
-            break ecu.wait().map_err(|e| EdgeError::Can(e.to_string()))?;
+            break ecu
+                .wait()
+                .map_err(|source| BenchError::Spawn { exe: programs.ecu.display().to_string(), source })?;
         }
     };
     send_signal(&launcher, iceoryx2_bb_posix::signal::Signal::Terminate);
@@ -113,7 +148,7 @@ pub fn latency(cfg: &Loaded, exe: &Path, scenario: &Path) -> Result<LatencyRepor
         let _ = out.read_to_string(&mut ecu_line);
     }
     if !status.success() {
-        return Err(EdgeError::Can(format!("the simulated ECU failed ({status}): {ecu_line}")));
+        return Err(BenchError::Ecu { status: status.to_string(), output: ecu_line });
     }
     Ok(LatencyReport {
         state_to_can: Percentiles::of(&mut path_ns),

@@ -23,20 +23,23 @@
 //!   `|meanPET^min − τ| / τ`.
 
 use serde::Serialize;
+use v2t_diffusion::weights::Model;
 use v2t_game::regulator::RegulatorParams;
-use v2t_game::sim::RegulatedBv;
-use v2t_model::Style;
-use v2t_model::grounded::{AgentRole, GroundedScenario};
-use v2t_model::metrics::{ConflictOptions, conflict_zones, nearest_zone};
-use v2t_model::path::ReferencePath;
+use v2t_map::Inspection;
+use v2t_model::grounded::GroundedScenario;
 use v2t_model::prior::TrajectoryPrior;
 use v2t_model::semantics::ScenarioSemantics;
 use v2t_model::vehicle::VehicleConfig;
+use v2t_model::{Style, Target};
 use v2t_sim::bv::{BvController, ReferenceFollower};
 use v2t_sim::config::SimSettings;
 use v2t_sim::runner::run;
-use v2t_sim::scenario::{Scenario, ScenarioPaths, SpeedProfile};
+use v2t_sim::scenario::Scenario;
 use v2t_sim::vut::VutModel;
+
+use crate::controllers::RegulatedBv;
+use crate::stats::{RunStats, Tally};
+use crate::world::{self, Vehicles, WorldError};
 
 /// The four methods.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -78,8 +81,8 @@ impl Method {
 /// Which comparison.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Comparison {
-    /// Rush and yield at each of these τ.
-    Steerability(Vec<f64>),
+    /// Each of these targets.
+    Steerability(Vec<Target>),
     /// Rush at τ = 1.5 s.
     Adversariality,
     /// The video's style at its PET label.
@@ -88,26 +91,69 @@ pub enum Comparison {
     Style,
 }
 
+/// The adversariality experiment's target: rush at τ = 1.5 s (the paper's).
+pub const ADVERSARIAL_TAU_S: f64 = 1.5;
+
 impl Comparison {
-    /// The (τ, style) targets of `rec`.
-    pub fn targets(&self, rec: &Recorded) -> Vec<(f64, Style)> {
-        let label = rec.semantics.pet_label_s;
+    /// The targets of `rec` (the video's PET label is in range: the semantics validated it).
+    pub fn targets(&self, rec: &Recorded) -> Vec<Target> {
+        let label = |style| Target::new(rec.semantics.pet_label_s, style).ok();
         match self {
-            Self::Steerability(taus) => taus.iter().flat_map(|t| [(*t, Style::Rush), (*t, Style::Yield)]).collect(),
-            Self::Adversariality => vec![(1.5, Style::Rush)],
-            Self::Fidelity => vec![(label, rec.semantics.interacting_bvs.first().map_or(Style::Rush, |b| b.style))],
-            Self::Style => vec![(label, Style::Rush), (label, Style::Yield)],
+            Self::Steerability(targets) => targets.clone(),
+            Self::Adversariality => Target::new(ADVERSARIAL_TAU_S, Style::Rush).ok().into_iter().collect(),
+            Self::Fidelity => {
+                label(rec.semantics.interacting_bvs.first().map_or(Style::Rush, |b| b.style)).into_iter().collect()
+            }
+            Self::Style => Style::ALL.into_iter().filter_map(label).collect(),
         }
     }
 }
 
-/// One recorded scenario of the experiments.
+/// One of the paper's scenarios as the experiments take it: the semantics its hand-written
+/// cassette replays to.
 #[derive(Debug, Clone)]
 pub struct Recorded {
     /// Name.
     pub name: String,
     /// The semantics (from the replayed cassette).
     pub semantics: ScenarioSemantics,
+}
+
+/// Why the comparison could not be set up.
+#[derive(Debug, thiserror::Error)]
+pub enum MethodsError {
+    /// The semantics do not ground on the proving ground.
+    #[error("{scenario}: grounding: {source}")]
+    Ground {
+        /// The scenario.
+        scenario: String,
+        /// Why.
+        source: v2t_ground::GroundError,
+    },
+    /// The grounded scenario has no stand-in prior.
+    #[error("{scenario}: stand-in prior: {source}")]
+    StandIn {
+        /// The scenario.
+        scenario: String,
+        /// Why.
+        source: v2t_model::validate::ValidationError,
+    },
+    /// The diffusion model failed.
+    #[error("{scenario}: diffusion prior: {source}")]
+    Generate {
+        /// The scenario.
+        scenario: String,
+        /// Why.
+        source: v2t_diffusion::generate::GenerateError,
+    },
+    /// A prior makes no world.
+    #[error("{scenario}: {source}")]
+    World {
+        /// The scenario.
+        scenario: String,
+        /// Why.
+        source: WorldError,
+    },
 }
 
 /// One case: scenario × method × style × τ × VUT model.
@@ -123,128 +169,88 @@ pub struct MethodCase {
     pub tau_s: f64,
     /// VUT model.
     pub vut: String,
-    /// Runs.
-    pub repeats: usize,
-    /// Mean PET_min over runs with a measured PET, s.
-    pub mean_pet_min_s: Option<f64>,
-    /// Smallest PET_min, s.
-    pub pet_min_track_s: Option<f64>,
-    /// Runs with a collision.
-    pub collisions: usize,
-    /// Share of runs in the style's order.
-    pub order_ok_frac: f64,
-    /// Runs without a measured PET.
-    pub unmeasured: usize,
+    /// What the runs measured.
+    #[serde(flatten)]
+    pub stats: RunStats,
 }
 
 /// What the experiments need besides the scenarios.
 #[derive(Debug)]
 pub struct Setup<'a> {
     /// The proving ground and its topology library.
-    pub inspection: &'a crate::map::Inspection,
+    pub inspection: &'a Inspection,
     /// The diffusion model.
-    pub model: &'a v2t_diffusion::weights::Model,
+    pub model: &'a Model,
     /// Regulator settings.
     pub regulator: RegulatorParams,
     /// Simulation settings (noise, delays, lag).
     pub sim: SimSettings,
-    /// VUT and BV vehicles.
+    /// The VUT's vehicle.
     pub vut_vehicle: VehicleConfig,
-    /// BV vehicle.
+    /// The BV's vehicle.
     pub bv_vehicle: VehicleConfig,
 }
 
-/// An agent's path (standstills dropped), speed profile and start speed.
-fn trajectory_path(prior: &TrajectoryPrior, id: &str) -> Result<(ReferencePath, Vec<[f64; 2]>, f64), String> {
-    let a = prior.agents.iter().find(|a| a.id == id).ok_or_else(|| format!("prior has no agent `{id}`"))?;
-    let path = ReferencePath::through_states(&a.states).map_err(|e| format!("{id}: {e}"))?;
-    let profile = a.states.iter().enumerate().map(|(k, x)| [k as f64 * prior.dt_s, x.speed_mps.max(0.0)]).collect();
-    Ok((path, profile, a.states.first().map_or(0.0, |x| x.speed_mps)))
-}
-
-/// The simulated world of a prior: the first conflict's BV on its prior path and timing, the VUT
-/// from its prior start on its prior path, the zone nearest the grounded conflict point.
+/// The simulated world of a prior for the first conflict's BV ([`world::accept`], then
+/// [`world::from_prior`]: as the BV accepts and decodes it).
 pub fn scenario_of_prior(
     name: &str,
     prior: &TrajectoryPrior,
     grounded: &GroundedScenario,
     setup: &Setup<'_>,
-) -> Result<Scenario, String> {
-    let conflict = grounded.conflicts.first().ok_or("no conflict")?;
-    let vut_id = grounded.agents.iter().find(|a| a.role == AgentRole::Vut).map(|a| a.id.clone()).ok_or("no VUT")?;
-    let (vut_route, _, vut_speed) = trajectory_path(prior, &vut_id)?;
-    let (bv_route, profile, _) = trajectory_path(prior, &conflict.bv_id)?;
-    let dims = |v: &VehicleConfig| v2t_model::metrics::Dimensions {
-        length_m: v.geometry.length_m,
-        width_m: v.geometry.width_m,
-    };
-    let zones = conflict_zones(
-        &vut_route,
-        dims(&setup.vut_vehicle),
-        &bv_route,
-        dims(&setup.bv_vehicle),
-        &ConflictOptions::default(),
-    );
-    let zone = nearest_zone(zones, Some(conflict.point)).ok_or("the prior's paths share no conflict zone")?;
-    let paths = ScenarioPaths {
-        name: name.to_owned(),
-        tau_s: prior.tau_s,
-        style: prior.style,
-        duration_s: prior.duration_s() + 2.0,
-        vut_route,
-        vut_speed_mps: vut_speed,
-        vut_model: VutModel::IdmNormal,
-        bv_id: conflict.bv_id.clone(),
-        bv_route,
-        bv_reference: SpeedProfile::new(profile),
-        conflict: Some(zone),
-    };
-    Scenario::from_paths(paths, setup.sim.clone(), setup.vut_vehicle.clone(), setup.bv_vehicle.clone())
-        .map_err(|e| e.to_string())
+) -> Result<Scenario, WorldError> {
+    let vehicles = Vehicles { bv: &setup.bv_vehicle, vut: &setup.vut_vehicle };
+    let bv_agent = grounded.conflicts.first().map(|c| c.bv_id.as_str());
+    let accepted = world::accept(prior, bv_agent, vehicles, 1, 0)?;
+    world::from_prior(name, &accepted, vehicles, setup.sim.clone(), VutModel::IdmNormal)
 }
 
-/// The grounded scenario and the two priors (constant speed, diffusion) of `rec` at `tau_s` and
-/// `style`.
+/// The grounded scenario and the two priors (the constant-speed stand-in, the best diffusion
+/// variant) of `rec` at `target`.
 pub fn priors(
     rec: &Recorded,
-    tau_s: f64,
-    style: Style,
+    target: Target,
     setup: &Setup<'_>,
     seed: u64,
-) -> Result<(GroundedScenario, TrajectoryPrior, TrajectoryPrior), String> {
+) -> Result<(GroundedScenario, TrajectoryPrior, TrajectoryPrior), MethodsError> {
+    let scenario = || rec.name.clone();
     let mut sem = rec.semantics.clone();
-    sem.pet_label_s = tau_s;
+    sem.pet_label_s = target.tau_s();
     for b in &mut sem.interacting_bvs {
-        b.style = style;
+        b.style = target.style();
     }
-    let g = v2t_ground::ground(&setup.inspection.map, &setup.inspection.library, &sem).map_err(|e| e.to_string())?;
-    let grounded = g.scenario;
-    let stand_in = crate::link::stand_in_prior(&grounded)?;
+    let grounded = v2t_ground::ground(&setup.inspection.map, &setup.inspection.library, &sem)
+        .map_err(|source| MethodsError::Ground { scenario: scenario(), source })?
+        .scenario;
+    let stand_in = TrajectoryPrior::stand_in(&grounded)
+        .map_err(|source| MethodsError::StandIn { scenario: scenario(), source })?;
     let options = v2t_diffusion::generate::GenerateOptions {
         variants: crate::demo::VARIANTS,
         seed,
         ..v2t_diffusion::generate::GenerateOptions::default()
     };
     let (variants, _) = v2t_diffusion::generate::generate(setup.model, &setup.inspection.map, &grounded, &options)
-        .map_err(|e| e.to_string())?;
-    let best = crate::generate::best(&variants).ok_or("no diffusion variant")?.prior.clone();
+        .map_err(|source| MethodsError::Generate { scenario: scenario(), source })?;
+    let best = v2t_diffusion::generate::best(&variants)
+        .ok_or_else(|| MethodsError::Generate {
+            scenario: scenario(),
+            source: v2t_diffusion::generate::GenerateError::NoVariant,
+        })?
+        .prior
+        .clone();
     Ok((grounded, stand_in, best))
 }
 
 /// `repeats` seeded runs of one method on `scenario`.
 pub fn run_case(setup: &Setup<'_>, scenario: &Scenario, method: Method, model: VutModel, repeats: usize) -> MethodCase {
-    let mut pets = Vec::new();
-    let (mut collisions, mut order_ok, mut unmeasured) = (0, 0, 0);
+    let mut tally = Tally::default();
     for seed in 1..=repeats as u64 {
         let controller: Box<dyn BvController> = if method.regulated() {
-            let params = match RegulatedBv::limits_for(scenario, 0) {
-                Some((bv, vut)) => setup.regulator.with_limits(bv, vut),
-                None => setup.regulator,
-            };
-            match RegulatedBv::new(params, scenario.tau_s, scenario.style) {
+            let params = RegulatedBv::params_for(&setup.regulator, scenario, 0);
+            match RegulatedBv::new(params, scenario.target) {
                 Ok(r) => Box::new(r),
                 Err(_) => {
-                    unmeasured += 1;
+                    tally.add_failed();
                     continue;
                 }
             }
@@ -252,31 +258,18 @@ pub fn run_case(setup: &Setup<'_>, scenario: &Scenario, method: Method, model: V
             Box::new(ReferenceFollower::default())
         };
         let mut bvs = vec![controller];
-        let mut driver = model.driver();
-        let Ok(out) = run(scenario, &mut bvs, driver.as_mut(), seed) else {
-            unmeasured += 1;
-            continue;
-        };
-        let r = out.result;
-        collisions += usize::from(r.collision.is_some());
-        order_ok += usize::from(r.conflicts.iter().all(|c| c.order_matches_style == Some(true)));
-        match r.pet_min_s {
-            Some(p) => pets.push(p),
-            None => unmeasured += 1,
+        match run(scenario, &mut bvs, model.driver().as_mut(), seed) {
+            Ok(out) => tally.add(&out.result),
+            Err(_) => tally.add_failed(),
         }
     }
     MethodCase {
         scenario: scenario.name.clone(),
         method,
-        style: scenario.style,
-        tau_s: scenario.tau_s,
+        style: scenario.target.style(),
+        tau_s: scenario.target.tau_s(),
         vut: model.to_string(),
-        repeats,
-        mean_pet_min_s: (!pets.is_empty()).then(|| pets.iter().sum::<f64>() / pets.len() as f64),
-        pet_min_track_s: pets.iter().copied().reduce(f64::min),
-        collisions,
-        order_ok_frac: if repeats == 0 { 0.0 } else { order_ok as f64 / repeats as f64 },
-        unmeasured,
+        stats: tally.stats(),
     }
 }
 
@@ -288,14 +281,18 @@ pub fn run_all(
     comparison: &Comparison,
     models: &[VutModel],
     repeats: usize,
-) -> Result<Vec<MethodCase>, String> {
+) -> Result<Vec<MethodCase>, MethodsError> {
     let mut jobs = Vec::new();
     for rec in recorded {
-        for (tau, style) in comparison.targets(rec) {
-            let (grounded, stand_in, diffusion) = priors(rec, tau, style, setup, 1)?;
-            let name = format!("{} ({:?}, τ {tau:.2} s)", rec.name, style).to_lowercase();
-            let constant = scenario_of_prior(&name, &stand_in, &grounded, setup)?;
-            let generated = scenario_of_prior(&name, &diffusion, &grounded, setup)?;
+        for target in comparison.targets(rec) {
+            let (grounded, stand_in, diffusion) = priors(rec, target, setup, 1)?;
+            let name = format!("{} ({}, τ {:.2} s)", rec.name, target.style(), target.tau_s());
+            let world = |prior: &TrajectoryPrior| {
+                scenario_of_prior(&name, prior, &grounded, setup)
+                    .map_err(|source| MethodsError::World { scenario: name.clone(), source })
+            };
+            let constant = world(&stand_in)?;
+            let generated = world(&diffusion)?;
             for method in Method::ALL {
                 let sc = if method.diffusion() { generated.clone() } else { constant.clone() };
                 for &m in models {
@@ -304,7 +301,7 @@ pub fn run_all(
             }
         }
     }
-    let cases = crate::experiment::parallel_map(&jobs, |(sc, me, m)| run_case(setup, sc, *me, *m, repeats));
+    let cases = crate::parallel_map(&jobs, |(sc, me, m)| run_case(setup, sc, *me, *m, repeats));
     Ok(cases)
 }
 
@@ -341,17 +338,18 @@ pub fn summarize(cases: &[MethodCase]) -> Vec<MethodSummary> {
         }
         let group: Vec<&MethodCase> =
             cases.iter().filter(|d| d.scenario == c.scenario && d.method == c.method).collect();
-        let means: Vec<f64> = group.iter().filter_map(|d| d.mean_pet_min_s).collect();
-        let runs: usize = group.iter().map(|d| d.repeats).sum();
+        let means: Vec<f64> = group.iter().filter_map(|d| d.stats.mean_pet_min_s).collect();
+        let runs: usize = group.iter().map(|d| d.stats.repeats).sum();
         out.push(MethodSummary {
             scenario: c.scenario.clone(),
             method: c.method,
             style: c.style,
             tau_s: c.tau_s,
             mean_pet_min_s: (!means.is_empty()).then(|| means.iter().sum::<f64>() / means.len() as f64),
-            pet_min_track_s: group.iter().filter_map(|d| d.pet_min_track_s).reduce(f64::min),
-            collisions: group.iter().map(|d| d.collisions).sum(),
-            order_ok_frac: group.iter().map(|d| d.order_ok_frac * d.repeats as f64).sum::<f64>() / runs.max(1) as f64,
+            pet_min_track_s: group.iter().filter_map(|d| d.stats.pet_min_track_s).reduce(f64::min),
+            collisions: group.iter().map(|d| d.stats.collisions).sum(),
+            order_ok_frac: group.iter().map(|d| d.stats.order_ok_frac * d.stats.repeats as f64).sum::<f64>()
+                / runs.max(1) as f64,
             runs,
         });
     }

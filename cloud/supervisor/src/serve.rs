@@ -14,12 +14,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-use v2t_model::Style;
+use v2t_model::{Style, Target, TargetError};
 use v2t_wire::link::{self, ALL_BVS, CloudBody, Command, EdgeReport, Telemetry, topics};
 use v2t_wire::mqtt::{LinkEvent, MqttLink};
 use v2t_wire::{Code, GateReason, GateState, PlanStatus};
 
-use crate::link::{BvEvent, Connection, LinkError, Signer, command, parse_style, prior_from_file, unix_ms};
+use crate::link::{BvEvent, Connection, LinkError, Signer, command, prior_from_file, unix_ms};
 
 /// A BV whose last heartbeat is older than this is shown as offline.
 pub const OFFLINE_AFTER: Duration = Duration::from_secs(1);
@@ -240,8 +240,8 @@ pub fn parse_console(line: &str) -> Result<Option<ConsoleCommand>, String> {
             command: command(action, None, None).map_err(|e| e.to_string())?,
         })),
         ["target", who, tau, style] => {
-            let tau: f64 = tau.parse().map_err(|_| format!("τ `{tau}` is not a number"))?;
-            let style = parse_style(style).map_err(|e| e.to_string())?;
+            let tau = Target::parse_tau(tau).map_err(|e| e.to_string())?;
+            let style: Style = style.parse().map_err(|e: TargetError| e.to_string())?;
             let command = command("target", Some(tau), Some(style)).map_err(|e| e.to_string())?;
             Ok(Some(ConsoleCommand::Send { bv: bv(Some(who)), command }))
         }
@@ -252,8 +252,8 @@ pub fn parse_console(line: &str) -> Result<Option<ConsoleCommand>, String> {
             let (mut tau_s, mut style, mut agent) = (None, None, None);
             for pair in rest.chunks(2) {
                 match pair {
-                    ["tau", v] => tau_s = Some(v.parse().map_err(|_| format!("τ `{v}` is not a number"))?),
-                    ["style", v] => style = Some(parse_style(v).map_err(|e| e.to_string())?),
+                    ["tau", v] => tau_s = Some(Target::parse_tau(v).map_err(|e| e.to_string())?),
+                    ["style", v] => style = Some(v.parse().map_err(|e: TargetError| e.to_string())?),
                     ["agent", v] => agent = Some((*v).to_owned()),
                     other => return Err(format!("upload: unexpected `{}`", other.join(" "))),
                 }
@@ -522,7 +522,7 @@ mod tests {
             parse_console("target bv1 3.5 yield").unwrap(),
             Some(ConsoleCommand::Send {
                 bv: "bv1".into(),
-                command: Command::SetTarget { tau_s: 3.5, style: Style::Yield }
+                command: Command::SetTarget(Target::new(3.5, Style::Yield).unwrap())
             })
         );
         assert_eq!(

@@ -1,29 +1,40 @@
-//! The regulator as a BV controller of the simulated proving ground: the regulator decides the
-//! longitudinal motion every control period, pure pursuit keeps the BV on its path.
+//! The regulator (`v2t-game`) as a BV controller of the simulated proving ground: the regulator
+//! decides the longitudinal motion every control period, pure pursuit keeps the BV on its path.
 
-use v2t_model::Style;
+use v2t_game::qp::QpError;
+use v2t_game::regulator::{Decision, Limits, PathState, Regulator, RegulatorInput, RegulatorParams, curve_speed_limit};
+use v2t_model::Target;
 use v2t_sim::bv::BvController;
 use v2t_sim::control::pure_pursuit;
 use v2t_sim::observation::BvObservation;
 use v2t_sim::plant::ActuationRequest;
 
-use crate::qp::QpError;
-use crate::regulator::{Decision, Limits, PathState, Regulator, RegulatorInput, RegulatorParams, curve_speed_limit};
-
 /// A regulated BV.
 #[derive(Debug)]
 pub struct RegulatedBv {
     regulator: Regulator,
-    tau_s: f64,
-    style: Style,
+    target: Target,
     last_accel: f64,
     last: Option<Decision>,
 }
 
 impl RegulatedBv {
-    /// A regulator with `params` aiming at `tau_s` in `style`.
-    pub fn new(params: RegulatorParams, tau_s: f64, style: Style) -> Result<Self, QpError> {
-        Ok(Self { regulator: Regulator::new(params)?, tau_s, style, last_accel: 0.0, last: None })
+    /// A regulator with `params` aiming at `target`.
+    pub fn new(params: RegulatorParams, target: Target) -> Result<Self, QpError> {
+        Ok(Self { regulator: Regulator::new(params)?, target, last_accel: 0.0, last: None })
+    }
+
+    /// `settings` with the limits of BV `bv_index` and the VUT of `scenario` (unchanged when the
+    /// scenario has no such BV).
+    pub fn params_for(
+        settings: &RegulatorParams,
+        scenario: &v2t_sim::scenario::Scenario,
+        bv_index: usize,
+    ) -> RegulatorParams {
+        match Self::limits_for(scenario, bv_index) {
+            Some((bv, vut)) => settings.with_limits(bv, vut),
+            None => *settings,
+        }
     }
 
     /// Regulator limits from the scenario's vehicles.
@@ -61,11 +72,10 @@ impl BvController for RegulatedBv {
             bv: PathState { s_m: own_s, v_mps: obs.own.state.speed_mps, age_s: obs.own.age_s },
             vut: PathState { s_m: vut_s, v_mps: obs.vut.state.speed_mps, age_s: obs.vut.age_s },
             bv_accel_mps2: self.last_accel,
-            zone_bv: conflict.zone.b,
-            zone_vut: conflict.zone.a,
+            zone_bv: conflict.zone.bv,
+            zone_vut: conflict.zone.vut,
             zone_kind: conflict.zone.kind,
-            tau_s: self.tau_s,
-            style: self.style,
+            target: self.target,
             reference_speed_mps: bv.reference.speed_at(obs.t_s),
             reference_key_time_s: None,
         };

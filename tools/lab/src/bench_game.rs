@@ -1,4 +1,4 @@
-//! Decision latency and allocations of the regulator (`v2t-edge bench-game`).
+//! Decision latency and allocations of the regulator (`v2t-bench game`).
 //!
 //! For N = 30 and N = 50, on one thread:
 //! - *sim*: every decision of the regulated BV in the simulated proving ground — both bundled
@@ -16,20 +16,20 @@ use std::collections::BTreeMap;
 use std::rc::Rc;
 use std::time::Instant;
 
-use v2t_model::Style;
+use v2t_files::parse_toml;
+use v2t_game::fixtures as common;
+use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams};
 use v2t_model::vehicle::VehicleConfig;
+use v2t_model::{Style, Target};
 use v2t_sim::bv::BvController;
-use v2t_sim::config::{ScenarioCard, SimSettings, parse_toml};
+use v2t_sim::config::{ScenarioCard, SimSettings};
 use v2t_sim::observation::BvObservation;
 use v2t_sim::plant::ActuationRequest;
 use v2t_sim::runner::run;
 use v2t_sim::scenario::Scenario;
 use v2t_sim::vut::VutModel;
 
-use crate::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams};
-use crate::sim::RegulatedBv;
-
-use crate::fixtures as common;
+use crate::controllers::RegulatedBv;
 
 /// The figures for one horizon.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -124,19 +124,15 @@ fn sim_latencies(settings: RegulatorParams) -> Result<Vec<f64>, Box<dyn std::err
     ];
     let sink = Rc::new(RefCell::new(Vec::new()));
     for base in &scenarios {
-        for style in [Style::Rush, Style::Yield] {
-            for tau in [1.5, 3.0, 5.0] {
-                for model in VutModel::ALL {
-                    let Some((bv_lim, vut_lim)) = RegulatedBv::limits_for(base, 0) else { continue };
-                    let Ok(inner) = RegulatedBv::new(settings.with_limits(bv_lim, vut_lim), tau, style) else {
-                        continue;
-                    };
-                    let mut sc = base.clone();
-                    sc.style = style;
-                    sc.tau_s = tau;
-                    let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(Timed { inner, sink: Rc::clone(&sink) })];
-                    let _ = run(&sc, &mut bvs, model.driver().as_mut(), 1);
-                }
+        for target in crate::steer::both_styles(&[1.5, 3.0, 5.0]) {
+            for model in VutModel::ALL {
+                let Ok(inner) = RegulatedBv::new(RegulatedBv::params_for(&settings, base, 0), target) else {
+                    continue;
+                };
+                let mut sc = base.clone();
+                sc.target = target;
+                let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(Timed { inner, sink: Rc::clone(&sink) })];
+                let _ = run(&sc, &mut bvs, model.driver().as_mut(), 1);
             }
         }
     }
@@ -172,26 +168,25 @@ pub fn run_bench(allocations: fn() -> u64) -> Result<Vec<BenchFigures>, Box<dyn 
             d
         };
         // Closed-loop-like approaches.
-        for style in [Style::Rush, Style::Yield] {
-            for tau in [1.5, 2.0, 3.0, 4.0, 5.0] {
-                reg.reset();
-                let mut inp = common::left_turn_start(style, tau);
-                for k in 0..200 {
-                    let d = decide(&mut reg, &inp, k >= 5, &mut approach_us);
-                    inp.t_s += 0.1;
-                    let v = (inp.bv.v_mps + d.accel_mps2 * 0.1).max(0.0);
-                    inp.bv.s_m += 0.5 * (inp.bv.v_mps + v) * 0.1;
-                    inp.bv.v_mps = v;
-                    inp.bv_accel_mps2 = d.accel_mps2;
-                    inp.vut.s_m += inp.vut.v_mps * 0.1;
-                }
+        for target in crate::steer::both_styles(&crate::steer::STEER_TAUS_S) {
+            reg.reset();
+            let mut inp = common::left_turn_start(target);
+            for k in 0..200 {
+                let d = decide(&mut reg, &inp, k >= 5, &mut approach_us);
+                inp.t_s += 0.1;
+                let v = (inp.bv.v_mps + d.accel_mps2 * 0.1).max(0.0);
+                inp.bv.s_m += 0.5 * (inp.bv.v_mps + v) * 0.1;
+                inp.bv.v_mps = v;
+                inp.bv_accel_mps2 = d.accel_mps2;
+                inp.vut.s_m += inp.vut.v_mps * 0.1;
             }
         }
         // Randomized states.
         let mut rng = Rng(horizon as u64);
         for _ in 0..10_000 {
-            let mut inp =
-                common::left_turn_start(if rng.next() < 0.5 { Style::Rush } else { Style::Yield }, rng.range(0.5, 6.0));
+            let style = if rng.next() < 0.5 { Style::Rush } else { Style::Yield };
+            let Ok(target) = Target::new(rng.range(0.5, 6.0), style) else { continue };
+            let mut inp = common::left_turn_start(target);
             inp.t_s = rng.range(0.0, 30.0);
             inp.bv = PathState { s_m: rng.range(-20.0, 80.0), v_mps: rng.range(0.0, 20.0), age_s: rng.range(0.0, 0.6) };
             inp.vut =
@@ -224,4 +219,30 @@ pub fn run_bench(allocations: fn() -> u64) -> Result<Vec<BenchFigures>, Box<dyn 
         });
     }
     Ok(report)
+}
+
+/// The figures as a markdown table, with the statuses seen per horizon.
+pub fn table(figures: &[BenchFigures]) -> String {
+    let mut out = String::from(
+        "| N | closed-loop decisions | p50 | p99 | max | approaches+random p50 | p99 | max | allocations/decision | non-finite |\n|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for f in figures {
+        out.push_str(&format!(
+            "| {} | {} | {:.0} µs | {:.0} µs | {:.0} µs | {:.0} µs | {:.0} µs | {:.0} µs | {:.2} | {} |\n",
+            f.horizon,
+            f.sim_decisions,
+            f.sim_p50_us,
+            f.sim_p99_us,
+            f.sim_max_us,
+            f.p50_us,
+            f.p99_us,
+            f.max_us,
+            f.allocs_per_decision,
+            f.non_finite
+        ));
+    }
+    for f in figures {
+        out.push_str(&format!("statuses (N = {}): {:?}\n", f.horizon, f.statuses));
+    }
+    out
 }

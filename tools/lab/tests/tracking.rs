@@ -13,13 +13,13 @@
 
 use std::path::{Path, PathBuf};
 
+use v2t_files::parse_toml;
+use v2t_lab::controllers::TrackedBv;
 use v2t_sim::bv::{BvController, ReferenceFollower};
-use v2t_sim::config::parse_toml;
 use v2t_sim::files::load_scenario;
 use v2t_sim::runner::Simulation;
 use v2t_sim::scenario::{Scenario, SpeedProfile};
 use v2t_track::TrackerConfig;
-use v2t_track::sim::TrackedBv;
 
 fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")

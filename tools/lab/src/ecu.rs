@@ -10,18 +10,21 @@ use std::time::Duration;
 
 use iceoryx2::service::Service;
 use v2t_can::codec::{CanFrame, DbwFeedback, Decoder, Encoder, Message};
-use v2t_can::transport::{CanTransport, SocketCanBus};
+use v2t_can::transport::CanTransport;
+use v2t_edge::canbus::End;
+use v2t_edge::clock::now_ns;
+use v2t_edge::config::Loaded;
+use v2t_edge::error::EdgeError;
+use v2t_edge::gateway::open_transport;
+use v2t_edge::ports::{Bus, send};
+use v2t_model::{Style, TargetError};
 use v2t_sim::plant::ActuationRequest;
 use v2t_sim::recording::PlanRecord;
 use v2t_sim::runner::{RunOutcome, Simulation};
 use v2t_sim::vut::VutModel;
 use v2t_wire::{ActivePrior, Code, DbwMode, Header, Localization, PlanStatus, RegulatedPlan, VutState, services};
 
-use crate::canbus::{End, IpcCanBus};
-use crate::clock::now_ns;
-use crate::config::{CanLink, Loaded};
-use crate::error::EdgeError;
-use crate::ports::{Bus, send};
+use crate::world::{self, Vehicles, WorldError};
 
 /// Without a valid enabled command for this long the ECU brakes on its own, s.
 const ECU_COMMAND_TIMEOUT_S: f64 = 0.1;
@@ -36,17 +39,16 @@ pub enum EcuSource {
     /// A scenario card; the ECU also publishes the card's prior (the stand-in for a cloud upload).
     Card(PathBuf),
     /// The prior the uplink node accepted from the cloud: the ECU waits for it on the prior service
-    /// and builds the world from its paths (the BV at the start of its reference, the VUT at the
-    /// start of its route with the prior's speed), with these simulation settings.
+    /// and builds the world from it ([`world::from_prior`]), with these simulation settings.
     Uplink {
         /// Simulation settings (TOML, `config/sim/default.toml`).
         sim_settings: PathBuf,
         /// Longest wait for the prior, s.
         wait_s: f64,
     },
-    /// A trajectory prior file (`TrajectoryPrior` JSON) checked against the BV's limits like an
-    /// upload, published on the prior service (the stand-in for the cloud upload), and the world
-    /// built from it as for [`EcuSource::Uplink`].
+    /// A trajectory prior file (`TrajectoryPrior` JSON) accepted as the BV accepts an upload
+    /// ([`world::accept`]), published on the prior service (the stand-in for the cloud upload), and
+    /// the world built from it as for [`EcuSource::Uplink`].
     Prior {
         /// The prior.
         path: PathBuf,
@@ -62,85 +64,57 @@ pub enum EcuSource {
 pub struct EcuOptions {
     /// The world.
     pub source: EcuSource,
-    /// VUT driver model (the card's own if `None`; IDM normal for an uplinked prior).
+    /// VUT driver model (the card's own if `None`; IDM normal for a prior).
     pub vut: Option<VutModel>,
     /// Seed of the noise.
     pub seed: u64,
     /// Longest wait for the gateway to engage before the scenario starts, s.
     pub engage_timeout_s: f64,
-    /// Target PET instead of the card's, s (a card only: an uplinked prior carries its own).
+    /// Target PET instead of the card's, s (a card only: a prior carries its own).
     pub tau_s: Option<f64>,
     /// Style instead of the card's (a card only).
-    pub style: Option<v2t_model::Style>,
+    pub style: Option<Style>,
 }
 
-/// Longest simulated run built from a prior, s.
-const MAX_PRIOR_RUN_S: f64 = 120.0;
-
-/// A prior file made into the prior the BV would have accepted from the cloud (limits checked; the
-/// geofence is the uplink's business).
-fn prior_from_file(
-    cfg: &Loaded,
-    path: &std::path::Path,
-    agent: Option<&str>,
-    prior_id: u64,
-) -> Result<ActivePrior, EdgeError> {
-    use v2t_model::grounded::AgentRole;
-    let bad = |m: String| EdgeError::Prior(format!("{}: {m}", path.display()));
-    let text = std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))?;
-    let prior: v2t_model::prior::TrajectoryPrior = serde_json::from_str(&text).map_err(|e| bad(e.to_string()))?;
-    let bv_agent = match agent {
-        Some(a) => a.to_owned(),
-        None => prior
-            .agents
-            .iter()
-            .find(|a| a.role == AgentRole::Bv)
-            .map(|a| a.id.clone())
-            .ok_or_else(|| bad("has no BV agent".into()))?,
-    };
-    let now = crate::uplink::unix_ms();
-    let up =
-        v2t_wire::link::PriorUpload { prior_id, bv_agent, valid_from_ms: now, valid_until_ms: now + 3_600_000, prior };
-    let checks = crate::prior::PriorChecks::for_vehicles(&cfg.vehicle, &cfg.vut_vehicle, None, 0.0);
-    crate::prior::from_upload(&up, now, &checks, now_ns()).map_err(|e| bad(e.to_string()))
+/// Why the simulated ECU could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum EcuError {
+    /// The onboard side (configuration, iceoryx2, CAN) failed.
+    #[error(transparent)]
+    Edge(#[from] EdgeError),
+    /// The card cannot be run.
+    #[error(transparent)]
+    Card(#[from] v2t_sim::files::CardError),
+    /// A file (prior, settings) cannot be read or is bad.
+    #[error(transparent)]
+    Input(#[from] v2t_files::InputError),
+    /// The prior makes no world.
+    #[error(transparent)]
+    World(#[from] WorldError),
+    /// `--tau` is not a target.
+    #[error("--tau: {0}")]
+    Target(#[from] TargetError),
+    /// A frame could not be encoded or sent.
+    #[error("CAN: {0}")]
+    Can(String),
+    /// No prior came from the uplink.
+    #[error("no prior from the uplink within {0} s")]
+    NoPrior(f64),
+    /// The gateway never engaged.
+    #[error("the gateway did not engage within {0} s")]
+    NotEngaged(f64),
 }
 
-/// The world of an uplinked prior: its paths, the BV's reference timing, the VUT's start speed.
-fn scenario_from_prior(
-    prior: &ActivePrior,
-    cfg: &Loaded,
-    settings: v2t_sim::config::SimSettings,
-    vut_model: VutModel,
-) -> Result<v2t_sim::scenario::Scenario, EdgeError> {
-    use v2t_wire::Vector as _;
-    // The paths, the zone the regulator works on and the style, decoded as the regulator does, so
-    // that the run measures the conflict the BV regulates.
-    let ctx = crate::prior::PriorContext::new(prior)
-        .map_err(|e| EdgeError::Prior(format!("prior {}: {e}", prior.prior_id)))?;
-    let profile: Vec<[f64; 2]> = prior.bv_profile.as_slice().iter().map(|q| [q.t_s, q.v_mps]).collect();
-    let bv_end_s = profile.last().map_or(0.0, |[t, _]| *t);
-    let vut_end_s = ctx.vut_path.length() / prior.vut_speed_mps.max(1.0);
-    let zone = v2t_model::metrics::ConflictZone {
-        kind: ctx.zone_kind,
-        a: ctx.zone_vut,
-        b: ctx.zone_bv,
-        anchor: ctx.vut_path.point_at(0.5 * (ctx.zone_vut.enter_s_m + ctx.zone_vut.exit_s_m)),
-    };
-    let paths = v2t_sim::scenario::ScenarioPaths {
-        name: format!("prior {}", prior.prior_id),
-        tau_s: ctx.tau_s,
-        style: ctx.style,
-        duration_s: (bv_end_s.max(vut_end_s) + 2.0).min(MAX_PRIOR_RUN_S),
-        vut_route: ctx.vut_path,
-        vut_speed_mps: prior.vut_speed_mps,
-        vut_model,
-        bv_id: "bv".into(),
-        bv_route: ctx.bv_path,
-        bv_reference: v2t_sim::scenario::SpeedProfile::new(profile),
-        conflict: Some(zone),
-    };
-    v2t_sim::scenario::Scenario::from_paths(paths, settings, cfg.vut_vehicle.clone(), cfg.vehicle.clone())
-        .map_err(|e| EdgeError::Prior(format!("prior {}: {e}", prior.prior_id)))
+impl EcuError {
+    /// Whether the input (files, options) is at fault.
+    pub fn is_input(&self) -> bool {
+        matches!(self, Self::Card(_) | Self::Input(_) | Self::World(_) | Self::Target(_))
+            || matches!(self, Self::Edge(EdgeError::Config { .. } | EdgeError::Read { .. }))
+    }
+}
+
+fn vehicles(cfg: &Loaded) -> Vehicles<'_> {
+    Vehicles { bv: &cfg.vehicle, vut: &cfg.vut_vehicle }
 }
 
 /// What the ECU saw of the commands.
@@ -186,7 +160,7 @@ impl Commands {
     /// The request the actuators get at `now`: the commands while fresh, else the ECU's own stop.
     fn request(&mut self, now: u64, held_steer: f64) -> ActuationRequest {
         let fresh =
-            |c: Option<(f64, u64)>| c.filter(|(_, t)| crate::clock::secs_between(*t, now) <= ECU_COMMAND_TIMEOUT_S);
+            |c: Option<(f64, u64)>| c.filter(|(_, t)| v2t_edge::clock::secs_between(*t, now) <= ECU_COMMAND_TIMEOUT_S);
         match (fresh(self.accel), fresh(self.steer)) {
             (Some((a, _)), Some((s, _))) => ActuationRequest { accel_mps2: a, steer_rad: s },
             _ => {
@@ -195,15 +169,6 @@ impl Commands {
             }
         }
     }
-}
-
-fn open_transport<S: Service + 'static>(cfg: &Loaded, bus: &Bus<S>) -> Result<Box<dyn CanTransport>, EdgeError> {
-    Ok(match &cfg.edge.can {
-        CanLink::Socketcan { interface } => {
-            Box::new(SocketCanBus::open(interface).map_err(|e| EdgeError::Can(format!("{interface}: {e}")))?)
-        }
-        CanLink::Ipc => Box::new(IpcCanBus::open(bus, End::Ecu)?),
-    })
 }
 
 struct Io<S: Service + 'static> {
@@ -225,7 +190,7 @@ impl<S: Service + 'static> Io<S> {
         }
     }
 
-    fn publish_fix(&mut self, state: &v2t_model::kinematics::State, age_s: f64) -> Result<(), EdgeError> {
+    fn publish_fix(&mut self, state: &v2t_model::kinematics::State, age_s: f64) -> Result<(), EcuError> {
         let stamp = now_ns().saturating_sub((age_s * 1e9) as u64);
         self.fix_header.seq += 1;
         self.fix_header.stamp_ns = stamp;
@@ -237,10 +202,10 @@ impl<S: Service + 'static> Io<S> {
             speed_mps: state.speed_mps,
             valid: 1,
         };
-        send(&self.fixes, Some(&self.fix_wake), fix)
+        Ok(send(&self.fixes, Some(&self.fix_wake), fix)?)
     }
 
-    fn publish_vut(&mut self, state: &v2t_model::kinematics::State, age_s: f64) -> Result<(), EdgeError> {
+    fn publish_vut(&mut self, state: &v2t_model::kinematics::State, age_s: f64) -> Result<(), EcuError> {
         self.vut_header.seq += 1;
         self.vut_header.stamp_ns = now_ns().saturating_sub((age_s * 1e9) as u64);
         let v = VutState {
@@ -250,18 +215,18 @@ impl<S: Service + 'static> Io<S> {
             theta_rad: state.theta_rad,
             speed_mps: state.speed_mps,
         };
-        send(&self.vut, None, v)
+        Ok(send(&self.vut, None, v)?)
     }
 
-    fn feedback(&mut self, speed: f64, yaw_rate: f64, steer: f64) -> Result<(), EdgeError> {
+    fn feedback(&mut self, speed: f64, yaw_rate: f64, steer: f64) -> Result<(), EcuError> {
         let fb = DbwFeedback {
             wheel_speed_mps: speed,
             yaw_rate_radps: yaw_rate,
             steer_rad: steer,
             mode: DbwMode::Auto.code(),
         };
-        let frame = self.encoder.feedback(&fb).map_err(|e| EdgeError::Can(e.to_string()))?;
-        self.can.send(&frame).map_err(|e| EdgeError::Can(e.to_string()))
+        let frame = self.encoder.feedback(&fb).map_err(|e| EcuError::Can(e.to_string()))?;
+        self.can.send(&frame).map_err(|e| EcuError::Can(e.to_string()))
     }
 }
 
@@ -270,37 +235,34 @@ impl<S: Service + 'static> Io<S> {
 pub fn run<S: Service + 'static>(
     cfg: &Loaded,
     opts: &EcuOptions,
-) -> Result<(RunOutcome, EcuStats, Vec<PlanRecord>), EdgeError> {
+) -> Result<(RunOutcome, EcuStats, Vec<PlanRecord>), EcuError> {
     let bus = Bus::<S>::new("sim-ecu", &cfg.edge.namespace)?;
     // The regulator's decisions, for the recording.
     let plan_in = bus.subscriber::<RegulatedPlan>(services::PLAN)?;
     let mut plans = Vec::new();
     let (scenario, card_prior) = match &opts.source {
         EcuSource::Card(card) => {
-            let mut scenario = v2t_sim::files::load_scenario(card).map_err(|e| EdgeError::Prior(e.to_string()))?;
+            let mut scenario = v2t_sim::files::load_scenario(card)?;
             if let Some(tau) = opts.tau_s {
-                if !(tau.is_finite() && tau > 0.0) {
-                    return Err(EdgeError::Prior(format!("target PET must be positive, got {tau}")));
-                }
-                scenario.tau_s = tau;
+                scenario.target = scenario.target.with_tau(tau)?;
             }
             if let Some(style) = opts.style {
-                scenario.style = style;
+                scenario.target = scenario.target.with_style(style);
             }
-            let prior = crate::prior::from_scenario(&scenario, 0, opts.seed.wrapping_add(1), now_ns())?;
+            let prior = world::prior_of_card(&scenario, 0, opts.seed.wrapping_add(1), now_ns())?;
             (scenario, Some((prior, bus.publisher::<ActivePrior>(services::PRIOR)?)))
         }
         EcuSource::Prior { path, agent, sim_settings } => {
-            let settings: v2t_sim::config::SimSettings =
-                v2t_sim::files::load_toml(sim_settings).map_err(|e| EdgeError::Prior(e.to_string()))?;
-            let prior = prior_from_file(cfg, path, agent.as_deref(), opts.seed.wrapping_add(1))?;
+            let settings = v2t_files::load_toml(sim_settings)?;
+            let file = v2t_files::read_prior(path)?;
+            let prior = world::accept(&file, agent.as_deref(), vehicles(cfg), opts.seed.wrapping_add(1), now_ns())?;
             let model = opts.vut.unwrap_or(VutModel::IdmNormal);
-            let scenario = scenario_from_prior(&prior, cfg, settings, model)?;
+            let name = format!("prior {}", prior.prior_id);
+            let scenario = world::from_prior(&name, &prior, vehicles(cfg), settings, model)?;
             (scenario, Some((prior, bus.publisher::<ActivePrior>(services::PRIOR)?)))
         }
         EcuSource::Uplink { sim_settings, wait_s } => {
-            let settings: v2t_sim::config::SimSettings =
-                v2t_sim::files::load_toml(sim_settings).map_err(|e| EdgeError::Prior(e.to_string()))?;
+            let settings = v2t_files::load_toml(sim_settings)?;
             let priors = bus.subscriber::<ActivePrior>(services::PRIOR)?;
             let deadline = now_ns() + (wait_s * 1e9) as u64;
             let prior = loop {
@@ -311,16 +273,14 @@ pub fn run<S: Service + 'static>(
                 if let Some(p) = newest {
                     break p;
                 }
-                if now_ns() > deadline {
-                    return Err(EdgeError::Prior(format!("no prior from the uplink within {wait_s} s")));
-                }
-                if !bus.wait(Duration::from_millis(20)) {
-                    return Err(EdgeError::Prior("stopped while waiting for a prior".into()));
+                if now_ns() > deadline || !bus.wait(Duration::from_millis(20)) {
+                    return Err(EcuError::NoPrior(*wait_s));
                 }
             };
             eprintln!("sim-ecu: prior {} from the uplink: τ {} s", prior.prior_id, prior.tau_s);
             let model = opts.vut.unwrap_or(VutModel::IdmNormal);
-            (scenario_from_prior(&prior, cfg, settings, model)?, None)
+            let name = format!("prior {}", prior.prior_id);
+            (world::from_prior(&name, &prior, vehicles(cfg), settings, model)?, None)
         }
     };
     let model = opts.vut.unwrap_or(scenario.vut.default_model);
@@ -329,7 +289,7 @@ pub fn run<S: Service + 'static>(
         fixes: bus.publisher(services::LOCALIZATION)?,
         fix_wake: bus.notifier(services::WAKE_STATE)?,
         vut: bus.publisher(services::VUT)?,
-        can: open_transport(cfg, &bus)?,
+        can: open_transport(cfg, &bus, End::Ecu)?,
         encoder: Encoder::default(),
         fix_header: Header::default(),
         vut_header: Header::default(),
@@ -338,9 +298,10 @@ pub fn run<S: Service + 'static>(
     // A card's prior is sent again every second, as the cloud would: a node that (re)starts later
     // gets it too. An uplinked prior stays with the uplink node.
     let send_prior = || match &card_prior {
-        Some((prior, out)) => {
-            out.send_copy(prior.clone()).map(|_| ()).map_err(|e| EdgeError::ipc("send", services::PRIOR, e))
-        }
+        Some((prior, out)) => out
+            .send_copy(prior.clone())
+            .map(|_| ())
+            .map_err(|e| EcuError::from(EdgeError::ipc("send", services::PRIOR, e))),
         None => Ok(()),
     };
     send_prior()?;
@@ -357,7 +318,7 @@ pub fn run<S: Service + 'static>(
     let mut k: u64 = 0;
     while !cmds.engaged {
         if now_ns() > deadline {
-            return Err(EdgeError::Can(format!("the gateway did not engage within {} s", opts.engage_timeout_s)));
+            return Err(EcuError::NotEngaged(opts.engage_timeout_s));
         }
         io.drain(&mut cmds);
         if k.is_multiple_of(prior_every) {

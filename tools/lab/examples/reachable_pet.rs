@@ -8,7 +8,7 @@
 //! the models apart before the VUT reacts to the BV), and the rarest of them are listed.
 //!
 //! ```sh
-//! cargo run --release -p v2t-sim --example reachable_pet [-- config/scenarios/cut_in_basic.toml]
+//! cargo run --release -p v2t-lab --example reachable_pet [-- config/scenarios/cut_in_basic.toml]
 //! ```
 //!
 //! It bounds what any regulator can achieve against a VUT model: if no profile of the grid reaches a
@@ -48,7 +48,7 @@ impl BvController for OpenLoop {
     fn control(&mut self, obs: &BvObservation<'_>) -> ActuationRequest {
         let sc = obs.scenario;
         let bv = &sc.bvs[obs.bv_index];
-        let zone = sc.conflict_of(obs.bv_index).unwrap().zone.b;
+        let zone = sc.conflict_of(obs.bv_index).unwrap().zone.bv;
         let v = obs.own.state.speed_mps;
         let lim = &bv.agent.vehicle.limits;
         let wanted = if obs.own.s_m >= zone.exit_s_m {
@@ -70,7 +70,7 @@ impl BvController for OpenLoop {
 fn main() {
     let card = std::env::args().nth(1).unwrap_or_else(|| "config/scenarios/left_turn_basic.toml".to_owned());
     let mut scenario = load_scenario(Path::new(&card)).expect("the card loads");
-    scenario.style = Style::Rush;
+    scenario.target = scenario.target.with_style(Style::Rush);
     let taus = [1.5, 2.0, 3.0, 4.0, 5.0];
     let accels = [-3.0, -2.0, -1.0, 0.0, 1.0, 2.0, 3.0];
     let mut profiles = Vec::new();

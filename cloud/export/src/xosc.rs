@@ -1,5 +1,5 @@
 //! OpenSCENARIO 1.2 export, pure: a scenario's agents with their timed states go in, the text of a
-//! `.xosc` file comes out. No IO, no clock: the shell ([`crate::export`]) reads the input and the
+//! `.xosc` file comes out. No IO, no clock: the shell ([`crate::file`]) reads the input and the
 //! vehicle files, resolves the map's path and passes the date.
 //!
 //! Three inputs are understood ([`parse_input`]): a `TrajectoryPrior` (`dt_s`), a
@@ -22,7 +22,7 @@
 //! - a stop trigger at the end time.
 //!
 //! ```
-//! use video2track::xosc::{escape, vertex_indices};
+//! use v2t_export::xosc::{escape, vertex_indices};
 //! assert_eq!(escape("a<b & \"c\""), "a&lt;b &amp; &quot;c&quot;");
 //! let times: Vec<f64> = (0..=20).map(|k| k as f64 * 0.1).collect();
 //! let headings = vec![0.0; times.len()];
@@ -32,11 +32,13 @@
 use std::fmt::Write as _;
 
 use crate::runfile::RunFile;
+use v2t_files::{DocumentError, PriorDocument, prior_document};
 use v2t_model::Style;
 use v2t_model::geometry::Point2;
 use v2t_model::grounded::{AgentRole, GroundedScenario};
 use v2t_model::kinematics::State;
 use v2t_model::prior::TrajectoryPrior;
+use v2t_model::validate::ValidationError;
 use v2t_model::vehicle::VehicleConfig;
 
 /// Longest time between two trajectory vertices, s.
@@ -111,6 +113,30 @@ impl ExportScenario {
     }
 }
 
+/// An input that cannot be exported.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum XoscError {
+    /// Not JSON.
+    #[error("not JSON: {0}")]
+    NotJson(String),
+    /// A prior or grounded scenario that does not parse or validate.
+    #[error(transparent)]
+    Document(#[from] DocumentError),
+    /// Something with a `trace` that is not a run.
+    #[error("not a run (`video2track sim --json`): {0}")]
+    NotARun(String),
+    /// None of the three inputs.
+    #[error("neither a trajectory prior (`dt_s`), a grounded scenario (`fragment_id`, `agents`) nor a run (`trace`)")]
+    Unknown,
+    /// The right kind of input, with a value that cannot be written.
+    #[error(transparent)]
+    Invalid(#[from] ValidationError),
+}
+
+fn invalid(field: impl Into<String>, problem: impl Into<String>) -> XoscError {
+    XoscError::Invalid(ValidationError::new(field, problem))
+}
+
 /// What the writer needs besides the scenario.
 #[derive(Debug, Clone, Copy)]
 pub struct XoscOptions<'a> {
@@ -129,22 +155,21 @@ pub struct XoscOptions<'a> {
 /// Reads the text of an input file: a `TrajectoryPrior` (has `dt_s`), a `GroundedScenario` (has
 /// `fragment_id` and `agents`) or a run (has `trace`). The error says what is wrong, without the
 /// file's name.
-pub fn parse_input(text: &str) -> Result<ExportScenario, String> {
-    let value: serde_json::Value = serde_json::from_str(text).map_err(|e| format!("not JSON: {e}"))?;
-    let scenario = if let Some(doc) = crate::link::priors_document(&value) {
-        match doc? {
-            (p, None) => from_prior(&p, SourceKind::Prior, None),
-            (p, Some(g)) => from_prior(&p, SourceKind::Grounded, Some(&g)),
+pub fn parse_input(text: &str) -> Result<ExportScenario, XoscError> {
+    let value: serde_json::Value = serde_json::from_str(text).map_err(|e| XoscError::NotJson(e.to_string()))?;
+    let is_run = value.get("trace").is_some();
+    let scenario = match prior_document(value.clone()) {
+        Some(doc) => match doc? {
+            PriorDocument::Prior(p) => from_prior(&p, SourceKind::Prior, None),
+            PriorDocument::Grounded { stand_in, grounded } => {
+                from_prior(&stand_in, SourceKind::Grounded, Some(&grounded))
+            }
+        },
+        None if is_run => {
+            let run: RunFile = serde_json::from_value(value).map_err(|e| XoscError::NotARun(e.to_string()))?;
+            from_run(run)?
         }
-    } else if value.get("trace").is_some() {
-        let run: RunFile =
-            serde_json::from_value(value).map_err(|e| format!("not a run (`video2track sim --json`): {e}"))?;
-        from_run(run)?
-    } else {
-        return Err(
-            "neither a trajectory prior (`dt_s`), a grounded scenario (`fragment_id`, `agents`) nor a run (`trace`)"
-                .into(),
-        );
+        None => return Err(XoscError::Unknown),
     };
     check(&scenario)?;
     Ok(scenario)
@@ -170,15 +195,15 @@ fn from_prior(p: &TrajectoryPrior, kind: SourceKind, grounded: Option<&GroundedS
     ExportScenario { kind, name: p.fragment_id.clone(), tau_s: p.tau_s, style: p.style, agents }
 }
 
-fn from_run(run: RunFile) -> Result<ExportScenario, String> {
+fn from_run(run: RunFile) -> Result<ExportScenario, XoscError> {
     let (Some(tau_s), Some(style)) = (run.result.tau_s, run.result.style) else {
-        return Err("not a run (`video2track sim --json`): result: missing field `tau_s` or `style`".into());
+        return Err(XoscError::NotARun("result: missing field `tau_s` or `style`".into()));
     };
     if run.agent_ids.is_empty() {
-        return Err("agent_ids: no agents".into());
+        return Err(invalid("agent_ids", "no agents"));
     }
     if run.trace.len() < 2 {
-        return Err(format!("trace: needs at least 2 samples, got {}", run.trace.len()));
+        return Err(invalid("trace", format!("needs at least 2 samples, got {}", run.trace.len())));
     }
     let t0 = run.trace.first().map_or(0.0, |s| s.t_s);
     let mut agents: Vec<ExportAgent> = run
@@ -197,11 +222,15 @@ fn from_run(run: RunFile) -> Result<ExportScenario, String> {
     let mut last = f64::NEG_INFINITY;
     for (k, sample) in run.trace.iter().enumerate() {
         if !sample.t_s.is_finite() || sample.t_s <= last {
-            return Err(format!("trace[{k}].t_s = {}: times must be finite and increasing", sample.t_s));
+            return Err(invalid(
+                format!("trace[{k}].t_s"),
+                format!("{}: times must be finite and increasing", sample.t_s),
+            ));
         }
         last = sample.t_s;
         if sample.agents.len() != agents.len() {
-            return Err(format!("trace[{k}] has {} agents, agent_ids names {}", sample.agents.len(), agents.len()));
+            let problem = format!("has {} agents, agent_ids names {}", sample.agents.len(), agents.len());
+            return Err(invalid(format!("trace[{k}]"), problem));
         }
         for (a, s) in agents.iter_mut().zip(&sample.agents) {
             a.times_s.push(sample.t_s - t0);
@@ -226,33 +255,31 @@ fn path_of(states: &[State]) -> Vec<Point2> {
     path
 }
 
-fn check(s: &ExportScenario) -> Result<(), String> {
+fn check(s: &ExportScenario) -> Result<(), XoscError> {
     if s.agents.is_empty() {
-        return Err("agents: needs at least one agent".into());
+        return Err(invalid("agents", "needs at least one agent"));
     }
-    if !(s.tau_s.is_finite()) {
-        return Err(format!("tau_s = {} must be finite", s.tau_s));
-    }
+    v2t_model::Target::check_tau("tau_s", s.tau_s)?;
     for (i, a) in s.agents.iter().enumerate() {
         if a.id.trim().is_empty() {
-            return Err(format!("agents[{i}].id must not be empty"));
+            return Err(invalid(format!("agents[{i}].id"), "must not be empty"));
         }
         if s.agents.iter().skip(i + 1).any(|b| b.id == a.id) {
-            return Err(format!("agents[{i}].id `{}` is used twice", a.id));
+            return Err(invalid(format!("agents[{i}].id"), format!("`{}` is used twice", a.id)));
         }
         if a.states.len() < 2 || a.times_s.len() != a.states.len() {
-            return Err(format!("agents[{i}] (`{}`): needs at least 2 states", a.id));
+            return Err(invalid(format!("agents[{i}]"), format!("(`{}`) needs at least 2 states", a.id)));
         }
         if let Some(k) = a.states.iter().position(|x| !x.is_finite()) {
-            return Err(format!("agents[{i}].states[{k}] must be finite"));
+            return Err(invalid(format!("agents[{i}].states[{k}]"), "must be finite"));
         }
         if let Some(k) = a.route.iter().position(|p| !p.is_finite()) {
-            return Err(format!("agents[{i}].route[{k}] must be finite"));
+            return Err(invalid(format!("agents[{i}].route[{k}]"), "must be finite"));
         }
     }
     let vuts = s.agents.iter().filter(|a| a.role == AgentRole::Vut).count();
     if vuts > 1 {
-        return Err(format!("agents: at most one VUT, got {vuts}"));
+        return Err(invalid("agents", format!("at most one VUT, got {vuts}")));
     }
     Ok(())
 }
@@ -661,11 +688,12 @@ mod tests {
 
     #[test]
     fn inputs_that_are_not_scenarios_say_so() {
-        assert!(parse_input("nope").unwrap_err().starts_with("not JSON"));
-        assert!(parse_input("{}").unwrap_err().starts_with("neither"));
+        assert!(parse_input("nope").unwrap_err().to_string().starts_with("not JSON"));
+        assert!(parse_input("{}").unwrap_err().to_string().starts_with("neither"));
         assert!(
             parse_input(r#"{"trace": [], "agent_ids": [], "result": {"scenario": "x", "tau_s": 2, "style": "rush"}}"#)
                 .unwrap_err()
+                .to_string()
                 .contains("agent_ids")
         );
     }

@@ -1,4 +1,4 @@
-//! `video2track render`: a bird's-eye video of a simulated run (the JSON `video2track sim --json`
+//! A bird's-eye video of a simulated run (the JSON `video2track sim --json`
 //! writes). Each frame is drawn here into an RGB buffer ([`raster`]): the map's lanes when a map is
 //! given, every vehicle's route (with `--card`) or else its whole trajectory as a faint line, the
 //! part driven so far as a trail, each vehicle as a filled rectangle of its footprint turned to its
@@ -22,10 +22,10 @@ use std::process::{Command, Stdio};
 use crate::runfile::RunFile;
 use v2t_model::geometry::Point2;
 use v2t_model::kinematics::State;
-use v2t_sim::files::InputError;
+use v2t_sim::files::CardError;
 use v2t_sim::scenario::Scenario;
 
-use crate::render::raster::{Canvas, Rgb};
+use crate::video::raster::{Canvas, Rgb};
 
 /// Vehicle length drawn when no card gives it (the bundled sedans'), m.
 pub const DEFAULT_LENGTH_M: f64 = 4.8;
@@ -74,7 +74,7 @@ pub enum RenderError {
     },
     /// The scenario card could not be loaded.
     #[error(transparent)]
-    Card(#[from] InputError),
+    Card(#[from] CardError),
     /// The card is not the run's scenario.
     #[error("{card}: {problem}")]
     CardMismatch {

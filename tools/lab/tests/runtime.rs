@@ -1,5 +1,5 @@
-//! The onboard runtime as separate processes: the launcher with every node, the simulated ECU,
-//! iceoryx2 between them. The CAN frames go over iceoryx2's virtual CAN bus (the kernels of our
+//! The onboard runtime as separate processes: the launcher with every node (`v2t-edge`), the
+//! simulated ECU (`v2t-sim-ecu`), iceoryx2 between them. The CAN frames go over iceoryx2's virtual CAN bus (the kernels of our
 //! machines and CI have no CAN), except in the vcan guest (`tests/vcan/bench.sh`), where
 //! `V2T_CAN_IFACE` names a SocketCAN interface and the closed-loop test runs the gateway and the
 //! simulated ECU over it. Each test runs in its own service namespace, so they can run in parallel.
@@ -41,6 +41,20 @@ fn can_args() -> Vec<String> {
     }
 }
 
+/// The onboard runtime's binary, which `cargo test --workspace` builds beside this test's
+/// (`cargo build -p v2t-edge` alone does too).
+fn edge_bin() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    let p = exe.parent().and_then(Path::parent).unwrap().join("v2t-edge");
+    assert!(p.exists(), "{} is not built: run `cargo build -p v2t-edge` (or the whole workspace's tests)", p.display());
+    p
+}
+
+/// The simulated ECU, this package's binary.
+fn ecu_bin() -> PathBuf {
+    PathBuf::from(env!("CARGO_BIN_EXE_v2t-sim-ecu"))
+}
+
 fn namespace(test: &str) -> String {
     format!("v2t/test/{test}{}", std::process::id())
 }
@@ -52,13 +66,8 @@ struct Proc {
 }
 
 impl Proc {
-    fn start(args: &[&str]) -> Self {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_v2t-edge"))
-            .args(args)
-            .current_dir(root())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
+    fn start(exe: &Path, args: &[&str]) -> Self {
+        let mut child = Command::new(exe).args(args).current_dir(root()).stderr(Stdio::piped()).spawn().unwrap();
         let stderr = child.stderr.take().unwrap();
         let (tx, lines) = channel();
         std::thread::spawn(move || {
@@ -161,10 +170,10 @@ fn a_yielding_left_turn_runs_to_the_end_through_the_processes_and_lands_on_the_t
     let can = can_args();
     let mut args = vec!["launch", "--config", &cfg, "--namespace", &ns];
     args.extend(can.iter().map(String::as_str));
-    let mut launcher = Proc::start(&args);
+    let mut launcher = Proc::start(&edge_bin(), &args);
     let card = root().join("config/scenarios/left_turn_basic.toml").display().to_string();
-    let ecu = Command::new(env!("CARGO_BIN_EXE_v2t-edge"))
-        .args(["sim-ecu", "--config", &cfg, "--namespace", &ns, "--scenario", &card])
+    let ecu = Command::new(ecu_bin())
+        .args(["--config", &cfg, "--namespace", &ns, "--scenario", &card])
         .args(&can)
         .args(["--style", "yield", "--tau", "3", "--seed", "1", "--out"])
         .arg(&out)
@@ -194,10 +203,10 @@ fn a_killed_regulator_brings_the_minimal_risk_stop_within_100_ms_and_its_restart
     let ns = namespace("kill");
     let cfg = config();
     let watch = GateWatch::new(&ns);
-    let launcher = Proc::start(&["launch", "--config", &cfg, "--namespace", &ns]);
+    let launcher = Proc::start(&edge_bin(), &["launch", "--config", &cfg, "--namespace", &ns]);
     let regulator = pid_of(&launcher.expect_line("started regulator", Duration::from_secs(10)));
     let card = root().join("config/scenarios/left_turn_basic.toml").display().to_string();
-    let _ecu = Proc::start(&["sim-ecu", "--config", &cfg, "--namespace", &ns, "--scenario", &card]);
+    let _ecu = Proc::start(&ecu_bin(), &["--config", &cfg, "--namespace", &ns, "--scenario", &card]);
     watch.until(GateState::Engaged, Duration::from_secs(20));
     std::thread::sleep(Duration::from_millis(500));
 
@@ -216,7 +225,7 @@ fn a_killed_regulator_brings_the_minimal_risk_stop_within_100_ms_and_its_restart
         GateState::MinimalRiskStop.code()
     );
     for request in ["reset", "engage"] {
-        let status = Command::new(env!("CARGO_BIN_EXE_v2t-edge"))
+        let status = Command::new(edge_bin())
             .args([request, "--config", &cfg, "--namespace", &ns])
             .current_dir(root())
             .status()
@@ -231,9 +240,9 @@ fn a_stale_state_brings_the_minimal_risk_stop() {
     let ns = namespace("stale");
     let cfg = config();
     let watch = GateWatch::new(&ns);
-    let _launcher = Proc::start(&["launch", "--config", &cfg, "--namespace", &ns]);
+    let _launcher = Proc::start(&edge_bin(), &["launch", "--config", &cfg, "--namespace", &ns]);
     let card = root().join("config/scenarios/left_turn_basic.toml").display().to_string();
-    let ecu = Proc::start(&["sim-ecu", "--config", &cfg, "--namespace", &ns, "--scenario", &card]);
+    let ecu = Proc::start(&ecu_bin(), &["--config", &cfg, "--namespace", &ns, "--scenario", &card]);
     watch.until(GateState::Engaged, Duration::from_secs(20));
     std::thread::sleep(Duration::from_millis(500));
     // Freeze the ECU: no more fixes, no more feedback.

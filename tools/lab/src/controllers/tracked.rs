@@ -1,4 +1,4 @@
-//! The tracker as a BV controller of the simulated proving ground: the BV follows its reference
+//! The tracker (`v2t-track`) as a BV controller of the simulated proving ground: the BV follows its reference
 //! path at the timing of its reference speed profile (the plan a regulator would hand over), with
 //! PID + Stanley instead of the simulator's own pure pursuit, so that the tracker can be measured
 //! against the real plant, localization noise and actuator lag.
@@ -9,7 +9,7 @@ use v2t_sim::observation::BvObservation;
 use v2t_sim::plant::ActuationRequest;
 use v2t_sim::scenario::BvSetup;
 
-use crate::{PlanSample, TrackError, Tracker, TrackerConfig, TrackerOutput};
+use v2t_track::{PlanSample, TrackError, Tracker, TrackerConfig, TrackerOutput};
 
 /// Deceleration requested when a cycle is refused (the wheel holds its last angle), m/s².
 const FALLBACK_DECEL_MPS2: f64 = 3.0;

@@ -3,7 +3,8 @@
 //! A proving ground's `.xodr` is read into plain data ([`xodr`]), every lane becomes a centreline
 //! polyline with boundaries, marks and links ([`graph`]), and the map is cut into fragments where
 //! interactions happen — intersections, multi-lane segments, merges — with anchors that grounding
-//! pins a scenario to ([`library`]). Nothing here does IO except [`Map::load`].
+//! pins a scenario to ([`library`]). Nothing here does IO except [`Map::load`] and [`inspect`] (a
+//! map with its library and its hand annotations, ready for grounding).
 //!
 //! ```
 //! let xodr = r#"<OpenDRIVE><header revMajor="1" revMinor="6"/>
@@ -28,6 +29,7 @@ pub mod drivable;
 pub mod error;
 pub mod geometry;
 pub mod graph;
+pub mod inspect;
 pub mod library;
 pub mod svg;
 pub mod xodr;
@@ -35,6 +37,7 @@ pub mod xodr;
 use std::path::Path;
 
 pub use error::{MapError, MapWarning};
+pub use inspect::{Inspection, inspect};
 
 /// A parsed map with its lane graph.
 #[derive(Debug, Clone)]

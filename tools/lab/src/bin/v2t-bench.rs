@@ -1,0 +1,118 @@
+//! `v2t-bench`: the onboard figures, measured.
+//!
+//! ```sh
+//! v2t-bench latency --json latency.json   # state-in → CAN-frame-out through the real processes
+//! v2t-bench game --json game.json         # the regulator's decision latency and allocations
+//! ```
+//!
+//! Both run release builds on this machine; their figures go into `docs/BENCHMARKS.md` with the
+//! command. They are never timed assertions in tests.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use anyhow::Context as _;
+use clap::{Parser, Subcommand};
+use v2t_edge::config::{Overrides, load_for_process};
+
+/// Counts heap allocations, so that `game` can report allocations per decision (this binary only:
+/// the onboard runtime uses the system allocator untouched).
+struct Counting;
+static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+// SAFETY: forwards every call to the system allocator unchanged and only counts.
+#[allow(unsafe_code)]
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        // SAFETY: same contract as the caller's.
+        unsafe { System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        // SAFETY: same contract as the caller's.
+        unsafe { System.dealloc(p, l) }
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        // SAFETY: same contract as the caller's.
+        unsafe { System.realloc(p, l, n) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations() -> u64 {
+    ALLOCATIONS.load(Ordering::Relaxed)
+}
+
+/// Video2Track benches of the onboard runtime and the regulator.
+#[derive(Debug, Parser)]
+#[command(name = "v2t-bench", version)]
+struct Cli {
+    #[command(subcommand)]
+    command: Bench,
+}
+
+#[derive(Debug, Subcommand)]
+enum Bench {
+    /// State-in → CAN-frame-out latency through the real processes (`v2t-edge launch` and
+    /// `v2t-sim-ecu`, both beside this binary).
+    Latency {
+        /// The BV's runtime configuration.
+        #[arg(long, default_value = v2t_files::shipped::EDGE)]
+        config: PathBuf,
+        /// The scenario to drive.
+        #[arg(long, default_value = "config/scenarios/left_turn_basic.toml")]
+        scenario: PathBuf,
+        /// Write the figures (JSON) here.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
+    /// The regulator's decision latency and allocations (one thread, warm; N = 30 and 50).
+    Game {
+        /// Write the figures (JSON) here.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
+}
+
+fn write_json(path: &Path, value: &impl serde::Serialize) -> anyhow::Result<()> {
+    let text = serde_json::to_string_pretty(value)?;
+    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Bench::Latency { config, scenario, json } => {
+            let cfg = load_for_process(&config, Overrides::default())?;
+            let (edge, ecu) = (v2t_lab::demo::beside_me("v2t-edge"), v2t_lab::demo::beside_me("v2t-sim-ecu"));
+            let programs = v2t_lab::bench_latency::Programs { edge: &edge, ecu: &ecu };
+            let report = v2t_lab::bench_latency::latency(&cfg, programs, &scenario)?;
+            println!("{}", report.table());
+            if let Some(path) = json {
+                write_json(&path, &report)?;
+            }
+        }
+        Bench::Game { json } => {
+            let figures = v2t_lab::bench_game::run_bench(allocations).map_err(|e| anyhow::anyhow!("{e}"))?;
+            print!("{}", v2t_lab::bench_game::table(&figures));
+            if let Some(path) = json {
+                write_json(&path, &figures)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("v2t-bench: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,131 @@
+//! `v2t-sim-ecu`: the simulated drive-by-wire ECU. It plays the BV's actuators and sensors in the
+//! simulated proving ground behind the same CAN frames a real vehicle takes, so that the onboard
+//! runtime (`v2t-edge launch`) runs unchanged without a vehicle.
+//!
+//! ```sh
+//! v2t-edge launch --config config/edge/bv1.toml &
+//! v2t-sim-ecu --config config/edge/bv1.toml --scenario config/scenarios/left_turn_basic.toml
+//! v2t-sim-ecu --config config/edge/bv1.toml --prior prior.json --mcap run.mcap --out run.json
+//! ```
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context as _;
+use clap::Parser;
+use iceoryx2::prelude::ipc;
+use v2t_edge::config::{Overrides, load_for_process};
+use v2t_lab::ecu::{EcuError, EcuOptions, EcuSource};
+use v2t_model::Style;
+use v2t_sim::vut::VutModel;
+
+/// Video2Track simulated drive-by-wire ECU: the simulated proving ground behind the BV's CAN frames.
+#[derive(Debug, Parser)]
+#[command(name = "v2t-sim-ecu", version)]
+struct Cli {
+    /// The BV's runtime configuration (the same file `v2t-edge launch` runs).
+    #[arg(long, default_value = v2t_files::shipped::EDGE)]
+    config: PathBuf,
+    /// Override the service namespace of the configuration.
+    #[arg(long)]
+    namespace: Option<String>,
+    /// Use this SocketCAN interface (`can0`, `vcan0`) instead of the configured CAN transport.
+    #[arg(long)]
+    can_iface: Option<String>,
+    /// A scenario card (its prior is published as the stand-in for a cloud upload).
+    #[arg(long, required_unless_present_any = ["from_uplink", "prior"], conflicts_with_all = ["from_uplink", "prior"])]
+    scenario: Option<PathBuf>,
+    /// A trajectory prior (JSON) instead of a card: accepted like an upload, published, and the
+    /// world built from it.
+    #[arg(long, conflicts_with = "from_uplink")]
+    prior: Option<PathBuf>,
+    /// The prior's BV agent this BV drives (default: the first BV).
+    #[arg(long, requires = "prior")]
+    agent: Option<String>,
+    /// Build the world from the prior the uplink node accepts from the cloud.
+    #[arg(long)]
+    from_uplink: bool,
+    /// Simulation settings for --prior and --from-uplink.
+    #[arg(long, default_value = v2t_files::shipped::SIM)]
+    sim_settings: PathBuf,
+    /// Longest wait for the uplinked prior, s.
+    #[arg(long, default_value_t = 60.0)]
+    prior_wait_s: f64,
+    /// VUT driver model (default: the card's; IDM normal for a prior).
+    #[arg(long)]
+    vut: Option<VutModel>,
+    /// Noise seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Record the run as MCAP here.
+    #[arg(long)]
+    mcap: Option<PathBuf>,
+    /// Write the measured run (JSON) here.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Longest wait for the gateway to engage, s.
+    #[arg(long, default_value_t = 10.0)]
+    engage_timeout_s: f64,
+    /// Target PET instead of the card's, s.
+    #[arg(long, value_parser = v2t_model::Target::parse_tau, allow_negative_numbers = true)]
+    tau: Option<f64>,
+    /// Style instead of the card's (rush or yield).
+    #[arg(long)]
+    style: Option<Style>,
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
+    let overrides = Overrides { namespace: cli.namespace.as_deref(), can_iface: cli.can_iface.as_deref() };
+    let cfg = load_for_process(&cli.config, overrides).map_err(EcuError::from)?;
+    let source = match (cli.scenario, cli.prior) {
+        (Some(card), _) => EcuSource::Card(card),
+        (None, Some(path)) => EcuSource::Prior { path, agent: cli.agent, sim_settings: cli.sim_settings },
+        (None, None) => EcuSource::Uplink { sim_settings: cli.sim_settings, wait_s: cli.prior_wait_s },
+    };
+    let opts = EcuOptions {
+        source,
+        vut: cli.vut,
+        seed: cli.seed,
+        engage_timeout_s: cli.engage_timeout_s,
+        tau_s: cli.tau,
+        style: cli.style,
+    };
+    let (outcome, stats, plans) = v2t_lab::ecu::run::<ipc::Service>(&cfg, &opts)?;
+    let r = &outcome.result;
+    let pet = r.pet_min_s.map_or_else(|| "none".to_owned(), |p| format!("{p:.2} s"));
+    println!(
+        "{}: PET_min {pet} (τ {:.2} s, {}), completed {}, collision {}, frames ok {} rejected {}, ECU timeout steps {}, late steps {} (simulated proving ground)",
+        r.scenario,
+        r.tau_s,
+        r.style,
+        r.completed,
+        r.collision.is_some(),
+        stats.frames_ok,
+        stats.frames_rejected,
+        stats.timeout_steps,
+        stats.late_steps
+    );
+    if let Some(path) = cli.mcap {
+        v2t_sim::recording::write_with_plans(&outcome, &plans, &path)?;
+    }
+    if let Some(path) = cli.out {
+        let mut doc = serde_json::to_value(&outcome).context("serializing the run")?;
+        if let Some(obj) = doc.as_object_mut() {
+            obj.insert("ecu".into(), serde_json::to_value(stats).context("serializing the ECU statistics")?);
+        }
+        let text = serde_json::to_string_pretty(&doc).context("serializing the run")?;
+        std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("v2t-sim-ecu: {e:#}");
+            let bad_input = e.chain().any(|c| c.downcast_ref::<EcuError>().is_some_and(EcuError::is_input));
+            ExitCode::from(if bad_input { 2 } else { 1 })
+        }
+    }
+}

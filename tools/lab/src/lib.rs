@@ -1,0 +1,49 @@
+//! # v2t-lab — the laboratory: simulated worlds and everything that compares or measures
+//!
+//! Nothing here ships to a vehicle: the onboard runtime (`v2t-edge`) never links this crate or
+//! the simulator. What lives here:
+//!
+//! - [`world`]: how a prior becomes a simulated run — the one conversion from trajectory priors
+//!   and accepted IPC priors to scenarios of the simulated proving ground (`v2t-sim`), and from
+//!   scenario cards back to the prior a BV would receive;
+//! - [`controllers`]: the onboard algorithms as BV controllers of the simulated proving ground;
+//! - [`stats`]: the statistics of repeated runs every experiment reports;
+//! - [`sim`]: one run with reference-following BVs (`video2track sim`);
+//! - [`steer`] and [`methods`]: the experiments (`video2track experiment …`), the regulator alone
+//!   on the scenario cards and the paper's four methods on its two scenarios;
+//! - [`demo`]: the whole pipeline end to end through the onboard processes (`video2track demo`);
+//! - [`ecu`]: the simulated drive-by-wire ECU behind the real CAN frames (binary `v2t-sim-ecu`);
+//! - [`bench_latency`] and [`bench_game`]: the benches (binary `v2t-bench`).
+//!
+//! Every figure that comes out of here comes from a simulated world with VUT driver models this
+//! project wrote; outputs say so.
+//!
+//! ```
+//! use v2t_lab::stats::Tally;
+//! let stats = Tally::default().stats();
+//! assert_eq!(stats.repeats, 0);
+//! ```
+
+pub mod bench_game;
+pub mod bench_latency;
+pub mod controllers;
+pub mod demo;
+pub mod ecu;
+pub mod methods;
+pub mod sim;
+pub mod stats;
+pub mod steer;
+pub mod world;
+
+/// `f` of every job, in order, on up to 8 of the available cores (contiguous chunks). A chunk
+/// whose thread panicked contributes nothing.
+pub fn parallel_map<T: Sync, R: Send>(jobs: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).clamp(1, 8);
+    let chunk = jobs.len().div_ceil(threads).max(1);
+    let f = &f;
+    std::thread::scope(|s| {
+        let handles: Vec<_> =
+            jobs.chunks(chunk).map(|part| s.spawn(move || part.iter().map(f).collect::<Vec<R>>())).collect();
+        handles.into_iter().flat_map(|h| h.join().unwrap_or_default()).collect()
+    })
+}
