@@ -123,7 +123,13 @@ fn bad_input(err: &anyhow::Error) -> bool {
             || e.downcast_ref::<v2t_export::file::ExportError>().is_some_and(v2t_export::file::ExportError::is_input)
             || matches!(
                 e.downcast_ref::<LinkError>(),
-                Some(LinkError::Prior(_) | LinkError::Agent { .. } | LinkError::Usage(_) | LinkError::Target(_))
+                Some(
+                    LinkError::Prior(_)
+                        | LinkError::Agent { .. }
+                        | LinkError::Usage(_)
+                        | LinkError::Url(_)
+                        | LinkError::Target(_)
+                )
             )
             || matches!(
                 e.downcast_ref::<v2t_sim::recording::RecordingError>(),

@@ -19,6 +19,7 @@
 
 use candle_core::{D, DType, Device, Module, Tensor};
 use candle_nn::{Linear, VarBuilder};
+use v2t_model::validate::ValidationError;
 
 use crate::condition::{SLOT_FEATURES, TIME_FEATURES_PER_SLOT, TIME_POSITION_FEATURES};
 
@@ -76,20 +77,20 @@ impl DenoiserConfig {
         2 * self.slots * self.steps
     }
 
-    /// Checks the shape rules; the message says which one fails.
-    pub fn check(&self) -> Result<(), String> {
+    /// Checks the shape rules; the error names the field and the rule it breaks.
+    pub fn check(&self) -> Result<(), ValidationError> {
         let rules = [
-            (self.slots >= 2 && self.slots <= 4, "slots must lie in 2..=4"),
-            (self.patch >= 1 && self.steps >= self.patch, "patch must lie in 1..=steps"),
-            (self.patch >= 1 && self.steps.is_multiple_of(self.patch), "steps must be a multiple of patch"),
-            (self.steps <= 400, "steps must be at most 400"),
-            ((4..=512).contains(&self.hidden), "hidden must lie in 4..=512"),
-            ((1..=12).contains(&self.blocks), "blocks must lie in 1..=12"),
-            ((8..=1024).contains(&self.embed), "embed must lie in 8..=1024"),
-            ((2..=1000).contains(&self.diffusion_steps), "diffusion_steps must lie in 2..=1000"),
+            ("slots", (2..=4).contains(&self.slots), "must lie in 2..=4"),
+            ("patch", self.patch >= 1 && self.steps >= self.patch, "must lie in 1..=steps"),
+            ("steps", self.patch >= 1 && self.steps.is_multiple_of(self.patch), "must be a multiple of patch"),
+            ("steps", self.steps <= 400, "must be at most 400"),
+            ("hidden", (4..=512).contains(&self.hidden), "must lie in 4..=512"),
+            ("blocks", (1..=12).contains(&self.blocks), "must lie in 1..=12"),
+            ("embed", (8..=1024).contains(&self.embed), "must lie in 8..=1024"),
+            ("diffusion_steps", (2..=1000).contains(&self.diffusion_steps), "must lie in 2..=1000"),
         ];
-        match rules.iter().find(|(ok, _)| !ok) {
-            Some((_, why)) => Err((*why).to_owned()),
+        match rules.iter().find(|(_, ok, _)| !ok) {
+            Some((field, _, rule)) => Err(ValidationError::new(*field, *rule)),
             None => Ok(()),
         }
     }
@@ -214,7 +215,7 @@ impl std::fmt::Debug for Denoiser {
 impl Denoiser {
     /// The network of `cfg` with its variables from `vb`.
     pub fn new(cfg: DenoiserConfig, vb: VarBuilder) -> candle_core::Result<Self> {
-        cfg.check().map_err(candle_core::Error::Msg)?;
+        cfg.check().map_err(|e| candle_core::Error::Msg(e.to_string()))?;
         let patch_channels = 2 * cfg.slots * cfg.patch;
         let input = TemporalConv::new(patch_channels + cfg.time_channels(), cfg.hidden, 3, 1, false, vb.pp("input"))?;
         let blocks = (0..cfg.blocks)
@@ -360,7 +361,7 @@ mod tests {
     fn config_rules() {
         assert!(DenoiserConfig::default().check().is_ok());
         let bad = DenoiserConfig { steps: 81, ..DenoiserConfig::default() };
-        assert!(bad.check().unwrap_err().contains("multiple"));
+        assert!(bad.check().unwrap_err().to_string().contains("multiple"));
         let bad = DenoiserConfig { slots: 1, ..DenoiserConfig::default() };
         assert!(bad.check().is_err());
     }

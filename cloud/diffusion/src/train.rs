@@ -258,7 +258,7 @@ impl Dataset {
         config: DenoiserConfig,
         stride: usize,
     ) -> Result<Self, TrainError> {
-        config.check().map_err(|reason| TrainError::Option { field: "config", reason })?;
+        config.check().map_err(|e| TrainError::Option { field: "config", reason: e.to_string() })?;
         let normalization = fit_normalization(
             episodes
                 .iter()

@@ -217,7 +217,7 @@ pub fn read_meta(bytes: &[u8]) -> Result<ModelMeta, WeightsError> {
         serde_json::from_str(text).map_err(|e| WeightsError::Metadata { field, message: e.to_string() })
     }
     let config: DenoiserConfig = field(md, "config")?;
-    config.check().map_err(|message| WeightsError::Metadata { field: "config", message })?;
+    config.check().map_err(|e| WeightsError::Metadata { field: "config", message: e.to_string() })?;
     let normalization: NormalizationRecord = field(md, "normalization")?;
     let normalization = ControlNormalization::from(normalization);
     normalization.checked().map_err(|e| WeightsError::Metadata { field: "normalization", message: e.to_string() })?;

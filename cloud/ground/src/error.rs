@@ -3,13 +3,48 @@
 use serde::Serialize;
 use v2t_model::validate::ValidationError;
 
+/// Why a fragment does not fit the semantics, in words for the operator ("the ego's `u_turn`
+/// needs a junction"); reasons from several candidate placements are joined.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, thiserror::Error)]
+#[serde(transparent)]
+#[error("{0}")]
+pub struct Misfit(pub String);
+
+impl From<String> for Misfit {
+    fn from(reason: String) -> Self {
+        Self(reason)
+    }
+}
+
+impl std::ops::Deref for Misfit {
+    type Target = str;
+
+    fn deref(&self) -> &str {
+        &self.0
+    }
+}
+
+impl From<&str> for Misfit {
+    fn from(reason: &str) -> Self {
+        Self(reason.to_owned())
+    }
+}
+
+/// A misfit with a formatted reason.
+macro_rules! misfit {
+    ($($t:tt)*) => {
+        $crate::error::Misfit(format!($($t)*))
+    };
+}
+pub(crate) use misfit;
+
 /// One fragment that did not fit, and why.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct Rejection {
     /// Fragment id.
     pub fragment_id: String,
     /// Why it does not fit.
-    pub reason: String,
+    pub reason: Misfit,
 }
 
 /// Grounding failed.

@@ -16,7 +16,7 @@ use v2t_model::semantics::ScenarioSemantics;
 use v2t_model::validate::Validate;
 use v2t_model::vehicle::VehicleConfig;
 
-use crate::error::{GroundError, Rejection};
+use crate::error::{GroundError, Misfit, Rejection, misfit};
 use crate::plan::{Plan, RouteSpec, plan};
 use crate::retrieve::{Candidate, ROOM_MIN_M, ROOM_TIME_S, rank};
 use crate::route::{MAX_BLEND_M, MIN_BLEND_M, anchor_ref, nearest_lane, raw_points, upstream};
@@ -114,12 +114,12 @@ pub fn ground_with(
     let mut rejections = Vec::new();
     for c in &ranking {
         if !c.feasible {
-            rejections.push(Rejection { fragment_id: c.fragment_id.clone(), reason: c.reasons.join("; ") });
+            rejections.push(Rejection { fragment_id: c.fragment_id.clone(), reason: Misfit(c.reasons.join("; ")) });
             continue;
         }
         let grounded = library
             .fragment(&c.fragment_id)
-            .ok_or_else(|| "not in the library".to_owned())
+            .ok_or_else(|| Misfit::from("not in the library"))
             .and_then(|f| ground_on(map, f, semantics, options));
         match grounded {
             Ok((scenario, routes, timing, notes)) => {
@@ -139,7 +139,7 @@ pub(crate) fn ground_on(
     f: &Fragment,
     s: &ScenarioSemantics,
     opt: &GroundOptions,
-) -> Result<Grounded, String> {
+) -> Result<Grounded, Misfit> {
     let p: Plan = plan(f, s)?;
     let mut notes = p.notes.clone();
     let anchor = |id: &str| f.anchor(id).ok_or_else(|| format!("no anchor {id}"));
@@ -157,7 +157,7 @@ pub(crate) fn ground_on(
         let route = build_route(map, f, &b.route, a, &[*a], v, opt, &mut notes, &bv.id)?;
         let (kind, vi, bi) = zone(&vut.path, &route.path, a, opt, &mut notes, &bv.id)?;
         if vi.enter_s_m < 0.0 || bi.enter_s_m < 0.0 {
-            return Err(format!("a route starts inside the conflict zone {} of {}", a.id, bv.id));
+            return Err(misfit!("a route starts inside the conflict zone {} of {}", a.id, bv.id));
         }
         let t0 = bv_start_s(bv.style, s.pet_label_s, (vi, v_vut), (bi, v));
         starts.push((bv, route, t0, vi, bi));
@@ -189,7 +189,7 @@ pub(crate) fn ground_on(
         tau_s: s.pet_label_s,
         style: first.style,
     };
-    scenario.validate().map_err(|e| format!("the grounded scenario is invalid: {e}"))?;
+    scenario.validate().map_err(|e| misfit!("the grounded scenario is invalid: {e}"))?;
     Ok((scenario, routes, timing, notes))
 }
 
@@ -245,10 +245,10 @@ fn build_route(
     opt: &GroundOptions,
     notes: &mut Vec<String>,
     who: &str,
-) -> Result<Built, String> {
+) -> Result<Built, Misfit> {
     let blend = (opt.lane_change_time_s * speed).clamp(MIN_BLEND_M, MAX_BLEND_M);
-    let raw = raw_points(f, spec, completion, blend).map_err(|e| format!("{who}: {e}"))?;
-    let raw_path = ReferencePath::from_points(&raw).map_err(|e| format!("{who}'s route: {e}"))?;
+    let raw = raw_points(f, spec, completion, blend).map_err(|e| misfit!("{who}: {e}"))?;
+    let raw_path = ReferencePath::from_points(&raw).map_err(|e| misfit!("{who}'s route: {e}"))?;
     let mut on_route = Vec::new();
     for a in conflicts {
         let hint = match spec {
@@ -261,7 +261,7 @@ fn build_route(
         }
         .ok_or("anchor is not finite")?;
         if foot.l_m.abs() > ON_ROUTE_M {
-            return Err(format!("conflict anchor {} lies {:.2} m off {who}'s route", a.id, foot.l_m.abs()));
+            return Err(misfit!("conflict anchor {} lies {:.2} m off {who}'s route", a.id, foot.l_m.abs()));
         }
         on_route.push(foot.s_m.clamp(0.0, raw_path.length()));
     }
@@ -283,7 +283,7 @@ fn build_route(
     let end_s = (last + tail).min(raw_path.length());
     let mut points = ext;
     points.extend(Polyline::new(&raw).slice(start_s, end_s));
-    let path = ReferencePath::from_points(&points).map_err(|e| format!("{who}'s route: {e}"))?;
+    let path = ReferencePath::from_points(&points).map_err(|e| misfit!("{who}'s route: {e}"))?;
     let lead_got = first - start_s + ext_len;
     if lead_got < need - 0.5 {
         notes.push(format!(
@@ -316,7 +316,7 @@ fn zone(
     opt: &GroundOptions,
     notes: &mut Vec<String>,
     who: &str,
-) -> Result<(ConflictKind, OccupancyInterval, OccupancyInterval), String> {
+) -> Result<(ConflictKind, OccupancyInterval, OccupancyInterval), Misfit> {
     let options = ConflictOptions::default();
     let reach = MAX_BLEND_M + 15.0;
     let nearest = |zones: Vec<ConflictZone>| {

@@ -12,6 +12,8 @@ use v2t_model::semantics::{
     Approach, InteractingBv, InteractionType, Maneuver as Move, RelativeStart, ScenarioSemantics,
 };
 
+use crate::error::{Misfit, misfit};
+
 /// Factor on the plan's exactness when the ego's approach arm is not the one the semantics name.
 const RELAXED_ARM: f64 = 0.8;
 /// … when the ego's lane is not the one the semantics name.
@@ -103,7 +105,7 @@ impl Plan {
 }
 
 /// Plans `s` on `f`, or says why it does not fit.
-pub(crate) fn plan(f: &Fragment, s: &ScenarioSemantics) -> Result<Plan, String> {
+pub(crate) fn plan(f: &Fragment, s: &ScenarioSemantics) -> Result<Plan, Misfit> {
     match f.kind {
         FragmentKind::Intersection => plan_intersection(f, s),
         FragmentKind::MultiLaneSegment => plan_segment(f, s),
@@ -189,9 +191,9 @@ fn lane_order(n: usize, wanted_from_left: Option<u8>) -> Vec<(usize, bool)> {
 
 /// `(context, reason)` pairs as one message: each distinct reason once, with its context when only
 /// one start led to it, else with the number of starts.
-fn summarize(errors: &[(String, String)]) -> String {
+fn summarize(errors: &[(String, Misfit)]) -> Misfit {
     let mut groups: Vec<(&str, Vec<&str>)> = Vec::new();
-    for (context, reason) in errors {
+    for (context, Misfit(reason)) in errors {
         match groups.iter_mut().find(|(r, _)| r == reason) {
             Some((_, contexts)) => contexts.push(context),
             None => groups.push((reason, vec![context])),
@@ -205,13 +207,13 @@ fn summarize(errors: &[(String, String)]) -> String {
             many => format!("{reason} ({} ego starts)", many.len()),
         })
         .collect();
-    parts.join("; ")
+    Misfit(parts.join("; "))
 }
 
 // ---------------------------------------------------------------------------------------------
 // Intersections
 
-fn plan_intersection(f: &Fragment, s: &ScenarioSemantics) -> Result<Plan, String> {
+fn plan_intersection(f: &Fragment, s: &ScenarioSemantics) -> Result<Plan, Misfit> {
     let ego_turn = turn_of(s.ego.maneuver)
         .ok_or_else(|| format!("the ego's `{}` cannot be grounded inside a junction", s.ego.maneuver))?;
     let named = s.ego.start_lane.approach;
@@ -261,11 +263,11 @@ fn plan_intersection(f: &Fragment, s: &ScenarioSemantics) -> Result<Plan, String
         }
         if !tried {
             let why = format!("arm {} ({}) has no {} path", arm.id, compass(arm.bearing_rad), turn_name(ego_turn));
-            errors.push((String::new(), why));
+            errors.push((String::new(), Misfit(why)));
         }
     }
     if errors.is_empty() {
-        return Err("no arm has approach lanes".to_owned());
+        return Err(Misfit::from("no arm has approach lanes"));
     }
     Err(summarize(&errors))
 }
@@ -275,7 +277,7 @@ fn plan_bvs_at_junction(
     ego_arm: &Arm,
     ego: &Maneuver,
     s: &ScenarioSemantics,
-) -> Result<Vec<BvPlan>, String> {
+) -> Result<Vec<BvPlan>, Misfit> {
     s.interacting_bvs.iter().enumerate().map(|(i, bv)| plan_bv_at_junction(f, ego_arm, ego, bv, i)).collect()
 }
 
@@ -285,13 +287,13 @@ fn plan_bv_at_junction(
     ego: &Maneuver,
     bv: &InteractingBv,
     index: usize,
-) -> Result<BvPlan, String> {
+) -> Result<BvPlan, Misfit> {
     let offset = match bv.relative_start {
         RelativeStart::Oncoming => PI,
         RelativeStart::CrossingFromLeft => -FRAC_PI_2,
         RelativeStart::CrossingFromRight => FRAC_PI_2,
         other => {
-            return Err(format!(
+            return Err(misfit!(
                 "{} starts `{other}`, on the ego's own arm; the library has no conflicts between paths from one arm",
                 bv.id
             ));
@@ -335,9 +337,9 @@ fn plan_bv_at_junction(
             kind_fit,
         }),
         None if !any_path => {
-            Err(format!("{}: arm {} ({}) has no {} path", bv.id, arm.id, compass(arm.bearing_rad), turn_name(turn)))
+            Err(misfit!("{}: arm {} ({}) has no {} path", bv.id, arm.id, compass(arm.bearing_rad), turn_name(turn)))
         }
-        None => Err(format!(
+        None => Err(misfit!(
             "{}: no {} path from arm {} ({}) meets the ego's path",
             bv.id,
             turn_name(turn),
@@ -364,7 +366,7 @@ fn segment_path(f: &Fragment, pos: usize) -> Option<String> {
     f.maneuver(&id).map(|m| m.id.clone())
 }
 
-fn plan_segment(f: &Fragment, s: &ScenarioSemantics) -> Result<Plan, String> {
+fn plan_segment(f: &Fragment, s: &ScenarioSemantics) -> Result<Plan, Misfit> {
     let n = f.maneuvers.len();
     let mut errors = Vec::new();
     for (pos, exact) in lane_order(n, s.ego.start_lane.lane_index_from_left) {
@@ -384,7 +386,7 @@ fn plan_segment(f: &Fragment, s: &ScenarioSemantics) -> Result<Plan, String> {
         }
     }
     if errors.is_empty() {
-        return Err("the segment has no lanes".to_owned());
+        return Err(Misfit::from("the segment has no lanes"));
     }
     Err(summarize(&errors))
 }
@@ -399,7 +401,7 @@ fn shifted(pos: usize, d: i8, n: usize) -> Option<usize> {
     (p < n).then_some(p)
 }
 
-fn plan_segment_at(f: &Fragment, s: &ScenarioSemantics, ego_pos: usize) -> Result<Plan, String> {
+fn plan_segment_at(f: &Fragment, s: &ScenarioSemantics, ego_pos: usize) -> Result<Plan, Misfit> {
     let n = f.maneuvers.len();
     let side_of = |r: RelativeStart| match r {
         RelativeStart::AdjacentLeft => Some(-1),
@@ -415,7 +417,7 @@ fn plan_segment_at(f: &Fragment, s: &ScenarioSemantics, ego_pos: usize) -> Resul
             .first()
             .and_then(|b| side_of(b.relative_start))
             .ok_or("the ego merges, but no BV drives beside it to merge towards")?,
-        m => return Err(format!("the ego's `{m}` needs a junction")),
+        m => return Err(misfit!("the ego's `{m}` needs a junction")),
     };
     let ego_target = shifted(ego_pos, ego_shift, n).ok_or_else(|| {
         format!("no lane on the ego's {} to change into", if ego_shift < 0 { "left" } else { "right" })
@@ -436,14 +438,14 @@ fn plan_segment_at(f: &Fragment, s: &ScenarioSemantics, ego_pos: usize) -> Resul
             Move::LaneChangeLeft => -1,
             Move::LaneChangeRight => 1,
             Move::Merge if side != 0 => -side,
-            m => return Err(format!("{}'s `{m}` has no counterpart on a multi-lane segment", bv.id)),
+            m => return Err(misfit!("{}'s `{m}` has no counterpart on a multi-lane segment", bv.id)),
         };
         let (from, to, route) = match (ego_shift, bv_shift) {
-            (0, 0) => return Err(format!("neither {} nor the ego changes lanes: their paths never meet", bv.id)),
+            (0, 0) => return Err(misfit!("neither {} nor the ego changes lanes: their paths never meet", bv.id)),
             (0, d) => {
                 let target = shifted(bv_pos, d, n);
                 if target != Some(ego_pos) {
-                    return Err(format!("{} changes lanes away from the ego's lane", bv.id));
+                    return Err(misfit!("{} changes lanes away from the ego's lane", bv.id));
                 }
                 let route = RouteSpec::LaneChange {
                     from: segment_path(f, bv_pos).ok_or("missing lane path")?,
@@ -453,7 +455,7 @@ fn plan_segment_at(f: &Fragment, s: &ScenarioSemantics, ego_pos: usize) -> Resul
             }
             (_, 0) => {
                 if bv_pos != ego_target {
-                    return Err(format!(
+                    return Err(misfit!(
                         "the ego changes into lane {}, {} drives in lane {}",
                         ego_target + 1,
                         bv.id,
@@ -462,7 +464,7 @@ fn plan_segment_at(f: &Fragment, s: &ScenarioSemantics, ego_pos: usize) -> Resul
                 }
                 (ego_pos, ego_target, RouteSpec::Path { maneuver: segment_path(f, bv_pos).ok_or("missing lane path")? })
             }
-            _ => return Err(format!("both the ego and {} change lanes", bv.id)),
+            _ => return Err(misfit!("both the ego and {} change lanes", bv.id)),
         };
         let (left, right) = (from.min(to), from.max(to));
         let pair = f
@@ -471,7 +473,7 @@ fn plan_segment_at(f: &Fragment, s: &ScenarioSemantics, ego_pos: usize) -> Resul
             .find(|p| p.left == format!("{}/m/p{left}", f.id) && p.right == format!("{}/m/p{right}", f.id));
         match pair.map(|p| p.mark) {
             Some(MarkType::Solid) => {
-                return Err(format!("a solid line separates lanes {} and {}: no lane change", left + 1, right + 1));
+                return Err(misfit!("a solid line separates lanes {} and {}: no lane change", left + 1, right + 1));
             }
             Some(MarkType::Mixed) => {
                 exactness *= MIXED_MARK;
@@ -497,7 +499,7 @@ fn plan_segment_at(f: &Fragment, s: &ScenarioSemantics, ego_pos: usize) -> Resul
 // ---------------------------------------------------------------------------------------------
 // Merges
 
-fn plan_merge(f: &Fragment, s: &ScenarioSemantics) -> Result<Plan, String> {
+fn plan_merge(f: &Fragment, s: &ScenarioSemantics) -> Result<Plan, Misfit> {
     let merging = f.maneuvers.iter().find(|m| m.id.ends_with("/m/merging"));
     let through = f.maneuvers.iter().find(|m| m.id.ends_with("/m/through"));
     let anchor = f.anchors.iter().find(|a| a.kind == AnchorKind::Merge).ok_or("the fragment has no merge anchor")?;
@@ -518,7 +520,7 @@ fn plan_lane_drop(
     mg: &Maneuver,
     th: &Maneuver,
     anchor: &Anchor,
-) -> Result<Plan, String> {
+) -> Result<Plan, Misfit> {
     let joins_left = mg.turn != Turn::Right;
     // Seen from the through lane, the ending lane lies on the side it merges from.
     let (ramp_side, through_side) = if joins_left {
@@ -537,26 +539,30 @@ fn plan_lane_drop(
         let kind_fit = kind_fit(bv.interaction_type, anchor.kind);
         let route = if ego_merges {
             if merges_into(bv.behavior.maneuver, joins_left) {
-                return Err(format!("both the ego and {} merge", bv.id));
+                return Err(misfit!("both the ego and {} merge", bv.id));
             }
             if bv.relative_start != through_side {
-                return Err(format!(
+                return Err(misfit!(
                     "the ego merges from the {side}, so {} must start `{through_side}`, not `{}`",
-                    bv.id, bv.relative_start
+                    bv.id,
+                    bv.relative_start
                 ));
             }
             RouteSpec::Path { maneuver: th.id.clone() }
         } else {
             if !merges_into(bv.behavior.maneuver, joins_left) {
-                return Err(format!(
+                return Err(misfit!(
                     "neither the ego nor {} merges ({} makes `{}`; the lane ends on the {side})",
-                    bv.id, bv.id, bv.behavior.maneuver
+                    bv.id,
+                    bv.id,
+                    bv.behavior.maneuver
                 ));
             }
             if bv.relative_start != ramp_side {
-                return Err(format!(
+                return Err(misfit!(
                     "the ending lane joins from the {side}, so {} must start `{ramp_side}`, not `{}`",
-                    bv.id, bv.relative_start
+                    bv.id,
+                    bv.relative_start
                 ));
             }
             RouteSpec::LaneChange { from: mg.id.clone(), to: th.id.clone() }
@@ -568,7 +574,7 @@ fn plan_lane_drop(
     } else if s.ego.maneuver == Move::Straight {
         (RouteSpec::Path { maneuver: th.id.clone() }, through_index)
     } else {
-        return Err(format!("the ego's `{}` does not fit a merge from the {side}", s.ego.maneuver));
+        return Err(misfit!("the ego's `{}` does not fit a merge from the {side}", s.ego.maneuver));
     };
     let mut plan = Plan { vut, bvs, exactness: 1.0, notes: Vec::new() };
     if let Some(k) = s.ego.start_lane.lane_index_from_left
@@ -581,7 +587,7 @@ fn plan_lane_drop(
 }
 
 /// Two (or more) lanes that become one: the BV and the ego each come along one feeder.
-fn plan_fed_merge(f: &Fragment, s: &ScenarioSemantics, anchor: &Anchor) -> Result<Plan, String> {
+fn plan_fed_merge(f: &Fragment, s: &ScenarioSemantics, anchor: &Anchor) -> Result<Plan, Misfit> {
     // Feeders left to right, by the lateral offset of their entry from the merge point.
     let left = Point2::from_heading(anchor.heading_rad).perp();
     let mut feeders: Vec<(f64, &Maneuver)> = f
@@ -592,7 +598,7 @@ fn plan_fed_merge(f: &Fragment, s: &ScenarioSemantics, anchor: &Anchor) -> Resul
         .collect();
     feeders.sort_by(|a, b| b.0.total_cmp(&a.0));
     if feeders.len() < 2 {
-        return Err("the merge has fewer than two feeding paths on its anchor".to_owned());
+        return Err(Misfit::from("the merge has fewer than two feeding paths on its anchor"));
     }
     let n = feeders.len();
     let mut errors = Vec::new();
@@ -629,7 +635,7 @@ fn plan_fed_merge(f: &Fragment, s: &ScenarioSemantics, anchor: &Anchor) -> Resul
             return Ok(plan);
         }
     }
-    Err(errors.join("; "))
+    Err(Misfit(errors.join("; ")))
 }
 
 #[cfg(test)]
@@ -662,10 +668,10 @@ mod tests {
 
     #[test]
     fn repeated_reasons_are_given_once() {
-        let e = |c: &str, r: &str| (c.to_owned(), r.to_owned());
+        let e = |c: &str, r: &str| (c.to_owned(), Misfit::from(r));
         let errors = [e("ego in lane 1", "no lane"), e("ego in lane 2", "no lane"), e("ego in lane 3", "solid line")];
-        assert_eq!(summarize(&errors), "no lane (2 ego starts); ego in lane 3: solid line");
-        assert_eq!(summarize(&[e("", "arm a0 has no left-turn path")]), "arm a0 has no left-turn path");
+        assert_eq!(&*summarize(&errors), "no lane (2 ego starts); ego in lane 3: solid line");
+        assert_eq!(&*summarize(&[e("", "arm a0 has no left-turn path")]), "arm a0 has no left-turn path");
     }
 
     fn anchor(id: &str, kind: AnchorKind, x: f64, y: f64, on_paths: &[(&str, f64)]) -> Anchor {

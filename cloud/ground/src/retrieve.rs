@@ -142,10 +142,10 @@ pub(crate) fn candidate(f: &Fragment, s: &ScenarioSemantics, lexical: f64, bm25:
             (m, interaction_fit(p, s), room_fit(f, p, s))
         }
         Err(e) => {
-            reasons.push(e.clone());
+            reasons.push(e.0.clone());
             let none = |name, weight| Criterion { name, weight, score: 0.0, reason: "no plan".to_owned() };
             (
-                Criterion { name: "maneuvers", weight: W_MANEUVERS, score: 0.0, reason: e.clone() },
+                Criterion { name: "maneuvers", weight: W_MANEUVERS, score: 0.0, reason: e.0.clone() },
                 none("interaction", W_INTERACTION),
                 none("room", W_ROOM),
             )

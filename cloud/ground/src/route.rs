@@ -8,6 +8,7 @@ use v2t_map::library::{Anchor, Fragment, Polyline};
 use v2t_model::geometry::Point2;
 use v2t_model::path::ReferencePath;
 
+use crate::error::{Misfit, misfit};
 use crate::plan::RouteSpec;
 
 /// Spacing of the points of a lane-change blend, m.
@@ -48,8 +49,8 @@ pub(crate) fn lane_change(
     to: &[Point2],
     done_at: Point2,
     blend_m: f64,
-) -> Result<Vec<Point2>, String> {
-    let target = ReferencePath::from_points(to).map_err(|e| format!("target path: {e}"))?;
+) -> Result<Vec<Point2>, Misfit> {
+    let target = ReferencePath::from_points(to).map_err(|e| misfit!("target path: {e}"))?;
     let s_done = target.project(done_at).ok_or("anchor is not finite")?.s_m.clamp(0.0, target.length());
     // The source in the target's Frenet frame, kept where it runs forward.
     let mut src: Vec<(f64, f64, Point2)> = Vec::with_capacity(from.len());
@@ -62,7 +63,7 @@ pub(crate) fn lane_change(
     let first_s = src.first().map(|x| x.0).ok_or("source path is empty")?;
     let s_begin = (s_done - blend_m).max(first_s);
     if s_done - s_begin < SHORTEST_BLEND_M {
-        return Err(format!(
+        return Err(misfit!(
             "only {:.1} m of the source lane before the lane change completes; {SHORTEST_BLEND_M} m needed",
             s_done - s_begin
         ));
@@ -112,8 +113,8 @@ pub(crate) fn forward_only(points: &[Point2]) -> Vec<Point2> {
 
 /// The points of `spec` on fragment `f` before any cut: a maneuver path, or a lane change that
 /// completes at `anchor`.
-pub(crate) fn raw_points(f: &Fragment, spec: &RouteSpec, anchor: &Anchor, blend_m: f64) -> Result<Vec<Point2>, String> {
-    let path_of = |id: &str| f.maneuver(id).map(|m| forward_only(&m.path)).ok_or_else(|| format!("no maneuver {id}"));
+pub(crate) fn raw_points(f: &Fragment, spec: &RouteSpec, anchor: &Anchor, blend_m: f64) -> Result<Vec<Point2>, Misfit> {
+    let path_of = |id: &str| f.maneuver(id).map(|m| forward_only(&m.path)).ok_or_else(|| misfit!("no maneuver {id}"));
     match spec {
         RouteSpec::Path { maneuver } => path_of(maneuver),
         RouteSpec::LaneChange { from, to } => lane_change(&path_of(from)?, &path_of(to)?, anchor.position, blend_m),

@@ -42,6 +42,9 @@ pub enum LinkError {
     /// A bad argument (broker URL, id, τ).
     #[error("{0}")]
     Usage(String),
+    /// The broker URL is not one.
+    #[error(transparent)]
+    Url(v2t_wire::mqtt::MqttError),
     /// The broker could not be reached, or the frame not sent.
     #[error("broker: {0}")]
     Broker(String),
@@ -51,6 +54,15 @@ pub enum LinkError {
     /// The BV refused it, or did not answer.
     #[error("{0}")]
     Refused(String),
+}
+
+impl From<v2t_wire::mqtt::MqttError> for LinkError {
+    fn from(e: v2t_wire::mqtt::MqttError) -> Self {
+        match e {
+            v2t_wire::mqtt::MqttError::Url { .. } => Self::Url(e),
+            other => Self::Broker(other.to_string()),
+        }
+    }
 }
 
 /// Unix time, µs.
@@ -213,7 +225,7 @@ impl Connection {
         password_env: Option<&str>,
         tls: TlsFiles<'_>,
     ) -> Result<Self, LinkError> {
-        let broker = BrokerUrl::parse(broker).map_err(LinkError::Usage)?;
+        let broker = BrokerUrl::parse(broker).map_err(LinkError::Url)?;
         let credentials = match username {
             Some(u) => {
                 let password = match password_env {
@@ -283,7 +295,7 @@ pub fn send_once(
     let awaits = bv_id != ALL_BVS && !wait.is_zero();
     let subscribe = if awaits { vec![event_topic] } else { Vec::new() };
     let client_id = format!("v2t-{fleet}-cli-{}", std::process::id());
-    let mqtt = MqttLink::start(&conn.settings(&client_id, false), subscribe).map_err(LinkError::Broker)?;
+    let mqtt = MqttLink::start(&conn.settings(&client_id, false), subscribe).map_err(LinkError::from)?;
     let deadline = Instant::now() + Duration::from_secs(5);
     loop {
         match mqtt.wait(deadline.saturating_duration_since(Instant::now())) {
@@ -295,7 +307,7 @@ pub fn send_once(
     }
     // `Connected` comes once the event subscription is acknowledged: the BV's answer cannot miss it.
     let (topic, frame, seq) = signer.seal(bv_id, body)?;
-    mqtt.publish(&topic, frame, true).map_err(LinkError::Broker)?;
+    mqtt.publish(&topic, frame, true)?;
     let answer = if awaits {
         let deadline = Instant::now() + wait;
         loop {

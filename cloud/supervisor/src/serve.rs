@@ -95,6 +95,38 @@ pub struct Fleet {
     pub bvs: BTreeMap<String, BvStatus>,
 }
 
+/// A message from the broker that the supervisor cannot use (reported, never acted on).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MessageError {
+    /// Not a topic of a BV of this fleet.
+    #[error("unexpected topic {0}")]
+    Topic(String),
+    /// A report that does not decode.
+    #[error("{topic}: {source}")]
+    Frame {
+        /// The topic.
+        topic: String,
+        /// Why.
+        source: link::LinkError,
+    },
+    /// A report that names another BV than its topic.
+    #[error("{0}: the report names another BV")]
+    OtherBv(String),
+    /// An event that is not the JSON a BV sends.
+    #[error("{topic}: {message}")]
+    Event {
+        /// The topic.
+        topic: String,
+        /// The parser's message.
+        message: String,
+    },
+}
+
+/// A console line that is not a command, and what to type instead.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct ConsoleError(pub String);
+
 /// What a message changed, for the console.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Change {
@@ -109,17 +141,18 @@ pub enum Change {
 impl Fleet {
     /// One message on `topic` received at `now`. A message that does not decode is an error the
     /// caller reports; it changes nothing.
-    pub fn on_message(&mut self, topic: &str, payload: &[u8], now: Instant) -> Result<Change, String> {
+    pub fn on_message(&mut self, topic: &str, payload: &[u8], now: Instant) -> Result<Change, MessageError> {
         let mut parts = topic.split('/');
         let (Some("v2t"), Some(_fleet), Some("bv"), Some(bv), Some(leaf), None) =
             (parts.next(), parts.next(), parts.next(), parts.next(), parts.next(), parts.next())
         else {
-            return Err(format!("unexpected topic {topic}"));
+            return Err(MessageError::Topic(topic.to_owned()));
         };
         let was_online = self.bvs.get(bv).is_some_and(|s| s.online(now));
         match leaf {
             topics::TELEMETRY | topics::HEARTBEAT => {
-                let report = link::read_report(payload).map_err(|e| format!("{topic}: {e}"))?;
+                let report = link::read_report(payload)
+                    .map_err(|source| MessageError::Frame { topic: topic.to_owned(), source })?;
                 let status = self.bvs.entry(bv.to_owned()).or_default();
                 match report {
                     EdgeReport::Telemetry(t) if t.bv_id == bv => status.telemetry = Some(t),
@@ -127,7 +160,7 @@ impl Fleet {
                         status.heartbeat_at = Some(now);
                         status.healthy = h.healthy;
                     }
-                    _ => return Err(format!("{topic}: the report names another BV")),
+                    _ => return Err(MessageError::OtherBv(topic.to_owned())),
                 }
                 if !was_online && status.online(now) {
                     return Ok(Change::Online(bv.to_owned()));
@@ -135,11 +168,12 @@ impl Fleet {
                 Ok(Change::Quiet)
             }
             topics::EVENT => {
-                let ev: BvEvent = serde_json::from_slice(payload).map_err(|e| format!("{topic}: {e}"))?;
+                let ev: BvEvent = serde_json::from_slice(payload)
+                    .map_err(|e| MessageError::Event { topic: topic.to_owned(), message: e.to_string() })?;
                 self.bvs.entry(bv.to_owned()).or_default().event = Some(ev.clone());
                 Ok(Change::Event(ev))
             }
-            _ => Err(format!("unexpected topic {topic}")),
+            _ => Err(MessageError::Topic(topic.to_owned())),
         }
     }
 
@@ -224,7 +258,8 @@ pub const HELP: &str = "commands:
   quit                                                   abort every BV and stop (Ctrl-C does the same)";
 
 /// Parses one console line.
-pub fn parse_console(line: &str) -> Result<Option<ConsoleCommand>, String> {
+pub fn parse_console(line: &str) -> Result<Option<ConsoleCommand>, ConsoleError> {
+    let bad = |e: String| ConsoleError(e);
     let words: Vec<&str> = line.split_whitespace().collect();
     let bv = |w: Option<&&str>| match w {
         None | Some(&"all") => ALL_BVS.to_owned(),
@@ -237,30 +272,30 @@ pub fn parse_console(line: &str) -> Result<Option<ConsoleCommand>, String> {
         ["help" | "?"] => Ok(Some(ConsoleCommand::Help)),
         [action @ ("arm" | "start" | "abort"), rest @ ..] if rest.len() <= 1 => Ok(Some(ConsoleCommand::Send {
             bv: bv(rest.first()),
-            command: command(action, None, None).map_err(|e| e.to_string())?,
+            command: command(action, None, None).map_err(|e| bad(e.to_string()))?,
         })),
         ["target", who, tau, style] => {
-            let tau = Target::parse_tau(tau).map_err(|e| e.to_string())?;
-            let style: Style = style.parse().map_err(|e: TargetError| e.to_string())?;
-            let command = command("target", Some(tau), Some(style)).map_err(|e| e.to_string())?;
+            let tau = Target::parse_tau(tau).map_err(|e| bad(e.to_string()))?;
+            let style: Style = style.parse().map_err(|e: TargetError| bad(e.to_string()))?;
+            let command = command("target", Some(tau), Some(style)).map_err(|e| bad(e.to_string()))?;
             Ok(Some(ConsoleCommand::Send { bv: bv(Some(who)), command }))
         }
         ["upload", file, who, rest @ ..] => {
             if *who == "all" {
-                return Err("a prior goes to one BV".into());
+                return Err(bad("a prior goes to one BV".into()));
             }
             let (mut tau_s, mut style, mut agent) = (None, None, None);
             for pair in rest.chunks(2) {
                 match pair {
-                    ["tau", v] => tau_s = Some(Target::parse_tau(v).map_err(|e| e.to_string())?),
-                    ["style", v] => style = Some(v.parse().map_err(|e: TargetError| e.to_string())?),
+                    ["tau", v] => tau_s = Some(Target::parse_tau(v).map_err(|e| bad(e.to_string()))?),
+                    ["style", v] => style = Some(v.parse().map_err(|e: TargetError| bad(e.to_string()))?),
                     ["agent", v] => agent = Some((*v).to_owned()),
-                    other => return Err(format!("upload: unexpected `{}`", other.join(" "))),
+                    other => return Err(bad(format!("upload: unexpected `{}`", other.join(" ")))),
                 }
             }
             Ok(Some(ConsoleCommand::Upload { file: PathBuf::from(file), bv: (*who).to_owned(), tau_s, style, agent }))
         }
-        _ => Err(format!("cannot read `{line}`; `help` lists the commands")),
+        _ => Err(bad(format!("cannot read `{line}`; `help` lists the commands"))),
     }
 }
 
@@ -293,7 +328,7 @@ pub fn serve(mut opts: ServeOptions, stop: &Arc<AtomicBool>) -> Result<(), LinkE
         .map(|leaf| format!("v2t/{fleet_id}/bv/+/{leaf}"))
         .collect();
     let client_id = format!("v2t-{fleet_id}-supervisor");
-    let mqtt = MqttLink::start(&opts.connection.settings(&client_id, true), subscribe).map_err(LinkError::Broker)?;
+    let mqtt = MqttLink::start(&opts.connection.settings(&client_id, true), subscribe)?;
     let mut log = match &opts.log {
         Some(p) => Some(std::io::BufWriter::new(
             std::fs::File::create(p).map_err(|e| LinkError::Usage(format!("{}: {e}", p.display())))?,
@@ -388,7 +423,7 @@ pub fn serve(mut opts: ServeOptions, stop: &Arc<AtomicBool>) -> Result<(), LinkE
 
 fn send(mqtt: &MqttLink, signer: &mut Signer, bv: &str, body: CloudBody) -> Result<u64, LinkError> {
     let (topic, frame, seq) = signer.seal(bv, body)?;
-    mqtt.publish(&topic, frame, true).map_err(LinkError::Broker)?;
+    mqtt.publish(&topic, frame, true)?;
     Ok(seq)
 }
 

@@ -45,7 +45,7 @@ pub enum EdgeError {
     Regulator(#[from] v2t_game::qp::QpError),
     /// The MQTT client could not start.
     #[error("uplink: {0}")]
-    Mqtt(String),
+    Mqtt(#[from] v2t_wire::mqtt::MqttError),
 }
 
 impl EdgeError {

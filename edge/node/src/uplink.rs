@@ -90,7 +90,7 @@ pub struct UplinkConfig {
 
 impl Validate for UplinkConfig {
     fn validate(&self) -> Result<(), ValidationError> {
-        BrokerUrl::parse(&self.broker).map_err(|m| ValidationError::new("broker", m))?;
+        BrokerUrl::parse(&self.broker).map_err(|e| ValidationError::new("broker", e.to_string()))?;
         if !topics::valid_id(&self.fleet) {
             return Err(ValidationError::new("fleet", "must be 1–64 ASCII letters, digits, '_' or '-'"));
         }
@@ -159,7 +159,7 @@ impl UplinkSettings {
             }
             None => None,
         };
-        let broker = BrokerUrl::parse(&config.broker).map_err(bad)?;
+        let broker = BrokerUrl::parse(&config.broker).map_err(|e| bad(e.to_string()))?;
         if broker.tls && ca_pem.is_none() {
             return Err(bad("an mqtts:// broker needs ca_file".into()));
         }

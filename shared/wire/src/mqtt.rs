@@ -8,6 +8,28 @@ use std::time::Duration;
 
 use crate::link::MAX_FRAME_LEN;
 
+/// A broker address that is not one, or a client that cannot start or send.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum MqttError {
+    /// The broker URL does not parse.
+    #[error("`{url}`: {problem}")]
+    Url {
+        /// The URL given.
+        url: String,
+        /// What is wrong with it.
+        problem: String,
+    },
+    /// `mqtts://` without a CA certificate.
+    #[error("mqtts:// needs a CA certificate")]
+    NoCa,
+    /// The client thread could not be started.
+    #[error("cannot start the MQTT thread: {0}")]
+    Thread(String),
+    /// A publication could not be queued (the queue is full while the broker is away, or closed).
+    #[error("not queued: {0}")]
+    Publish(String),
+}
+
 /// A broker address: `mqtt://host[:port]` (1883) or `mqtts://host[:port]` (8883).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct BrokerUrl {
@@ -21,21 +43,22 @@ pub struct BrokerUrl {
 
 impl BrokerUrl {
     /// Parses `url`.
-    pub fn parse(url: &str) -> Result<Self, String> {
+    pub fn parse(url: &str) -> Result<Self, MqttError> {
+        let bad = |problem: String| MqttError::Url { url: url.to_owned(), problem };
         let (tls, rest) = if let Some(r) = url.strip_prefix("mqtts://") {
             (true, r)
         } else if let Some(r) = url.strip_prefix("mqtt://") {
             (false, r)
         } else {
-            return Err(format!("`{url}`: must start with mqtt:// or mqtts://"));
+            return Err(bad("must start with mqtt:// or mqtts://".into()));
         };
         let rest = rest.trim_end_matches('/');
         let (host, port) = match rest.rsplit_once(':') {
-            Some((h, p)) => (h, p.parse::<u16>().map_err(|_| format!("`{url}`: bad port `{p}`"))?),
+            Some((h, p)) => (h, p.parse::<u16>().map_err(|_| bad(format!("bad port `{p}`")))?),
             None => (rest, if tls { 8883 } else { 1883 }),
         };
         if host.is_empty() || host.contains('/') {
-            return Err(format!("`{url}`: no host"));
+            return Err(bad("no host".into()));
         }
         Ok(Self { host: host.to_owned(), port, tls })
     }
@@ -106,7 +129,7 @@ impl std::fmt::Debug for MqttLink {
 
 impl MqttLink {
     /// Starts the client; `subscribe` (QoS 1) is renewed after every (re)connection.
-    pub fn start(s: &MqttSettings, subscribe: Vec<String>) -> Result<Self, String> {
+    pub fn start(s: &MqttSettings, subscribe: Vec<String>) -> Result<Self, MqttError> {
         let mut opts = rumqttc::MqttOptions::new(&s.client_id, &s.broker.host, s.broker.port);
         opts.set_keep_alive(Duration::from_secs(5));
         opts.set_clean_session(!s.persistent);
@@ -117,7 +140,7 @@ impl MqttLink {
         if s.broker.tls {
             // The process-wide rustls provider (ring); a second install in one process is harmless.
             let _ = rustls::crypto::ring::default_provider().install_default();
-            let ca = s.ca_pem.clone().ok_or("mqtts:// needs a CA certificate")?;
+            let ca = s.ca_pem.clone().ok_or(MqttError::NoCa)?;
             opts.set_transport(rumqttc::Transport::Tls(rumqttc::TlsConfiguration::Simple {
                 ca,
                 alpn: None,
@@ -176,7 +199,7 @@ impl MqttLink {
                     }
                 }
             })
-            .map_err(|e| format!("cannot start the MQTT thread: {e}"))?;
+            .map_err(|e| MqttError::Thread(e.to_string()))?;
         Ok(Self { client, events })
     }
 
@@ -192,9 +215,9 @@ impl MqttLink {
 
     /// Queues a publication: QoS 1 when `reliable`, else QoS 0. A full queue while the broker is
     /// away is reported, not fatal.
-    pub fn publish(&self, topic: &str, payload: Vec<u8>, reliable: bool) -> Result<(), String> {
+    pub fn publish(&self, topic: &str, payload: Vec<u8>, reliable: bool) -> Result<(), MqttError> {
         let qos = if reliable { rumqttc::QoS::AtLeastOnce } else { rumqttc::QoS::AtMostOnce };
-        self.client.try_publish(topic, qos, false, payload).map_err(|e| e.to_string())
+        self.client.try_publish(topic, qos, false, payload).map_err(|e| MqttError::Publish(e.to_string()))
     }
 
     /// Asks the broker for a clean disconnect (after what is queued).
