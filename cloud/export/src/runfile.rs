@@ -1,4 +1,4 @@
-//! The part of a run file (`video2track sim --json`, `v2t-edge sim-ecu --out`) that `render` and
+//! The part of a run file (`video2track sim --json`, `v2t-sim-ecu --out`) that `render` and
 //! `export xosc` read. Other fields are ignored: this reads a subset of a document another command
 //! writes, not a configuration.
 

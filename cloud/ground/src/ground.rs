@@ -9,10 +9,11 @@ use serde::Serialize;
 use v2t_map::Map;
 use v2t_map::graph::LaneKey;
 use v2t_map::library::{Anchor, AnchorKind, Fragment, Polyline, TopologyLibrary};
+use v2t_model::Target;
 use v2t_model::grounded::{AgentRole, AnchorState, GroundedAgent, GroundedConflict, GroundedScenario};
 use v2t_model::metrics::{ConflictKind, ConflictOptions, ConflictZone, Dimensions, OccupancyInterval, conflict_zones};
 use v2t_model::path::ReferencePath;
-use v2t_model::semantics::ScenarioSemantics;
+use v2t_model::semantics::{InteractingBv, ScenarioSemantics};
 use v2t_model::validate::Validate;
 use v2t_model::vehicle::VehicleConfig;
 
@@ -44,6 +45,10 @@ pub struct GroundOptions {
     /// A lane change takes this long at the changing vehicle's speed, s (its length is clamped to
     /// 20–100 m).
     pub lane_change_time_s: f64,
+    /// The target the scenario is grounded for; `None`: the video's, its PET label in each BV's
+    /// style. An experiment that asks for another τ or style sets it here; the semantics stay what
+    /// the video says.
+    pub target: Option<Target>,
 }
 
 impl Default for GroundOptions {
@@ -54,6 +59,7 @@ impl Default for GroundOptions {
             bv: Dimensions { length_m: 4.8, width_m: 1.85 },
             lead_time_s: 6.0,
             lane_change_time_s: 3.5,
+            target: None,
         }
     }
 }
@@ -141,6 +147,8 @@ pub(crate) fn ground_on(
     opt: &GroundOptions,
 ) -> Result<Grounded, Misfit> {
     let p: Plan = plan(f, s)?;
+    let tau_s = opt.target.map_or(s.pet_label_s, Target::tau_s);
+    let style = |bv: &InteractingBv| opt.target.map_or(bv.style, Target::style);
     let mut notes = p.notes.clone();
     let anchor = |id: &str| f.anchor(id).ok_or_else(|| format!("no anchor {id}"));
     let conflicts: Vec<&Anchor> = p.bvs.iter().map(|b| anchor(&b.anchor)).collect::<Result<_, _>>()?;
@@ -159,7 +167,7 @@ pub(crate) fn ground_on(
         if vi.enter_s_m < 0.0 || bi.enter_s_m < 0.0 {
             return Err(misfit!("a route starts inside the conflict zone {} of {}", a.id, bv.id));
         }
-        let t0 = bv_start_s(bv.style, s.pet_label_s, (vi, v_vut), (bi, v));
+        let t0 = bv_start_s(style(bv), tau_s, (vi, v_vut), (bi, v));
         starts.push((bv, route, t0, vi, bi));
         grounded_conflicts.push(GroundedConflict {
             bv_id: bv.id.clone(),
@@ -176,7 +184,7 @@ pub(crate) fn ground_on(
     let mut timing = Vec::new();
     for (bv, route, t0, vi, bi) in starts {
         let v = bv.behavior.speed_estimate_mps;
-        timing.push(passage(&bv.id, bv.style, (shift, vi, v_vut), (shift + t0, bi, v)));
+        timing.push(passage(&bv.id, style(bv), (shift, vi, v_vut), (shift + t0, bi, v)));
         agents.push(route.agent(&bv.id, AgentRole::Bv, v, shift + t0));
         routes.push(route.describe(&bv.id));
     }
@@ -186,8 +194,8 @@ pub(crate) fn ground_on(
         interaction_type: first.interaction_type,
         agents,
         conflicts: grounded_conflicts,
-        tau_s: s.pet_label_s,
-        style: first.style,
+        tau_s,
+        style: style(first),
     };
     scenario.validate().map_err(|e| misfit!("the grounded scenario is invalid: {e}"))?;
     Ok((scenario, routes, timing, notes))

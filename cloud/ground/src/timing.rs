@@ -2,7 +2,7 @@
 //! BV starts so that the VUT and it pass their conflict zone in the order its style names with the
 //! video's PET between them.
 //!
-//! PET = entry time of the second vehicle − exit time of the first (DESIGN.md). With `rush` the BV
+//! PET = entry time of the second vehicle − exit time of the first (docs/ARCHITECTURE.md). With `rush` the BV
 //! is first: `t_enter(VUT) − t_exit(BV) = τ`; with `yield` the VUT is: `t_enter(BV) − t_exit(VUT) = τ`.
 
 use serde::Serialize;

@@ -175,3 +175,25 @@ fn semantics_that_fit_nowhere_fail_with_a_reason_per_fragment() {
         println!("{file} × {name}: {text}");
     }
 }
+
+/// An experiment's target replaces the video's PET label and style in the grounded scenario and
+/// its planned timing; the semantics stay what the video says, and the routes do not change.
+#[test]
+fn another_target_changes_the_timing_not_the_place() {
+    use v2t_ground::{GroundOptions, ground_with};
+    use v2t_model::{Style, Target};
+    let (map, lib) = load("4way_intersection.xodr");
+    let s = example("semantics_left_turn.json");
+    let video = ground(&map, &lib, &s).unwrap();
+    let target = Target::new(4.0, Style::Yield).unwrap();
+    let opts = GroundOptions { target: Some(target), ..GroundOptions::default() };
+    let g = ground_with(&map, &lib, &s, &opts).unwrap();
+    assert_eq!((g.scenario.tau_s, g.scenario.style), (4.0, Style::Yield));
+    assert_eq!(g.scenario.fragment_id, video.scenario.fragment_id);
+    assert!((g.timing[0].pet_s - 4.0).abs() < 1e-9, "{:?}", g.timing[0]);
+    assert_eq!(g.timing[0].style, Style::Yield);
+    for (a, b) in g.scenario.agents.iter().zip(&video.scenario.agents) {
+        assert_eq!(a.route, b.route, "{}: the route moved", a.id);
+    }
+    assert!((s.pet_label_s - 2.9).abs() < 1e-12 && s.interacting_bvs[0].style == Style::Rush);
+}

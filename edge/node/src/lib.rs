@@ -8,6 +8,20 @@
 //! loop until SIGINT/SIGTERM (iceoryx2's signal handling), publishing a heartbeat every
 //! `timing.heartbeat_period_s`. The monitor turns a silent node or a stale state into a
 //! minimal-risk stop, and the gateway's own command timeout does the same if the monitor is gone.
+//!
+//! - [`state`]: GNSS/INS fixes and CAN feedback → the BV's state;
+//! - [`regulate`]: the Stackelberg regulator of `v2t-game` on the active prior → plans;
+//! - [`track`]: PID + Stanley (`v2t-track`) → actuation requests;
+//! - [`gateway`]: the safety gate and the DBC codec of `v2t-can` on SocketCAN (or the iceoryx2
+//!   virtual bus, [`canbus`], where the kernel has no CAN);
+//! - [`monitor`]: heartbeats and freshness → the gate's engage or minimal-risk stop;
+//! - [`uplink`]: the cloud link over MQTT: signed priors and commands in (checked by [`prior`]:
+//!   signature and time window first, then the BV's speed, acceleration, jerk and lateral limits,
+//!   the track's drivable area and a conflict zone with the VUT), telemetry at 10 Hz, heartbeats
+//!   at 5 Hz and every verdict out, and the link-loss policy;
+//! - [`launch`]: starts every configured node as a process, restarts a failed one, stops all on
+//!   SIGINT/SIGTERM; [`operator`]: engage, stop, reset, disengage, emergency stop by hand;
+//! - [`config`]: `config/edge/<bv>.toml` and the files it names, checked before anything starts.
 
 use serde::{Deserialize, Serialize};
 use v2t_wire::NodeKind;

@@ -1,5 +1,5 @@
 //! MCAP recordings of runs (feature `mcap`), and replaying them: `video2track sim … --mcap run.mcap`
-//! and `v2t-edge sim-ecu … --mcap run.mcap` write every
+//! and `v2t-sim-ecu … --mcap run.mcap` write every
 //! channel a test engineer looks at in Foxglove, and `video2track replay run.mcap` measures the run
 //! again from the recorded truth with the same code the run was measured with.
 //!

@@ -214,12 +214,8 @@ pub fn priors(
     seed: u64,
 ) -> Result<(GroundedScenario, TrajectoryPrior, TrajectoryPrior), MethodsError> {
     let scenario = || rec.name.clone();
-    let mut sem = rec.semantics.clone();
-    sem.pet_label_s = target.tau_s();
-    for b in &mut sem.interacting_bvs {
-        b.style = target.style();
-    }
-    let grounded = v2t_ground::ground(&setup.inspection.map, &setup.inspection.library, &sem)
+    let options = v2t_ground::GroundOptions { target: Some(target), ..v2t_ground::GroundOptions::default() };
+    let grounded = v2t_ground::ground_with(&setup.inspection.map, &setup.inspection.library, &rec.semantics, &options)
         .map_err(|source| MethodsError::Ground { scenario: scenario(), source })?
         .scenario;
     let stand_in = TrajectoryPrior::stand_in(&grounded)

@@ -1,7 +1,7 @@
 //! Interaction metrics: conflict zones of two paths, post-encroachment time (PET), predicted PET,
 //! time to collision (TTC), footprint distance and collision.
 //!
-//! Conventions (DESIGN.md): PET at a conflict zone is the entry time of the second vehicle minus
+//! Conventions (docs/ARCHITECTURE.md): PET at a conflict zone is the entry time of the second vehicle minus
 //! the exit time of the first, interpolated between samples. A vehicle *occupies* a zone while any
 //! part of its footprint is inside it; along its own path that is an interval of the reference-point
 //! arc length, [`OccupancyInterval`], which already includes half the vehicle length on each side.
