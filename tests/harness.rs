@@ -101,6 +101,15 @@ impl Proc {
         Self { child, stdin, lines, tag: tag.to_owned() }
     }
 
+    /// Lines containing `needle` among those not yet read (reads them all).
+    pub fn count_lines(&self, needle: &str) -> usize {
+        let mut n = 0;
+        while let Ok(line) = self.lines.try_recv() {
+            n += usize::from(line.contains(needle));
+        }
+        n
+    }
+
     /// The next line containing `needle`, within `timeout`.
     pub fn expect_line(&self, needle: &str, timeout: Duration) -> String {
         let deadline = Instant::now() + timeout;
@@ -232,8 +241,10 @@ impl Broker {
                 let conf = self.dir.join("mosquitto.conf");
                 let rest = self.mosquitto_conf.clone().unwrap_or_else(|| {
                     format!(
-                        "allow_anonymous true\nset_tcp_nodelay true\npersistence true\npersistence_location {}/\n",
-                        self.dir.display()
+                        "allow_anonymous true\nset_tcp_nodelay true\npersistence true\npersistence_location {}/\n\
+                         message_size_limit {}\n",
+                        self.dir.display(),
+                        link::MAX_FRAME_LEN
                     )
                 });
                 std::fs::write(&conf, format!("listener {port} 127.0.0.1\n{rest}")).unwrap();
@@ -266,6 +277,11 @@ impl Broker {
             assert!(Instant::now() < deadline, "{:?} did not listen on {port}", self.kind);
             std::thread::sleep(Duration::from_millis(20));
         }
+    }
+
+    /// The process id of the broker.
+    pub fn pid(&self) -> Option<u32> {
+        self.proc.as_ref().map(|p| p.child.id())
     }
 
     /// Stops it: Mosquitto with SIGTERM (it saves its sessions), the embedded one killed (a crash).
@@ -445,9 +461,13 @@ impl Cloud {
         Self { client, inbox, key, seq: 0 }
     }
 
-    /// A frame for `bv` signed with the test's key and the next sequence number.
+    /// A frame for `bv` signed with the test's key and the next sequence number (the clock in µs,
+    /// as the supervisor's own tools number theirs, so the two can take turns).
     pub fn frame(&mut self, bv: &str, body: link::CloudBody) -> Vec<u8> {
-        self.seq += 1;
+        let now_us = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| u64::try_from(d.as_micros()).unwrap_or(u64::MAX));
+        self.seq = (self.seq + 1).max(now_us);
         let m = link::CloudMessage {
             fleet: "pg".into(),
             bv_id: bv.into(),
@@ -463,18 +483,69 @@ impl Cloud {
         self.client.publish(topics::bv("pg", bv, leaf), rumqttc::QoS::AtLeastOnce, false, frame).unwrap();
     }
 
-    /// The next event BV `bv` reports (JSON), skipping everything else.
+    /// The next verdict BV `bv` reports on a genuine frame (JSON with its `seq`), skipping
+    /// everything else (the BV's summaries of refused garbage among it).
     pub fn event(&self, bv: &str, timeout: Duration) -> serde_json::Value {
+        self.next_event(bv, timeout, false)
+    }
+
+    /// The next summary of refused frames BV `bv` reports (JSON without a `seq`).
+    pub fn summary(&self, bv: &str, timeout: Duration) -> serde_json::Value {
+        self.next_event(bv, timeout, true)
+    }
+
+    fn next_event(&self, bv: &str, timeout: Duration, summary: bool) -> serde_json::Value {
         let topic = topics::bv("pg", bv, topics::EVENT);
         let deadline = Instant::now() + timeout;
         while let Some(left) = deadline.checked_duration_since(Instant::now()) {
             match self.inbox.recv_timeout(left) {
-                Ok((t, payload)) if t == topic => return serde_json::from_slice(&payload).unwrap(),
+                Ok((t, payload)) if t == topic => {
+                    let e: serde_json::Value = serde_json::from_slice(&payload).unwrap();
+                    if e["seq"].is_null() == summary {
+                        return e;
+                    }
+                }
                 Ok(_) => {}
                 Err(_) => break,
             }
         }
-        panic!("no event from {bv} within {timeout:?}");
+        panic!("no {} from {bv} within {timeout:?}", if summary { "summary" } else { "event" });
+    }
+
+    /// Telemetry reports of BV `bv` stamped within `[from_ms, to_ms]`, among everything received
+    /// so far (the rest is dropped).
+    pub fn telemetry_between(&self, bv: &str, from_ms: u64, to_ms: u64) -> usize {
+        let topic = topics::bv("pg", bv, topics::TELEMETRY);
+        let mut n = 0;
+        while let Ok((t, payload)) = self.inbox.try_recv() {
+            if t == topic
+                && let Ok(link::EdgeReport::Telemetry(r)) = link::read_report(&payload)
+                && (from_ms..=to_ms).contains(&r.stamp_ms)
+            {
+                n += 1;
+            }
+        }
+        n
+    }
+
+    /// Drops everything received so far.
+    pub fn drain(&self) {
+        while self.inbox.try_recv().is_ok() {}
+    }
+
+    /// Telemetry reports of BV `bv` that arrive within `window`.
+    pub fn count_telemetry(&self, bv: &str, window: Duration) -> usize {
+        let topic = topics::bv("pg", bv, topics::TELEMETRY);
+        let deadline = Instant::now() + window;
+        let mut n = 0;
+        while let Some(left) = deadline.checked_duration_since(Instant::now()) {
+            match self.inbox.recv_timeout(left) {
+                Ok((t, _)) if t == topic => n += 1,
+                Ok(_) => {}
+                Err(_) => break,
+            }
+        }
+        n
     }
 
     /// The next telemetry report of BV `bv`.
@@ -493,4 +564,146 @@ impl Cloud {
         }
         panic!("no telemetry from {bv} within {timeout:?}");
     }
+}
+
+/// A publisher that floods topics as fast as a raw MQTT 3.1.1 connection on loopback takes it:
+/// random bytes and frames with a valid link header and random contents, alternately, at QoS 0 or
+/// QoS 1 (its acknowledgements read and dropped). Stops when dropped.
+pub struct Flood {
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    sent: std::sync::Arc<std::sync::atomic::AtomicU64>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+/// The bytes of an MQTT remaining length.
+fn remaining_length(mut n: usize, out: &mut Vec<u8>) {
+    loop {
+        let mut b = (n % 128) as u8;
+        n /= 128;
+        if n > 0 {
+            b |= 0x80;
+        }
+        out.push(b);
+        if n == 0 {
+            break;
+        }
+    }
+}
+
+/// An MQTT PUBLISH packet.
+pub fn publish_packet(topic: &str, payload: &[u8], qos1: bool, packet_id: u16) -> Vec<u8> {
+    let mut body = Vec::with_capacity(topic.len() + payload.len() + 4);
+    body.extend((topic.len() as u16).to_be_bytes());
+    body.extend(topic.as_bytes());
+    if qos1 {
+        body.extend(packet_id.max(1).to_be_bytes());
+    }
+    body.extend(payload);
+    let mut p = vec![if qos1 { 0x32 } else { 0x30 }];
+    remaining_length(body.len(), &mut p);
+    p.extend(body);
+    p
+}
+
+/// A raw MQTT 3.1.1 connection (clean session) to the broker on `port`.
+pub fn raw_mqtt(port: u16, client_id: &str) -> TcpStream {
+    use std::io::Read as _;
+    let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    s.set_nodelay(true).unwrap();
+    let mut body = vec![0, 4, b'M', b'Q', b'T', b'T', 4, 0x02, 0, 60];
+    body.extend((client_id.len() as u16).to_be_bytes());
+    body.extend(client_id.as_bytes());
+    let mut p = vec![0x10];
+    remaining_length(body.len(), &mut p);
+    p.extend(body);
+    s.write_all(&p).unwrap();
+    let mut ack = [0u8; 4];
+    s.read_exact(&mut ack).unwrap();
+    assert_eq!((ack[0], ack[3]), (0x20, 0), "the broker refused the connection");
+    s
+}
+
+impl Flood {
+    /// Starts flooding `topics` on the broker on `port`, at most `rate` messages per second (`None`:
+    /// as fast as the connection takes them).
+    pub fn start(port: u16, topics: Vec<String>, qos1: bool, rate: Option<f64>) -> Self {
+        use std::sync::Arc;
+        use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+        let stop = Arc::new(AtomicBool::new(false));
+        let sent = Arc::new(AtomicU64::new(0));
+        let (s, n) = (Arc::clone(&stop), Arc::clone(&sent));
+        let thread = std::thread::spawn(move || {
+            static INSTANCE: AtomicU64 = AtomicU64::new(0);
+            let id = INSTANCE.fetch_add(1, Ordering::Relaxed);
+            let mut conn = raw_mqtt(port, &format!("v2t-flood-{}-{id}", std::process::id()));
+            if qos1 {
+                // Acknowledgements are read and dropped, so the broker never stalls on them.
+                let mut reader = conn.try_clone().unwrap();
+                std::thread::spawn(move || {
+                    use std::io::Read as _;
+                    let mut buf = [0u8; 65536];
+                    while reader.read(&mut buf).is_ok_and(|k| k > 0) {}
+                });
+            }
+            let mut rng = 0x9E37_79B9_7F4A_7C15u64;
+            let mut next = move || {
+                rng ^= rng << 13;
+                rng ^= rng >> 7;
+                rng ^= rng << 17;
+                rng
+            };
+            let mut batch = Vec::with_capacity(1 << 16);
+            let mut k: u64 = 0;
+            let started = Instant::now();
+            while !s.load(Ordering::Relaxed) {
+                if let Some(rate) = rate {
+                    let due = Duration::from_secs_f64(k as f64 / rate.max(1.0));
+                    if let Some(wait) = due.checked_sub(started.elapsed()) {
+                        std::thread::sleep(wait);
+                    }
+                }
+                batch.clear();
+                for _ in 0..200 {
+                    let len = 16 + (next() % 200) as usize;
+                    let mut payload: Vec<u8> = (0..len).map(|_| next() as u8).collect();
+                    if k % 2 == 1 {
+                        payload[..5].copy_from_slice(&[b'V', b'2', b'T', link::LINK_VERSION, 1]);
+                    }
+                    let topic = &topics[(k as usize) % topics.len()];
+                    batch.extend(publish_packet(topic, &payload, qos1, (k % 65_000) as u16 + 1));
+                    k += 1;
+                }
+                if conn.write_all(&batch).is_err() {
+                    break;
+                }
+                n.fetch_add(200, Ordering::Relaxed);
+            }
+        });
+        Self { stop, sent, thread: Some(thread) }
+    }
+
+    /// Messages written so far.
+    pub fn sent(&self) -> u64 {
+        self.sent.load(std::sync::atomic::Ordering::Relaxed)
+    }
+}
+
+impl Drop for Flood {
+    fn drop(&mut self) {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// The resident memory of process `pid`, MB (`VmRSS`).
+pub fn rss_mb(pid: u32) -> f64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))
+        .and_then(|v| v.split_whitespace().next())
+        .and_then(|kb| kb.parse::<f64>().ok())
+        .map_or(0.0, |kb| kb / 1024.0)
 }

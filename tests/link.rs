@@ -44,7 +44,7 @@ fn priors_and_commands_cross_the_broker(kind: BrokerKind) {
     let priors = bus.subscriber::<ActivePrior>(services::PRIOR).unwrap();
     let safety = bus.subscriber::<SafetyCommand>(services::SAFETY).unwrap();
     node.expect_line("connected", Duration::from_secs(10));
-    let mut cloud = Cloud::connect(broker.port, key);
+    let mut cloud = Cloud::connect(broker.port, key.clone());
     cloud.telemetry("bv1", Duration::from_secs(5));
 
     // A good prior reaches the regulator's service.
@@ -56,19 +56,27 @@ fn priors_and_commands_cross_the_broker(kind: BrokerKind) {
 
     // Tampered, unsigned, foreign-signed, replayed, off-road and garbage frames are refused with
     // the reason; nothing reaches iceoryx2 and the node keeps running.
+    // A genuine frame of the cloud (its signature checks out) gets its own verdict; anything else
+    // is counted into the BV's summary of refusals (one per second at most).
     let refused = |cloud: &Cloud, frame: Vec<u8>, why: &str| {
         cloud.send("bv1", topics::PRIOR, frame);
         let e = cloud.event("bv1", Duration::from_secs(5));
         assert_eq!(e["verdict"], "refused", "{e}");
         assert!(e["detail"].as_str().unwrap().contains(why), "expected {why:?}: {e}");
     };
+    let counted = |cloud: &Cloud, frame: Vec<u8>, why: &str| {
+        cloud.send("bv1", topics::PRIOR, frame);
+        let e = cloud.summary("bv1", Duration::from_secs(5));
+        assert_eq!(e["verdict"], "refused", "{e}");
+        assert!(e["detail"].as_str().unwrap().contains(why), "expected {why:?}: {e}");
+    };
     let mut tampered = cloud.frame("bv1", CloudBody::Prior(left_turn_upload(42)));
     let mid = tampered.len() / 2;
     tampered[mid] ^= 0x40;
-    refused(&cloud, tampered, "signature");
+    counted(&cloud, tampered, "signature");
     let mut unsigned = cloud.frame("bv1", CloudBody::Prior(left_turn_upload(42)));
     unsigned.truncate(unsigned.len() - link::SIGNATURE_LEN);
-    refused(&cloud, unsigned, "frame");
+    counted(&cloud, unsigned, "1 frames refused");
     let foreign = link::seal(
         &CloudMessage {
             fleet: "pg".into(),
@@ -80,7 +88,22 @@ fn priors_and_commands_cross_the_broker(kind: BrokerKind) {
         &SigningKey::from_bytes(&[99; 32]),
     )
     .unwrap();
-    refused(&cloud, foreign, "signature");
+    counted(&cloud, foreign, "signature");
+    let other_fleet = link::seal(
+        &CloudMessage {
+            fleet: "capture".into(),
+            bv_id: "bv1".into(),
+            seq: 1 << 61,
+            issued_ms: v2t_edge::uplink::unix_ms(),
+            body: CloudBody::Prior(left_turn_upload(45)),
+        },
+        &key,
+    )
+    .unwrap();
+    counted(&cloud, other_fleet, "other fleet");
+    // A genuine command on the prior topic (where a prior belongs) is refused too.
+    let arm = cloud.frame("bv1", CloudBody::Command(CloudCommand::Arm));
+    counted(&cloud, arm, "wrong topic");
     refused(&cloud, good, "replay");
     let mut off = left_turn_upload(43);
     for x in &mut off.prior.agents[1].states[50..] {
@@ -88,7 +111,7 @@ fn priors_and_commands_cross_the_broker(kind: BrokerKind) {
     }
     let off = cloud.frame("bv1", CloudBody::Prior(off));
     refused(&cloud, off, "drivable area");
-    refused(&cloud, b"hello".to_vec(), "frame");
+    counted(&cloud, b"hello".to_vec(), "malformed");
     assert!(priors.receive().unwrap().is_none(), "a refused prior never reaches the regulator");
     assert_eq!(
         cloud.telemetry("bv1", Duration::from_secs(2)).prior_id,

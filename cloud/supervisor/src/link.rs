@@ -273,16 +273,28 @@ pub struct BvEvent {
     pub bv_id: String,
     /// When, Unix ms.
     pub stamp_ms: u64,
-    /// The frame's sequence number, when the BV could read it.
+    /// The frame's sequence number, for a genuine frame of the cloud (signature checked); `None` in
+    /// the BV's summary of the frames it refused without one (garbage, other keys, other fleets).
     pub seq: Option<u64>,
     /// `accepted` or `refused`.
     pub verdict: String,
     /// What, or why not.
     pub detail: String,
+    /// In a summary: refused frames per reason.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub counts: Option<std::collections::BTreeMap<String, u64>>,
 }
 
-/// Publishes one sealed frame and, unless `wait` is zero, waits for the BV's verdict on it. For a
-/// frame to [`ALL_BVS`] nothing is awaited.
+/// A frame is sent again this often until the BV's verdict on one of its copies arrives: the BV
+/// takes cloud frames at QoS 0 (a flood cannot then push them out of a broker queue), so a copy can
+/// be lost on the way; each copy is sealed anew, with its own sequence number.
+pub const RESEND_EVERY: Duration = Duration::from_millis(250);
+/// Copies of a frame to every BV, which no single verdict answers.
+pub const ALL_BVS_COPIES: usize = 3;
+
+/// Publishes one sealed frame and, unless `wait` is zero, waits for the BV's verdict on it, sending
+/// a new copy every [`RESEND_EVERY`] until one arrives. A frame to [`ALL_BVS`] is sent
+/// [`ALL_BVS_COPIES`] times and nothing is awaited.
 pub fn send_once(
     conn: &Connection,
     signer: &mut Signer,
@@ -306,31 +318,66 @@ pub fn send_once(
         }
     }
     // `Connected` comes once the event subscription is acknowledged: the BV's answer cannot miss it.
-    let (topic, frame, seq) = signer.seal(bv_id, body)?;
-    mqtt.publish(&topic, frame, true)?;
+    let mut sent = Vec::new();
+    let send_copy = |signer: &mut Signer, sent: &mut Vec<u64>| -> Result<(), LinkError> {
+        let (topic, frame, seq) = signer.seal(bv_id, body.clone())?;
+        mqtt.publish(&topic, frame, true)?;
+        sent.push(seq);
+        Ok(())
+    };
+    send_copy(signer, &mut sent)?;
     let answer = if awaits {
         let deadline = Instant::now() + wait;
+        let mut next_copy = Instant::now() + RESEND_EVERY;
+        // The BV's summaries of frames it refused without a verdict (another key, another fleet):
+        // what to say when no verdict comes.
+        let mut summary: Option<BvEvent> = None;
         loop {
-            match mqtt.wait(deadline.saturating_duration_since(Instant::now())) {
+            if Instant::now() >= next_copy {
+                send_copy(signer, &mut sent)?;
+                next_copy += RESEND_EVERY;
+            }
+            let until = deadline.min(next_copy).saturating_duration_since(Instant::now());
+            match mqtt.wait(until) {
                 Some(LinkEvent::Frame { payload, .. }) => {
+                    // Only a verdict on one of these copies: the BV reports every genuine frame with
+                    // its sequence number, and summarizes everything else without one.
                     let Ok(ev) = serde_json::from_slice::<BvEvent>(&payload) else { continue };
-                    if ev.seq == Some(seq) || (ev.seq.is_none() && ev.verdict == "refused") {
+                    if ev.seq.is_some_and(|s| sent.contains(&s)) {
                         break Some(ev);
+                    }
+                    if ev.seq.is_none() {
+                        summary = Some(ev);
                     }
                 }
                 Some(_) => {}
+                None if Instant::now() < deadline => {}
                 None => {
                     mqtt.disconnect();
+                    let why = match summary {
+                        Some(s) => format!(
+                            "; it refused frames it could not verify meanwhile ({}): is the key the one it trusts, \
+                             the fleet its own?",
+                            s.detail
+                        ),
+                        None => format!(
+                            " (is its uplink node running and connected to {}:{}?)",
+                            conn.broker.host, conn.broker.port
+                        ),
+                    };
                     return Err(LinkError::Refused(format!(
-                        "{bv_id} did not answer within {:.1} s (is its uplink node running and connected to {}:{}?)",
-                        wait.as_secs_f64(),
-                        conn.broker.host,
-                        conn.broker.port
+                        "{bv_id} gave no verdict on {} copies within {:.1} s{why}",
+                        sent.len(),
+                        wait.as_secs_f64()
                     )));
                 }
             }
         }
     } else {
+        for _ in 1..ALL_BVS_COPIES {
+            std::thread::sleep(Duration::from_millis(100));
+            send_copy(signer, &mut sent)?;
+        }
         // Let the QoS 1 publication leave before the client goes.
         std::thread::sleep(Duration::from_millis(200));
         None
@@ -388,7 +435,7 @@ mod tests {
     #[test]
     fn sequence_numbers_keep_increasing_across_signers_and_bvs_accept_them() {
         let key = SigningKey::from_bytes(&[9; 32]);
-        let mut rx = Receiver::new(key.verifying_key(), "bv1", Window { max_age_ms: 10_000, max_skew_ms: 1_000 });
+        let mut rx = Receiver::new(key.verifying_key(), "pg", "bv1", Window { max_age_ms: 10_000, max_skew_ms: 1_000 });
         let mut last = 0;
         for round in 0..3 {
             // A new signer per round, as a new `upload` process or a restarted `serve` would be.
@@ -398,7 +445,7 @@ mod tests {
                 assert_eq!(topic, "v2t/pg/bv/bv1/cmd");
                 assert!(seq > last, "round {round}: {seq} after {last}");
                 last = seq;
-                rx.open(&frame, unix_ms()).unwrap();
+                rx.open(&frame, v2t_wire::link::Arrival::Command, unix_ms()).unwrap();
             }
         }
         let mut s = Signer::new(key, "pg").unwrap();

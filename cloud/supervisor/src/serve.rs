@@ -16,13 +16,22 @@ use std::time::{Duration, Instant};
 
 use v2t_model::{Style, Target, TargetError};
 use v2t_wire::link::{self, ALL_BVS, CloudBody, Command, EdgeReport, Telemetry, topics};
-use v2t_wire::mqtt::{LinkEvent, MqttLink};
+use v2t_wire::mqtt::{Lane, LinkEvent, MqttLink, QueueLimits, Subscription};
 use v2t_wire::{Code, GateReason, GateState, PlanStatus};
 
 use crate::link::{BvEvent, Connection, LinkError, Signer, command, prior_from_file, unix_ms};
 
 /// A BV whose last heartbeat is older than this is shown as offline.
 pub const OFFLINE_AFTER: Duration = Duration::from_secs(1);
+
+/// The embedded broker keeps at most this many bytes per segment of a topic's log …
+pub const SEGMENT_BYTES: usize = 4 << 20;
+/// … and this many segments: what a slow subscriber has not read yet is dropped beyond
+/// 16 MiB per topic filter, so a flood cannot grow the supervisor's memory without bound.
+pub const SEGMENTS: usize = 4;
+
+/// Telemetry or a heartbeat older than this when it arrives is shown as late, not as current, ms.
+pub const LATE_AFTER_MS: u64 = 1000;
 
 /// Starts the embedded broker on `listen` and returns once it accepts connections.
 pub fn start_embedded_broker(listen: SocketAddr) -> Result<(), LinkError> {
@@ -42,8 +51,8 @@ pub fn start_embedded_broker(listen: SocketAddr) -> Result<(), LinkError> {
         "router": {
             "max_connections": 1000,
             "max_outgoing_packet_count": 200,
-            "max_segment_size": 104_857_600,
-            "max_segment_count": 10
+            "max_segment_size": SEGMENT_BYTES,
+            "max_segment_count": SEGMENTS
         },
         "v4": { "1": server }
     });
@@ -80,6 +89,8 @@ pub fn start_embedded_broker(listen: SocketAddr) -> Result<(), LinkError> {
 pub struct BvStatus {
     /// Last telemetry.
     pub telemetry: Option<Telemetry>,
+    /// How old that telemetry was when it arrived, ms (a backlog after an outage arrives late).
+    pub telemetry_age_ms: u64,
     /// When the last heartbeat arrived.
     pub heartbeat_at: Option<Instant>,
     /// Whether every onboard node was alive at the last heartbeat.
@@ -139,9 +150,15 @@ pub enum Change {
 }
 
 impl Fleet {
-    /// One message on `topic` received at `now`. A message that does not decode is an error the
-    /// caller reports; it changes nothing.
-    pub fn on_message(&mut self, topic: &str, payload: &[u8], now: Instant) -> Result<Change, MessageError> {
+    /// One message on `topic` received at `now` (Unix time `arrived_ms`). A message that does not
+    /// decode is an error the caller reports; it changes nothing.
+    pub fn on_message(
+        &mut self,
+        topic: &str,
+        payload: &[u8],
+        now: Instant,
+        arrived_ms: u64,
+    ) -> Result<Change, MessageError> {
         let mut parts = topic.split('/');
         let (Some("v2t"), Some(_fleet), Some("bv"), Some(bv), Some(leaf), None) =
             (parts.next(), parts.next(), parts.next(), parts.next(), parts.next(), parts.next())
@@ -155,10 +172,20 @@ impl Fleet {
                     .map_err(|source| MessageError::Frame { topic: topic.to_owned(), source })?;
                 let status = self.bvs.entry(bv.to_owned()).or_default();
                 match report {
-                    EdgeReport::Telemetry(t) if t.bv_id == bv => status.telemetry = Some(t),
+                    EdgeReport::Telemetry(t) if t.bv_id == bv => {
+                        // Only newer telemetry replaces what is shown: a report held back in a queue
+                        // never overwrites a newer one.
+                        if status.telemetry.as_ref().is_none_or(|old| t.stamp_ms >= old.stamp_ms) {
+                            status.telemetry_age_ms = arrived_ms.saturating_sub(t.stamp_ms);
+                            status.telemetry = Some(t);
+                        }
+                    }
                     EdgeReport::Heartbeat(h) if h.bv_id == bv => {
-                        status.heartbeat_at = Some(now);
-                        status.healthy = h.healthy;
+                        // A heartbeat that arrives late says nothing about the BV now.
+                        if arrived_ms.saturating_sub(h.stamp_ms) <= LATE_AFTER_MS {
+                            status.heartbeat_at = Some(now);
+                            status.healthy = h.healthy;
+                        }
                     }
                     _ => return Err(MessageError::OtherBv(topic.to_owned())),
                 }
@@ -179,7 +206,9 @@ impl Fleet {
 
     /// A table of every BV at `now`.
     pub fn table(&self, now: Instant) -> String {
-        let mut s = String::from("BV        link     health   prior  speed   plan              PET pred  gate\n");
+        let mut s = String::from(
+            "BV        link     health   prior  speed   plan              PET pred  gate  (telemetry age)\n",
+        );
         for (id, b) in &self.bvs {
             let link = if b.online(now) { "online" } else { "OFFLINE" };
             let health = if b.healthy { "ok" } else { "DEGRADED" };
@@ -194,7 +223,12 @@ impl Fleet {
                 ),
                 None => ("-".into(), "-".into(), "-".into(), "-".into(), "-".into()),
             };
-            let _ = writeln!(s, "{id:<9} {link:<8} {health:<8} {prior:<6} {speed:<7} {plan:<17} {pet:<9} {gate}");
+            let late = if b.telemetry_age_ms > LATE_AFTER_MS {
+                format!("  LATE: {:.1} s old on arrival", b.telemetry_age_ms as f64 * 1e-3)
+            } else {
+                String::new()
+            };
+            let _ = writeln!(s, "{id:<9} {link:<8} {health:<8} {prior:<6} {speed:<7} {plan:<17} {pet:<9} {gate}{late}");
         }
         s
     }
@@ -325,10 +359,16 @@ pub fn serve(mut opts: ServeOptions, stop: &Arc<AtomicBool>) -> Result<(), LinkE
     let fleet_id = opts.signer.fleet().to_owned();
     let subscribe = [topics::TELEMETRY, topics::HEARTBEAT, topics::EVENT]
         .iter()
-        .map(|leaf| format!("v2t/{fleet_id}/bv/+/{leaf}"))
+        .map(|leaf| Subscription::reliable(format!("v2t/{fleet_id}/bv/+/{leaf}")))
         .collect();
     let client_id = format!("v2t-{fleet_id}-supervisor");
-    let mqtt = MqttLink::start(&opts.connection.settings(&client_id, true), subscribe)?;
+    let route = |t: &str, _: &[u8]| Ok(if t.ends_with(topics::EVENT) { Lane::Urgent } else { Lane::Bulk });
+    let mqtt = MqttLink::start_screened(
+        &opts.connection.settings(&client_id, true),
+        subscribe,
+        Box::new(route),
+        QueueLimits::default(),
+    )?;
     let mut log = match &opts.log {
         Some(p) => Some(std::io::BufWriter::new(
             std::fs::File::create(p).map_err(|e| LinkError::Usage(format!("{}: {e}", p.display())))?,
@@ -362,15 +402,15 @@ pub fn serve(mut opts: ServeOptions, stop: &Arc<AtomicBool>) -> Result<(), LinkE
                     }
                     connected = false;
                 }
-                LinkEvent::Frame { topic, payload } => {
-                    match fleet.on_message(&topic, &payload, now) {
+                LinkEvent::Frame { topic, payload, arrived_ms } => {
+                    match fleet.on_message(&topic, &payload, now, arrived_ms) {
                         Ok(Change::Online(bv)) => println!("serve: {bv} online"),
                         Ok(Change::Event(e)) => println!("serve: {} {} {}", e.bv_id, e.verdict, e.detail),
                         Ok(Change::Quiet) => {}
                         Err(why) => println!("serve: ignored a message: {why}"),
                     }
                     if let Some(w) = log.as_mut() {
-                        let _ = writeln!(w, "{}", log_line(&topic, &payload));
+                        let _ = writeln!(w, "{}", log_line(&topic, &payload, arrived_ms));
                     }
                 }
             }
@@ -427,24 +467,32 @@ fn send(mqtt: &MqttLink, signer: &mut Signer, bv: &str, body: CloudBody) -> Resu
     Ok(seq)
 }
 
-/// Sends abort to every BV and waits up to 2 s for each BV known to be online to confirm it.
+/// Sends abort to every BV, again every [`crate::link::RESEND_EVERY`], until each BV known to be
+/// online has confirmed one of the copies, for up to 2 s.
 fn abort_all_and_wait(
     mqtt: &MqttLink,
     signer: &mut Signer,
     fleet: &mut Fleet,
     log: &mut Option<std::io::BufWriter<std::fs::File>>,
 ) -> Result<(), LinkError> {
-    let seq = send(mqtt, signer, ALL_BVS, CloudBody::Command(Command::Abort))?;
+    let mut seqs = vec![send(mqtt, signer, ALL_BVS, CloudBody::Command(Command::Abort))?];
     let mut waiting: Vec<String> =
         fleet.bvs.iter().filter(|(_, s)| s.online(Instant::now())).map(|(id, _)| id.clone()).collect();
     let deadline = Instant::now() + Duration::from_secs(2);
+    let mut next_copy = Instant::now() + crate::link::RESEND_EVERY;
     while !waiting.is_empty() && Instant::now() < deadline {
-        let Some(LinkEvent::Frame { topic, payload }) = mqtt.wait(Duration::from_millis(20)) else { continue };
-        if let Some(w) = log.as_mut() {
-            let _ = writeln!(w, "{}", log_line(&topic, &payload));
+        if Instant::now() >= next_copy {
+            seqs.push(send(mqtt, signer, ALL_BVS, CloudBody::Command(Command::Abort))?);
+            next_copy += crate::link::RESEND_EVERY;
         }
-        if let Ok(Change::Event(e)) = fleet.on_message(&topic, &payload, Instant::now())
-            && e.seq == Some(seq)
+        let Some(LinkEvent::Frame { topic, payload, arrived_ms }) = mqtt.wait(Duration::from_millis(20)) else {
+            continue;
+        };
+        if let Some(w) = log.as_mut() {
+            let _ = writeln!(w, "{}", log_line(&topic, &payload, arrived_ms));
+        }
+        if let Ok(Change::Event(e)) = fleet.on_message(&topic, &payload, Instant::now(), arrived_ms)
+            && e.seq.is_some_and(|s| seqs.contains(&s))
         {
             println!("serve: {} {} {}", e.bv_id, e.verdict, e.detail);
             waiting.retain(|b| *b != e.bv_id);
@@ -463,13 +511,19 @@ fn abort_all_and_wait(
     }
 }
 
-fn log_line(topic: &str, payload: &[u8]) -> String {
-    let body = match link::read_report(payload) {
-        Ok(EdgeReport::Telemetry(t)) => serde_json::to_value(t).unwrap_or_default(),
-        Ok(EdgeReport::Heartbeat(h)) => serde_json::to_value(h).unwrap_or_default(),
-        Err(_) => serde_json::from_slice(payload).unwrap_or(serde_json::Value::Null),
+/// One line of the session log: when it arrived, the topic, the message, and for a report how old
+/// it was on arrival (`age_ms`: a backlog after an outage arrives late, not current).
+fn log_line(topic: &str, payload: &[u8], arrived_ms: u64) -> String {
+    let (body, stamp) = match link::read_report(payload) {
+        Ok(EdgeReport::Telemetry(t)) => (serde_json::to_value(&t).unwrap_or_default(), Some(t.stamp_ms)),
+        Ok(EdgeReport::Heartbeat(h)) => (serde_json::to_value(&h).unwrap_or_default(), Some(h.stamp_ms)),
+        Err(_) => (serde_json::from_slice(payload).unwrap_or(serde_json::Value::Null), None),
     };
-    serde_json::json!({"received_ms": unix_ms(), "topic": topic, "message": body}).to_string()
+    let mut line = serde_json::json!({"received_ms": arrived_ms, "topic": topic, "message": body});
+    if let (Some(stamp), Some(obj)) = (stamp, line.as_object_mut()) {
+        obj.insert("age_ms".into(), arrived_ms.saturating_sub(stamp).into());
+    }
+    line.to_string()
 }
 
 /// Console lines on a channel; the reader ends with stdin.
@@ -513,10 +567,10 @@ mod tests {
         let mut f = Fleet::default();
         let t0 = Instant::now();
         let beat = heartbeat_frame(&Heartbeat { bv_id: "bv1".into(), seq: 1, stamp_ms: 1, healthy: true }).unwrap();
-        assert_eq!(f.on_message("v2t/pg/bv/bv1/heartbeat", &beat, t0).unwrap(), Change::Online("bv1".into()));
-        assert_eq!(f.on_message("v2t/pg/bv/bv1/heartbeat", &beat, t0).unwrap(), Change::Quiet);
+        assert_eq!(f.on_message("v2t/pg/bv/bv1/heartbeat", &beat, t0, 10).unwrap(), Change::Online("bv1".into()));
+        assert_eq!(f.on_message("v2t/pg/bv/bv1/heartbeat", &beat, t0, 10).unwrap(), Change::Quiet);
         let tel = telemetry_frame(&telemetry("bv1", 42)).unwrap();
-        f.on_message("v2t/pg/bv/bv1/telemetry", &tel, t0).unwrap();
+        f.on_message("v2t/pg/bv/bv1/telemetry", &tel, t0, 10).unwrap();
         let table = f.table(t0);
         assert!(
             table.contains("bv1") && table.contains("online") && table.contains("42") && table.contains("2.50 s"),
@@ -524,22 +578,48 @@ mod tests {
         );
         assert!(f.table(t0 + OFFLINE_AFTER).contains("OFFLINE"));
         assert_eq!(
-            f.on_message("v2t/pg/bv/bv1/heartbeat", &beat, t0 + 2 * OFFLINE_AFTER).unwrap(),
+            f.on_message("v2t/pg/bv/bv1/heartbeat", &beat, t0 + 2 * OFFLINE_AFTER, 10).unwrap(),
             Change::Online("bv1".into()),
             "back online after a silence"
         );
         let ev = br#"{"bv_id":"bv1","stamp_ms":5,"seq":7,"verdict":"refused","detail":"off the drivable area"}"#;
-        match f.on_message("v2t/pg/bv/bv1/event", ev, t0).unwrap() {
+        match f.on_message("v2t/pg/bv/bv1/event", ev, t0, 10).unwrap() {
             Change::Event(e) => assert_eq!((e.seq, e.verdict.as_str()), (Some(7), "refused")),
             other => panic!("{other:?}"),
         }
         // Garbage, a report naming another BV and unknown topics are errors that change nothing.
-        assert!(f.on_message("v2t/pg/bv/bv1/telemetry", b"garbage", t0).is_err());
+        assert!(f.on_message("v2t/pg/bv/bv1/telemetry", b"garbage", t0, 10).is_err());
         let other = telemetry_frame(&telemetry("bv2", 1)).unwrap();
-        assert!(f.on_message("v2t/pg/bv/bv1/telemetry", &other, t0).is_err());
-        assert!(f.on_message("v2t/pg/bv/bv1/secret", &beat, t0).is_err());
-        assert!(f.on_message("v2t/pg/bv1/heartbeat", &beat, t0).is_err());
+        assert!(f.on_message("v2t/pg/bv/bv1/telemetry", &other, t0, 10).is_err());
+        assert!(f.on_message("v2t/pg/bv/bv1/secret", &beat, t0, 10).is_err());
+        assert!(f.on_message("v2t/pg/bv1/heartbeat", &beat, t0, 10).is_err());
         assert_eq!(f.bvs.len(), 1);
+        assert!(!f.table(t0).contains("LATE"));
+    }
+
+    #[test]
+    fn late_reports_are_marked_not_shown_as_current() {
+        let mut f = Fleet::default();
+        let t0 = Instant::now();
+        let fresh = Telemetry { seq: 2, stamp_ms: 10_000, ..telemetry("bv1", 42) };
+        f.on_message("v2t/pg/bv/bv1/telemetry", &telemetry_frame(&fresh).unwrap(), t0, 10_050).unwrap();
+        assert!(!f.table(t0).contains("LATE"));
+        // A burst of reports held back during an outage: older ones never replace newer ones, and
+        // a late one is marked with its age.
+        let older = Telemetry { seq: 1, stamp_ms: 9_000, speed_mps: 1.0, ..telemetry("bv1", 41) };
+        f.on_message("v2t/pg/bv/bv1/telemetry", &telemetry_frame(&older).unwrap(), t0, 16_300).unwrap();
+        assert_eq!(f.bvs["bv1"].telemetry.as_ref().unwrap().prior_id, 42);
+        let late = Telemetry { seq: 3, stamp_ms: 10_100, ..telemetry("bv1", 43) };
+        f.on_message("v2t/pg/bv/bv1/telemetry", &telemetry_frame(&late).unwrap(), t0, 16_400).unwrap();
+        let table = f.table(t0);
+        assert!(table.contains("LATE: 6.3 s old on arrival"), "{table}");
+        // A late heartbeat does not bring a BV online.
+        let beat = heartbeat_frame(&Heartbeat { bv_id: "bv1".into(), seq: 1, stamp_ms: 1_000, healthy: true }).unwrap();
+        assert_eq!(f.on_message("v2t/pg/bv/bv1/heartbeat", &beat, t0, 16_400).unwrap(), Change::Quiet);
+        assert!(f.table(t0).contains("OFFLINE"));
+        assert!(
+            log_line("v2t/pg/bv/bv1/telemetry", &telemetry_frame(&late).unwrap(), 16_400).contains("\"age_ms\":6300")
+        );
     }
 
     #[test]

@@ -7,6 +7,13 @@
 //! [`UplinkLogic`] is the pure part (frame in, actions out) and is tested without a broker;
 //! [`MqttLink`] runs the `rumqttc` client on its own thread (QoS 1, persistent session, reconnect
 //! with backoff, TLS with rustls when the broker URL is `mqtts://`); [`run`] joins them.
+//!
+//! Under attack from anyone who can publish on the broker: commands wait in their own bounded
+//! queue and are handled before priors; a message longer than a frame is dropped, never a reason to
+//! lose the connection; garbage is refused by the cheapest check that catches it (header, body,
+//! fleet, addressee, topic) before any signature is verified, and only counted, in one event per
+//! second; the node spends at most [`FRAME_BUDGET_NS`] on frames before its telemetry, heartbeats
+//! and liveness, so a flood never stops the BV.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
@@ -15,8 +22,8 @@ use iceoryx2::service::Service;
 use serde::{Deserialize, Serialize};
 use v2t_map::drivable::DrivableArea;
 use v2t_model::validate::{Validate, ValidationError, in_range};
-use v2t_wire::link::{self, CloudBody, Command, Receiver, Window, topics};
-use v2t_wire::mqtt::{BrokerUrl, LinkEvent, MqttLink, MqttSettings};
+use v2t_wire::link::{self, Arrival, Receiver, Window, topics};
+use v2t_wire::mqtt::{BrokerUrl, Lane, LinkEvent, MqttLink, MqttSettings, QueueLimits, Subscription};
 use v2t_wire::{
     ActivePrior, BvState, Code, GateReport, Header, NodeKind, RegulatedPlan, SafetyAction, SafetyCommand, services,
 };
@@ -26,7 +33,11 @@ use crate::config::Loaded;
 use crate::error::EdgeError;
 use crate::heart::Heart;
 use crate::ports::{Bus, latest, send};
-use crate::prior::{PriorChecks, from_upload};
+use crate::prior::PriorChecks;
+
+mod logic;
+
+pub use logic::{Action, Outcome, RefusalTally, UplinkLogic, Verdict, reason_kind};
 
 /// What the BV does when the broker has been unreachable for `link_loss_timeout_s`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -187,106 +198,260 @@ pub fn unix_ms() -> u64 {
     SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| u64::try_from(d.as_millis()).unwrap_or(u64::MAX))
 }
 
-/// What the uplink does with an accepted frame.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Action {
-    /// Hand this prior to the regulator and the tracker.
-    Prior(Box<ActivePrior>),
-    /// Ask the gateway for this.
-    Safety(SafetyAction),
+/// Most time the uplink spends on received frames before it turns to its periodic work
+/// (telemetry, heartbeats, its own liveness), ns: a flood never starves them.
+const FRAME_BUDGET_NS: u64 = 2_000_000;
+/// Refusals that are only counted are reported this often, s.
+const REFUSAL_REPORT_PERIOD_S: f64 = 1.0;
+/// The node waits this long for the next cloud message when it has nothing to do.
+const PERIOD: Duration = Duration::from_millis(5);
+
+/// The onboard services the uplink talks to.
+struct Ports<S: Service> {
+    prior_out: iceoryx2::port::publisher::Publisher<S, ActivePrior, ()>,
+    safety_out: iceoryx2::port::publisher::Publisher<S, SafetyCommand, ()>,
+    wake: iceoryx2::port::notifier::Notifier<S>,
+    states: iceoryx2::port::subscriber::Subscriber<S, BvState, ()>,
+    plans: iceoryx2::port::subscriber::Subscriber<S, RegulatedPlan, ()>,
+    gates: iceoryx2::port::subscriber::Subscriber<S, GateReport, ()>,
 }
 
-/// What happened to a frame: the actions to take and the event to report (JSON text).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Outcome {
-    /// What to do.
-    pub actions: Vec<Action>,
-    /// `accepted` or `refused`.
-    pub verdict: &'static str,
-    /// The frame's sequence number, when it could be read.
-    pub seq: Option<u64>,
-    /// What, or why not.
-    pub detail: String,
+/// The state of the link to the broker.
+#[derive(Debug, Default)]
+struct LinkState {
+    /// Connected since (monotonic ns); `None` while the broker is away.
+    connected_at: Option<u64>,
+    /// Away since (monotonic ns).
+    down_since: Option<u64>,
+    /// The last reason a connection failed (each new one is logged once).
+    last_failure: Option<String>,
+    /// Whether the link-loss policy has run for this outage.
+    loss_handled: bool,
 }
 
-impl Outcome {
-    /// The event as one JSON line.
-    pub fn event_json(&self, bv_id: &str, stamp_ms: u64) -> String {
-        serde_json::json!({
-            "bv_id": bv_id, "stamp_ms": stamp_ms, "seq": self.seq, "verdict": self.verdict, "detail": self.detail
-        })
-        .to_string()
-    }
+/// The uplink node: the MQTT client, the logic, and what it reports.
+struct Node<'a, S: Service> {
+    cfg: &'a Loaded,
+    u: &'a UplinkConfig,
+    mqtt: MqttLink,
+    logic: UplinkLogic,
+    state_file: Option<PathBuf>,
+    ports: Ports<S>,
+    link: LinkState,
+    tally: RefusalTally,
+    last_report_ns: u64,
+    seqs: (u64, u64, u64),
+    last_tele_ns: u64,
+    last_beat_ns: u64,
+    gate: GateReport,
+    plan: RegulatedPlan,
+    state: BvState,
 }
 
-/// The pure part of the uplink: checks every cloud frame and turns it into actions.
-#[derive(Debug)]
-pub struct UplinkLogic {
-    rx: Receiver,
-    checks: PriorChecks,
-    active: Option<ActivePrior>,
-}
-
-impl UplinkLogic {
-    /// The logic of BV `bv_id`, trusting `key`.
-    pub fn new(key: link::VerifyingKey, bv_id: &str, window: Window, checks: PriorChecks) -> Self {
-        Self { rx: Receiver::new(key, bv_id, window), checks, active: None }
+impl<'a, S: Service> Node<'a, S> {
+    fn topic(&self, leaf: &str) -> String {
+        topics::bv(&self.u.fleet, &self.u.bv_id, leaf)
     }
 
-    /// Refuses every sequence number up to `seq` from now on (the state a previous run left).
-    pub fn resume_after(&mut self, seq: u64) {
-        self.rx.resume_after(seq);
+    /// Where a message arrived, in the terms of the link's checks.
+    fn arrival(&self, topic: &str) -> Option<Arrival> {
+        if topic == self.topic(topics::PRIOR) {
+            Some(Arrival::Prior)
+        } else if topic == self.topic(topics::CMD) {
+            Some(Arrival::Command)
+        } else if topic == topics::all_cmd(&self.u.fleet) {
+            Some(Arrival::AllCommand)
+        } else {
+            None
+        }
     }
 
-    /// The last accepted sequence number.
-    pub fn last_seq(&self) -> Option<u64> {
-        self.rx.last_seq()
-    }
-
-    /// The prior handed to the regulator last.
-    pub fn active(&self) -> Option<&ActivePrior> {
-        self.active.as_ref()
-    }
-
-    /// One frame at Unix time `now_ms` and monotonic `mono_ns`.
-    pub fn on_frame(&mut self, frame: &[u8], now_ms: u64, mono_ns: u64) -> Outcome {
-        let msg = match self.rx.open(frame, now_ms) {
-            Ok(m) => m,
-            Err(e) => {
-                return Outcome { actions: Vec::new(), verdict: "refused", seq: None, detail: format!("frame: {e}") };
-            }
-        };
-        let seq = Some(msg.seq);
-        let refused = |detail: String| Outcome { actions: Vec::new(), verdict: "refused", seq, detail };
-        let ok = |actions: Vec<Action>, detail: String| Outcome { actions, verdict: "accepted", seq, detail };
-        match msg.body {
-            CloudBody::Prior(up) => match from_upload(&up, now_ms, &self.checks, mono_ns) {
-                Ok(prior) => {
-                    self.active = Some(prior.clone());
-                    ok(vec![Action::Prior(Box::new(prior))], format!("prior {} (seq {})", up.prior_id, msg.seq))
-                }
-                Err(e) => refused(e.to_string()),
-            },
-            CloudBody::Command(Command::Arm) => {
-                ok(vec![Action::Safety(SafetyAction::Reset)], format!("arm (seq {}): gate reset", msg.seq))
-            }
-            CloudBody::Command(Command::Start) => {
-                ok(vec![Action::Safety(SafetyAction::Engage)], format!("start (seq {}): engage", msg.seq))
-            }
-            CloudBody::Command(Command::Abort) => ok(
-                vec![Action::Safety(SafetyAction::MinimalRiskStop)],
-                format!("abort (seq {}): minimal-risk stop", msg.seq),
-            ),
-            CloudBody::Command(Command::SetTarget(target)) => {
-                let Some(active) = self.active.as_mut() else {
-                    return refused("set target: no active prior".into());
-                };
-                active.set_target(target);
-                active.header = Header { seq: active.header.seq + 1, stamp_ns: mono_ns };
-                let prior = active.clone();
-                ok(vec![Action::Prior(Box::new(prior))], format!("set target (seq {}): {target}", msg.seq))
+    /// Handles received events for at most [`FRAME_BUDGET_NS`], commands before priors.
+    fn take_events(&mut self, first: Option<LinkEvent>) -> Result<(), EdgeError> {
+        let started = now_ns();
+        let mut next = first;
+        while let Some(ev) = next.take().or_else(|| self.mqtt.poll()) {
+            self.on_event(ev)?;
+            if now_ns().saturating_sub(started) > FRAME_BUDGET_NS {
+                break;
             }
         }
+        Ok(())
+    }
+
+    fn on_event(&mut self, ev: LinkEvent) -> Result<(), EdgeError> {
+        let now = now_ns();
+        match ev {
+            LinkEvent::Connected => {
+                eprintln!("uplink: connected to {}", self.u.broker);
+                self.link = LinkState { connected_at: Some(now), ..LinkState::default() };
+            }
+            LinkEvent::Down(why) => {
+                if self.link.down_since.is_none() {
+                    eprintln!("uplink: broker lost: {why}");
+                    self.link.down_since = Some(now);
+                } else if self.link.last_failure.as_deref() != Some(why.as_str()) {
+                    // Each new reason once (a wrong password, a refused certificate), not every retry.
+                    eprintln!("uplink: cannot reach the broker: {why}; retrying");
+                }
+                // Nothing is queued for the broker while it is away: telemetry would arrive late
+                // and look current.
+                self.link.connected_at = None;
+                self.link.last_failure = Some(why);
+            }
+            LinkEvent::Frame { topic, payload, arrived_ms } => {
+                let Some(arrival) = self.arrival(&topic) else {
+                    self.tally.add("unexpected topic");
+                    return Ok(());
+                };
+                match self.logic.on_frame(&payload, arrival, arrived_ms, unix_ms(), now_ns()) {
+                    Outcome::Counted(reason) => self.tally.add(reason),
+                    Outcome::Verdict(v) => self.on_verdict(&v)?,
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Acts on a genuine frame's verdict and reports it.
+    fn on_verdict(&mut self, v: &Verdict) -> Result<(), EdgeError> {
+        eprintln!("uplink: {} {}", v.verdict, v.detail);
+        if let (Some(path), "accepted") = (&self.state_file, v.verdict)
+            && let Err(e) = save_seq(path, v.seq)
+        {
+            // The frame stands; only a later restart could accept a replay of it.
+            eprintln!("uplink: cannot save the sequence number to {}: {e}", path.display());
+        }
+        for a in &v.actions {
+            match a {
+                Action::Prior(p) => {
+                    self.ports
+                        .prior_out
+                        .send_copy((**p).clone())
+                        .map_err(|e| EdgeError::ipc("send", services::PRIOR, e))?;
+                }
+                Action::Safety(action) => self.safety(*action, 0)?,
+            }
+        }
+        let event = v.event_json(&self.u.bv_id, unix_ms());
+        if let Err(e) = self.mqtt.publish(&self.topic(topics::EVENT), event.into_bytes(), true) {
+            eprintln!("uplink: event not queued: {e}");
+        }
+        Ok(())
+    }
+
+    fn safety(&mut self, action: SafetyAction, culprit: u8) -> Result<(), EdgeError> {
+        self.seqs.2 += 1;
+        let cmd =
+            SafetyCommand { header: Header { seq: self.seqs.2, stamp_ns: now_ns() }, action: action.code(), culprit };
+        send(&self.ports.safety_out, Some(&self.ports.wake), cmd)
+    }
+
+    /// The link-loss policy, once per outage.
+    fn link_loss(&mut self, now: u64) -> Result<(), EdgeError> {
+        if let Some(since) = self.link.down_since
+            && !self.link.loss_handled
+            && now.saturating_sub(since) as f64 * 1e-9 > self.u.link_loss_timeout_s
+        {
+            self.link.loss_handled = true;
+            eprintln!("uplink: broker unreachable for {} s: {:?}", self.u.link_loss_timeout_s, self.u.on_link_loss);
+            if self.u.on_link_loss == LinkLoss::MinimalRiskStop {
+                self.safety(SafetyAction::MinimalRiskStop, NodeKind::Uplink.code())?;
+            }
+        }
+        Ok(())
+    }
+
+    fn read_onboard(&mut self) -> Result<(), EdgeError> {
+        if let Some(s) = latest(&self.ports.states)? {
+            self.state = s;
+        }
+        if let Some(p) = latest(&self.ports.plans)? {
+            self.plan = p;
+        }
+        if let Some(g) = latest(&self.ports.gates)? {
+            self.gate = g;
+        }
+        Ok(())
+    }
+
+    /// Telemetry, heartbeat and the refusal summary when they are due (only while connected).
+    fn report(&mut self, now: u64) {
+        if self.link.connected_at.is_none() {
+            return;
+        }
+        let due = |last: u64, period_s: f64| now.saturating_sub(last) as f64 * 1e-9 >= period_s;
+        if due(self.last_tele_ns, self.u.telemetry_period_s) {
+            self.last_tele_ns = now;
+            self.seqs.0 += 1;
+            let (s, p, g) = (&self.state, &self.plan, &self.gate);
+            let tele = link::Telemetry {
+                bv_id: self.u.bv_id.clone(),
+                seq: self.seqs.0,
+                stamp_ms: unix_ms(),
+                prior_id: self.logic.active().map_or(0, |p| p.prior_id),
+                px_m: s.px_m,
+                py_m: s.py_m,
+                theta_rad: s.theta_rad,
+                speed_mps: s.speed_mps,
+                plan_status: p.status,
+                predicted_pet_s: (p.has_predicted_pet == 1 && p.predicted_pet_s.is_finite())
+                    .then_some(p.predicted_pet_s),
+                gate_state: g.state,
+                gate_reason: g.reason,
+            };
+            self.send_report(topics::TELEMETRY, link::telemetry_frame(&tele));
+        }
+        if due(self.last_beat_ns, self.u.heartbeat_period_s) {
+            self.last_beat_ns = now;
+            self.seqs.1 += 1;
+            // Healthy: the onboard loop is alive (a fresh BV state) and the gate is not stopping.
+            let fresh =
+                now.saturating_sub(self.state.header.stamp_ns) as f64 * 1e-9 <= self.cfg.edge.timing.state_timeout_s;
+            let stopping = self.gate.state == v2t_wire::GateState::MinimalRiskStop.code();
+            let beat = link::Heartbeat {
+                bv_id: self.u.bv_id.clone(),
+                seq: self.seqs.1,
+                stamp_ms: unix_ms(),
+                healthy: fresh && !stopping,
+            };
+            self.send_report(topics::HEARTBEAT, link::heartbeat_frame(&beat));
+        }
+        self.tally.add_dropped(&self.mqtt.take_dropped());
+        if due(self.last_report_ns, REFUSAL_REPORT_PERIOD_S) {
+            let period_s = now.saturating_sub(self.last_report_ns) as f64 * 1e-9;
+            self.last_report_ns = now;
+            if !self.tally.is_empty() {
+                let event = self.tally.take_event(&self.u.bv_id, unix_ms(), period_s.min(3600.0));
+                eprintln!("uplink: {event}");
+                if let Err(e) = self.mqtt.publish(&self.topic(topics::EVENT), event.into_bytes(), true) {
+                    eprintln!("uplink: refusal summary not queued: {e}");
+                }
+            }
+        }
+    }
+
+    fn send_report(&self, leaf: &str, frame: Result<Vec<u8>, link::LinkError>) {
+        match frame {
+            Ok(frame) => {
+                if let Err(e) = self.mqtt.publish(&self.topic(leaf), frame, false) {
+                    eprintln!("uplink: {leaf} not queued: {e}");
+                }
+            }
+            Err(e) => eprintln!("uplink: {leaf} not encoded: {e}"),
+        }
+    }
+}
+
+/// Reads the sequence number a previous run left in `path` (none when the file does not exist).
+fn resume_state(path: &Path) -> Result<Option<u64>, EdgeError> {
+    match std::fs::read_to_string(path) {
+        Ok(text) => text.trim().parse().map(Some).map_err(|_| EdgeError::Config {
+            path: path.to_owned(),
+            message: format!("uplink state: `{}` is not a sequence number", text.trim()),
+        }),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(EdgeError::Config { path: path.to_owned(), message: format!("uplink state: {e}") }),
     }
 }
 
@@ -298,188 +463,75 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
         .ok_or_else(|| EdgeError::Config { path: cfg.path.clone(), message: "no [uplink] section".into() })?;
     let u = &settings.config;
     let bus = Bus::<S>::new("uplink", &cfg.edge.namespace)?;
-    let prior_out = bus.publisher::<ActivePrior>(services::PRIOR)?;
-    let safety_out = bus.publisher::<SafetyCommand>(services::SAFETY)?;
-    let wake = bus.notifier(services::WAKE_GATEWAY)?;
-    let states = bus.subscriber::<BvState>(services::STATE)?;
-    let plans = bus.subscriber::<RegulatedPlan>(services::PLAN)?;
-    let gates = bus.subscriber::<GateReport>(services::GATE)?;
-    let t = cfg.edge.timing;
-    let mut heart = Heart::new(&bus, NodeKind::Uplink, t.heartbeat_period_s)?;
+    let ports = Ports {
+        prior_out: bus.publisher::<ActivePrior>(services::PRIOR)?,
+        safety_out: bus.publisher::<SafetyCommand>(services::SAFETY)?,
+        wake: bus.notifier(services::WAKE_GATEWAY)?,
+        states: bus.subscriber::<BvState>(services::STATE)?,
+        plans: bus.subscriber::<RegulatedPlan>(services::PLAN)?,
+        gates: bus.subscriber::<GateReport>(services::GATE)?,
+    };
+    let mut heart = Heart::new(&bus, NodeKind::Uplink, cfg.edge.timing.heartbeat_period_s)?;
     let checks =
         PriorChecks::for_vehicles(&cfg.vehicle, &cfg.vut_vehicle, Some(settings.area.clone()), u.geofence_margin_m);
     let window = Window { max_age_ms: (u.max_age_s * 1e3) as u64, max_skew_ms: (u.max_skew_s * 1e3) as u64 };
-    let mut logic = UplinkLogic::new(settings.cloud_key, &u.bv_id, window, checks);
+    let mut logic = UplinkLogic::new(settings.cloud_key, &u.fleet, &u.bv_id, window, checks);
     let state_file = u.state_file.as_deref().map(|w| v2t_files::relative_to(&cfg.path, w));
-    if let Some(path) = &state_file {
-        match std::fs::read_to_string(path) {
-            Ok(text) => {
-                let seq: u64 = text.trim().parse().map_err(|_| EdgeError::Config {
-                    path: path.clone(),
-                    message: format!("uplink state: `{}` is not a sequence number", text.trim()),
-                })?;
-                logic.resume_after(seq);
-                eprintln!("uplink: resuming after sequence number {seq}");
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-            Err(e) => return Err(EdgeError::Config { path: path.clone(), message: format!("uplink state: {e}") }),
-        }
+    if let Some(seq) = state_file.as_deref().map(resume_state).transpose()?.flatten() {
+        logic.resume_after(seq);
+        eprintln!("uplink: resuming after sequence number {seq}");
     }
     let topic = |leaf: &str| topics::bv(&u.fleet, &u.bv_id, leaf);
-    let subscribe = vec![topic(topics::PRIOR), topic(topics::CMD), topics::all_cmd(&u.fleet)];
-    let mqtt = MqttLink::start(&settings.mqtt, subscribe).map_err(EdgeError::Mqtt)?;
-    let period = Duration::from_millis(5);
-    let (mut tele_seq, mut beat_seq, mut safety_seq) = (0u64, 0u64, 0u64);
-    let (mut last_tele, mut last_beat) = (0u64, 0u64);
+    // QoS 0: the broker queues nothing for this BV, so a flood cannot fill a queue of the BV's at the
+    // broker and push a good command out of it; the cloud repeats a frame until the BV's verdict on it
+    // arrives (a duplicate is harmless: each copy carries its own sequence number).
+    let subscribe = [topic(topics::PRIOR), topic(topics::CMD), topics::all_cmd(&u.fleet)]
+        .into_iter()
+        .map(Subscription::at_most_once)
+        .collect();
+    // Garbage is refused on the MQTT thread by the cheap checks (header, body, fleet, addressee,
+    // topic) before it is queued: the queues hold only frames that may be genuine, commands apart.
+    let screener = Receiver::new(settings.cloud_key, &u.fleet, &u.bv_id, window);
+    let arrivals = [
+        (topic(topics::PRIOR), Arrival::Prior, Lane::Bulk),
+        (topic(topics::CMD), Arrival::Command, Lane::Urgent),
+        (topics::all_cmd(&u.fleet), Arrival::AllCommand, Lane::Urgent),
+    ];
+    let screen = move |t: &str, frame: &[u8]| {
+        let (_, arrival, lane) = arrivals.iter().find(|(a, _, _)| a == t).ok_or("unexpected topic")?;
+        screener.screen(frame, *arrival).map(|_| *lane).map_err(|e| reason_kind(&e))
+    };
+    let mqtt = MqttLink::start_screened(&settings.mqtt, subscribe, Box::new(screen), QueueLimits::default())?;
     let start = now_ns();
-    let mut connected_at: Option<u64> = None;
-    let mut down_since = Some(start);
-    let mut last_failure: Option<String> = None;
-    let mut loss_handled = false;
-    let mut gate = GateReport::default();
-    let mut plan = RegulatedPlan::default();
-    let mut state = BvState::default();
-    let mut unsent = 0u64;
+    let mut node = Node {
+        cfg,
+        u,
+        mqtt,
+        logic,
+        state_file,
+        ports,
+        link: LinkState { down_since: Some(start), ..LinkState::default() },
+        tally: RefusalTally::default(),
+        last_report_ns: start,
+        seqs: (0, 0, 0),
+        last_tele_ns: 0,
+        last_beat_ns: 0,
+        gate: GateReport::default(),
+        plan: RegulatedPlan::default(),
+        state: BvState::default(),
+    };
     let mut first = None;
     loop {
         let now = now_ns();
-        while let Some(ev) = first.take().or_else(|| mqtt.poll()) {
-            match ev {
-                LinkEvent::Connected => {
-                    eprintln!("uplink: connected to {}", u.broker);
-                    last_failure = None;
-                    if unsent > 0 {
-                        eprintln!(
-                            "uplink: {unsent} telemetry and heartbeat frames could not be queued while the broker was away"
-                        );
-                        unsent = 0;
-                    }
-                    connected_at = Some(now);
-                    down_since = None;
-                    loss_handled = false;
-                }
-                LinkEvent::Down(why) => {
-                    if down_since.is_none() {
-                        eprintln!("uplink: broker lost: {why}");
-                        down_since = Some(now);
-                    } else if last_failure.as_deref() != Some(why.as_str()) {
-                        // Each new reason once (a wrong password, a refused certificate), not every retry.
-                        eprintln!("uplink: cannot reach the broker: {why}; retrying");
-                    }
-                    last_failure = Some(why);
-                }
-                LinkEvent::Frame { payload: bytes, .. } => {
-                    let outcome = logic.on_frame(&bytes, unix_ms(), now_ns());
-                    eprintln!("uplink: {} {}", outcome.verdict, outcome.detail);
-                    if let (Some(path), Some(seq), "accepted") = (&state_file, outcome.seq, outcome.verdict)
-                        && let Err(e) = save_seq(path, seq)
-                    {
-                        // The frame stands; only a later restart could accept a replay of it.
-                        eprintln!("uplink: cannot save the sequence number to {}: {e}", path.display());
-                    }
-                    for a in &outcome.actions {
-                        match a {
-                            Action::Prior(p) => {
-                                prior_out
-                                    .send_copy((**p).clone())
-                                    .map_err(|e| EdgeError::ipc("send", services::PRIOR, e))?;
-                            }
-                            Action::Safety(action) => {
-                                safety_seq += 1;
-                                let cmd = SafetyCommand {
-                                    header: Header { seq: safety_seq, stamp_ns: now_ns() },
-                                    action: action.code(),
-                                    culprit: 0,
-                                };
-                                send(&safety_out, Some(&wake), cmd)?;
-                            }
-                        }
-                    }
-                    let event = outcome.event_json(&u.bv_id, unix_ms());
-                    if let Err(e) = mqtt.publish(&topic(topics::EVENT), event.into_bytes(), true) {
-                        eprintln!("uplink: event not queued: {e}");
-                    }
-                }
-            }
-        }
-        if let Some(since) = down_since
-            && !loss_handled
-            && now.saturating_sub(since) as f64 * 1e-9 > u.link_loss_timeout_s
-        {
-            loss_handled = true;
-            eprintln!("uplink: broker unreachable for {} s: {:?}", u.link_loss_timeout_s, u.on_link_loss);
-            if u.on_link_loss == LinkLoss::MinimalRiskStop {
-                safety_seq += 1;
-                let cmd = SafetyCommand {
-                    header: Header { seq: safety_seq, stamp_ns: now },
-                    action: SafetyAction::MinimalRiskStop.code(),
-                    culprit: NodeKind::Uplink.code(),
-                };
-                send(&safety_out, Some(&wake), cmd)?;
-            }
-        }
-        if let Some(s) = latest(&states)? {
-            state = s;
-        }
-        if let Some(p) = latest(&plans)? {
-            plan = p;
-        }
-        if let Some(g) = latest(&gates)? {
-            gate = g;
-        }
-        if now.saturating_sub(last_tele) as f64 * 1e-9 >= u.telemetry_period_s && connected_at.is_some() {
-            last_tele = now;
-            tele_seq += 1;
-            let tele = link::Telemetry {
-                bv_id: u.bv_id.clone(),
-                seq: tele_seq,
-                stamp_ms: unix_ms(),
-                prior_id: logic.active().map_or(0, |p| p.prior_id),
-                px_m: state.px_m,
-                py_m: state.py_m,
-                theta_rad: state.theta_rad,
-                speed_mps: state.speed_mps,
-                plan_status: plan.status,
-                predicted_pet_s: (plan.has_predicted_pet == 1 && plan.predicted_pet_s.is_finite())
-                    .then_some(plan.predicted_pet_s),
-                gate_state: gate.state,
-                gate_reason: gate.reason,
-            };
-            match link::telemetry_frame(&tele) {
-                Ok(frame) => {
-                    if mqtt.publish(&topic(topics::TELEMETRY), frame, false).is_err() {
-                        unsent += 1;
-                    }
-                }
-                Err(e) => eprintln!("uplink: telemetry not encoded: {e}"),
-            }
-        }
-        if now.saturating_sub(last_beat) as f64 * 1e-9 >= u.heartbeat_period_s && connected_at.is_some() {
-            last_beat = now;
-            beat_seq += 1;
-            // Healthy: the onboard loop is alive (a fresh BV state) and the gate is not stopping.
-            let fresh = now.saturating_sub(state.header.stamp_ns) as f64 * 1e-9 <= t.state_timeout_s;
-            let stopping = gate.state == v2t_wire::GateState::MinimalRiskStop.code();
-            let beat = link::Heartbeat {
-                bv_id: u.bv_id.clone(),
-                seq: beat_seq,
-                stamp_ms: unix_ms(),
-                healthy: fresh && !stopping,
-            };
-            match link::heartbeat_frame(&beat) {
-                Ok(frame) => {
-                    if mqtt.publish(&topic(topics::HEARTBEAT), frame, false).is_err() {
-                        unsent += 1;
-                    }
-                }
-                Err(e) => eprintln!("uplink: heartbeat not encoded: {e}"),
-            }
-        }
-        heart.cycle(now_ns() - now, period.as_nanos() as u64);
-        heart.tick(now_ns(), down_since.is_none())?;
+        node.take_events(first.take())?;
+        node.link_loss(now)?;
+        node.read_onboard()?;
+        node.report(now);
+        heart.cycle(now_ns() - now, PERIOD.as_nanos() as u64);
+        heart.tick(now_ns(), node.link.down_since.is_none())?;
         // Sleep until the next cloud message or the period, whichever comes first: a command is
         // handled the moment it arrives.
-        first = mqtt.wait(period);
+        first = node.mqtt.wait(PERIOD);
         if !bus.wait(Duration::ZERO) {
             return Ok(());
         }
@@ -489,64 +541,6 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use link::{CloudMessage, SigningKey};
-    use v2t_wire::StyleCode;
-
-    fn setup() -> (UplinkLogic, SigningKey, link::PriorUpload) {
-        let (up, checks) = crate::prior::fixtures::upload("semantics_cut_in.json", 5, (0, 100_000));
-        let key = SigningKey::from_bytes(&[3; 32]);
-        let logic = UplinkLogic::new(key.verifying_key(), "bv1", Window::default(), checks);
-        (logic, key, up)
-    }
-
-    fn yield_3s() -> v2t_model::Target {
-        v2t_model::Target::new(3.0, v2t_model::Style::Yield).unwrap()
-    }
-
-    fn frame(key: &SigningKey, seq: u64, body: CloudBody) -> Vec<u8> {
-        let m = CloudMessage { fleet: "pg".into(), bv_id: "bv1".into(), seq, issued_ms: 50_000, body };
-        link::seal(&m, key).unwrap()
-    }
-
-    #[test]
-    fn priors_and_commands_become_actions_and_refusals_say_why() {
-        let (mut logic, key, up) = setup();
-        let o = logic.on_frame(&frame(&key, 1, CloudBody::Command(Command::SetTarget(yield_3s()))), 50_000, 1);
-        assert_eq!((o.verdict, o.actions.len()), ("refused", 0));
-        assert!(o.detail.contains("no active prior"), "{}", o.detail);
-
-        let o = logic.on_frame(&frame(&key, 2, CloudBody::Prior(up.clone())), 50_000, 7);
-        assert_eq!(o.verdict, "accepted", "{}", o.detail);
-        let Some(Action::Prior(p)) = o.actions.first() else { panic!("{o:?}") };
-        assert_eq!((p.prior_id, p.header.stamp_ns, p.tau_s), (5, 7, up.prior.tau_s));
-        assert!(o.event_json("bv1", 9).contains("\"verdict\":\"accepted\""));
-
-        let o = logic.on_frame(&frame(&key, 3, CloudBody::Command(Command::SetTarget(yield_3s()))), 50_000, 8);
-        let Some(Action::Prior(q)) = o.actions.first() else { panic!("{o:?}") };
-        assert_eq!((q.tau_s, q.style, q.header.seq), (3.0, StyleCode::Yield.code(), p.header.seq + 1));
-        assert_eq!(q.bv_path, p.bv_path, "only the target changes");
-
-        for (seq, cmd, action) in [
-            (5, Command::Arm, SafetyAction::Reset),
-            (6, Command::Start, SafetyAction::Engage),
-            (7, Command::Abort, SafetyAction::MinimalRiskStop),
-        ] {
-            let o = logic.on_frame(&frame(&key, seq, CloudBody::Command(cmd)), 50_000, 9);
-            assert_eq!(o.actions, vec![Action::Safety(action)]);
-        }
-        let o = logic.on_frame(&frame(&key, 7, CloudBody::Command(Command::Start)), 50_000, 9);
-        assert!(o.detail.contains("replay") && o.actions.is_empty(), "{}", o.detail);
-        let other = SigningKey::from_bytes(&[4; 32]);
-        let o = logic.on_frame(&frame(&other, 8, CloudBody::Command(Command::Start)), 50_000, 9);
-        assert!(o.detail.contains("signature"), "{}", o.detail);
-        let mut off = up;
-        for x in &mut off.prior.agents[1].states {
-            x.py += 300.0;
-        }
-        let o = logic.on_frame(&frame(&key, 9, CloudBody::Prior(off)), 50_000, 9);
-        assert!(o.detail.contains("drivable area") && o.actions.is_empty(), "{}", o.detail);
-        assert_eq!(logic.active().map(|p| p.tau_s), Some(3.0), "a refused prior leaves the active one");
-    }
 
     #[test]
     fn uplink_configs_are_checked() {

@@ -1,8 +1,8 @@
 //! What crosses the cloud–edge link (MQTT): versioned `postcard` frames. The cloud signs what it
-//! sends (priors and commands) with Ed25519; a BV accepts a frame only if the signature checks out
-//! against the cloud key in its configuration, the version is one it speaks, the frame is addressed
-//! to it, its sequence number is newer than every one it accepted before, and its timestamp lies
-//! in the acceptance window. What the BV sends back (telemetry, heartbeats) is framed the same way,
+//! sends (priors and commands) with Ed25519; a BV accepts a frame only if the version is one it
+//! speaks, the frame is for its fleet and addressed to it, it arrived on the topic its kind belongs
+//! on, the signature checks out against the cloud key in its configuration, its sequence number is
+//! newer than every one it accepted before, and its timestamp lies in the acceptance window. What the BV sends back (telemetry, heartbeats) is framed the same way,
 //! unsigned.
 //!
 //! A frame is `b"V2T"`, the link version, the frame kind, the `postcard` body, and — for the
@@ -10,15 +10,15 @@
 //! signed too, so a body cannot be replayed as another kind or version.
 //!
 //! ```
-//! use v2t_wire::link::{self, CloudBody, CloudMessage, Command, Receiver, SigningKey};
+//! use v2t_wire::link::{self, Arrival, CloudBody, CloudMessage, Command, Receiver, SigningKey};
 //!
 //! let key = SigningKey::from_bytes(&[7; 32]);
-//! let mut rx = Receiver::new(key.verifying_key(), "bv1", link::Window::default());
+//! let mut rx = Receiver::new(key.verifying_key(), "pg", "bv1", link::Window::default());
 //! let msg = CloudMessage { fleet: "pg".into(), bv_id: "bv1".into(), seq: 1, issued_ms: 1_000, body: CloudBody::Command(Command::Abort) };
 //! let frame = link::seal(&msg, &key).unwrap();
-//! assert_eq!(rx.open(&frame, 1_200).unwrap(), msg);
+//! assert_eq!(rx.open(&frame, Arrival::Command, 1_200).unwrap(), msg);
 //! // The same frame again is a replay.
-//! assert!(matches!(rx.open(&frame, 1_300), Err(link::LinkError::Replay { .. })));
+//! assert!(matches!(rx.open(&frame, Arrival::Command, 1_300).unwrap_err().reason, link::LinkError::Replay { .. }));
 //! ```
 
 use ed25519_dalek::Signer as _;
@@ -206,6 +206,23 @@ pub enum LinkError {
     /// The body does not decode.
     #[error("undecodable body: {0}")]
     Decode(String),
+    /// Signed for another fleet (test session).
+    #[error("for fleet {fleet}, this BV is in fleet {mine}")]
+    OtherFleet {
+        /// The frame's fleet.
+        fleet: String,
+        /// This BV's.
+        mine: String,
+    },
+    /// A frame that does not belong on the topic it arrived on (a prior on a command topic, a frame
+    /// for every BV on one BV's topic, …).
+    #[error("a {kind} arrived on the {topic} topic")]
+    WrongTopic {
+        /// What the frame is.
+        kind: &'static str,
+        /// Where it arrived.
+        topic: &'static str,
+    },
     /// Addressed to another BV.
     #[error("addressed to {to}, this is {me}")]
     NotForMe {
@@ -328,19 +345,66 @@ impl Default for Window {
     }
 }
 
+/// The topic a cloud frame arrived on, as the BV subscribes them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Arrival {
+    /// `v2t/<fleet>/bv/<me>/prior`: priors addressed to this BV.
+    Prior,
+    /// `v2t/<fleet>/bv/<me>/cmd`: commands addressed to this BV.
+    Command,
+    /// `v2t/<fleet>/all/cmd`: commands addressed to every BV ([`ALL_BVS`]).
+    AllCommand,
+}
+
+impl Arrival {
+    fn name(self) -> &'static str {
+        match self {
+            Self::Prior => "prior",
+            Self::Command => "command",
+            Self::AllCommand => "every-BV command",
+        }
+    }
+}
+
+/// A refused cloud frame: why, and its sequence number when its signature checked out (a genuine
+/// frame of the cloud, whose sender waits for the verdict; anything else may be an attacker's).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Refusal {
+    /// Why.
+    pub reason: LinkError,
+    /// The frame's sequence number, when it was signed with the cloud's key.
+    pub genuine_seq: Option<u64>,
+}
+
+impl From<LinkError> for Refusal {
+    fn from(reason: LinkError) -> Self {
+        Self { reason, genuine_seq: None }
+    }
+}
+
+/// A stale abort is still accepted up to this many acceptance windows old: a stop is always safe,
+/// and this bound keeps a captured abort from being replayed into a nuisance after a restart that
+/// lost the last sequence number.
+pub const ABORT_STALE_WINDOWS: u64 = 20;
+
 /// A BV's side of the link: checks every cloud frame and remembers the last sequence accepted.
+///
+/// The checks run cheapest first, so that garbage costs little: header, body, fleet, addressee and
+/// topic, and only then the Ed25519 signature; the sequence number and the time window of a frame
+/// whose signature checked out come last. Only an accepted frame advances the sequence.
 #[derive(Debug, Clone)]
 pub struct Receiver {
     key: VerifyingKey,
+    fleet: String,
     bv_id: String,
     window: Window,
     last_seq: Option<u64>,
 }
 
 impl Receiver {
-    /// A receiver for BV `bv_id` that trusts `key`.
-    pub fn new(key: VerifyingKey, bv_id: &str, window: Window) -> Self {
-        Self { key, bv_id: bv_id.to_owned(), window, last_seq: None }
+    /// A receiver for BV `bv_id` of `fleet` that trusts `key`.
+    pub fn new(key: VerifyingKey, fleet: &str, bv_id: &str, window: Window) -> Self {
+        Self { key, fleet: fleet.to_owned(), bv_id: bv_id.to_owned(), window, last_seq: None }
     }
 
     /// The last sequence number accepted.
@@ -353,9 +417,14 @@ impl Receiver {
         self.last_seq = Some(self.last_seq.map_or(seq, |s| s.max(seq)));
     }
 
-    /// Checks `frame` at Unix time `now_ms` — header, signature, addressee, sequence, time — and
-    /// returns the message. Only an accepted frame advances the sequence.
-    pub fn open(&mut self, frame: &[u8], now_ms: u64) -> Result<CloudMessage, LinkError> {
+    /// The checks of [`Receiver::open`] that need no key and no state (header, body, fleet,
+    /// addressee, topic): cheap enough to run for every message a flood brings, before anything is
+    /// queued. Returns the message and the part the signature covers.
+    pub fn screen<'f>(
+        &self,
+        frame: &'f [u8],
+        arrival: Arrival,
+    ) -> Result<(CloudMessage, &'f [u8], &'f [u8]), LinkError> {
         let (kind, _) = parse_header(frame)?;
         if kind != FrameKind::Cloud {
             return Err(LinkError::Malformed(format!("{kind:?} frame where a cloud frame was expected")));
@@ -364,27 +433,49 @@ impl Receiver {
             return Err(LinkError::Malformed("shorter than header and signature".into()));
         };
         let (signed, sig) = frame.split_at(split);
+        let body = signed.get(HEADER_LEN..).unwrap_or_default();
+        let msg: CloudMessage = postcard::from_bytes(body).map_err(|e| LinkError::Decode(e.to_string()))?;
+        if msg.fleet != self.fleet {
+            return Err(LinkError::OtherFleet { fleet: msg.fleet, mine: self.fleet.clone() });
+        }
+        if msg.bv_id != self.bv_id && msg.bv_id != ALL_BVS {
+            return Err(LinkError::NotForMe { to: msg.bv_id, me: self.bv_id.clone() });
+        }
+        let (kind, fits) = match (&msg.body, msg.bv_id == ALL_BVS) {
+            (CloudBody::Prior(_), false) => ("prior", arrival == Arrival::Prior),
+            (CloudBody::Prior(_), true) => ("prior for every BV", false),
+            (CloudBody::Command(_), false) => ("command", arrival == Arrival::Command),
+            (CloudBody::Command(_), true) => ("command for every BV", arrival == Arrival::AllCommand),
+        };
+        if !fits {
+            return Err(LinkError::WrongTopic { kind, topic: arrival.name() });
+        }
+        Ok((msg, signed, sig))
+    }
+
+    /// Checks `frame`, which arrived on `arrival` at Unix time `arrived_ms` (the time window counts
+    /// from its arrival, so that a backlog of this BV's own does not age it), and returns the message.
+    pub fn open(&mut self, frame: &[u8], arrival: Arrival, arrived_ms: u64) -> Result<CloudMessage, Refusal> {
+        let (msg, signed, sig) = self.screen(frame, arrival)?;
         let sig: [u8; SIGNATURE_LEN] = sig.try_into().map_err(|_| LinkError::Signature)?;
         self.key
             .verify_strict(signed, &ed25519_dalek::Signature::from_bytes(&sig))
             .map_err(|_| LinkError::Signature)?;
-        let body = signed.get(HEADER_LEN..).unwrap_or_default();
-        let msg: CloudMessage = postcard::from_bytes(body).map_err(|e| LinkError::Decode(e.to_string()))?;
-        if msg.bv_id != self.bv_id && msg.bv_id != ALL_BVS {
-            return Err(LinkError::NotForMe { to: msg.bv_id, me: self.bv_id.clone() });
-        }
+        let genuine = |reason| Refusal { reason, genuine_seq: Some(msg.seq) };
         if let Some(last) = self.last_seq
             && msg.seq <= last
         {
-            return Err(LinkError::Replay { seq: msg.seq, last });
+            return Err(genuine(LinkError::Replay { seq: msg.seq, last }));
         }
-        let age = now_ms.saturating_sub(msg.issued_ms);
-        if age > self.window.max_age_ms {
-            return Err(LinkError::Stale { age_ms: age, max_ms: self.window.max_age_ms });
+        let age = arrived_ms.saturating_sub(msg.issued_ms);
+        let abort = matches!(msg.body, CloudBody::Command(Command::Abort));
+        let max_age = self.window.max_age_ms.saturating_mul(if abort { ABORT_STALE_WINDOWS } else { 1 });
+        if age > max_age {
+            return Err(genuine(LinkError::Stale { age_ms: age, max_ms: max_age }));
         }
-        let ahead = msg.issued_ms.saturating_sub(now_ms);
+        let ahead = msg.issued_ms.saturating_sub(arrived_ms);
         if ahead > self.window.max_skew_ms {
-            return Err(LinkError::Future { ahead_ms: ahead, max_ms: self.window.max_skew_ms });
+            return Err(genuine(LinkError::Future { ahead_ms: ahead, max_ms: self.window.max_skew_ms }));
         }
         self.last_seq = Some(msg.seq);
         Ok(msg)
@@ -447,27 +538,29 @@ mod tests {
     }
 
     fn rx() -> Receiver {
-        Receiver::new(key().verifying_key(), "bv1", Window::default())
+        Receiver::new(key().verifying_key(), "pg", "bv1", Window::default())
+    }
+
+    /// Opens a command frame as it arrives on this BV's command topic; the refusal's reason.
+    fn cmd(r: &mut Receiver, frame: &[u8], now_ms: u64) -> Result<CloudMessage, LinkError> {
+        r.open(frame, Arrival::Command, now_ms).map_err(|e| e.reason)
     }
 
     #[test]
     fn a_signed_prior_round_trips() {
         let m = msg(1, 10_000, CloudBody::Prior(prior()));
         let frame = seal(&m, &key()).unwrap();
-        assert_eq!(rx().open(&frame, 10_050).unwrap(), m);
+        assert_eq!(rx().open(&frame, Arrival::Prior, 10_050).unwrap(), m);
     }
 
     #[test]
-    fn tampering_anywhere_breaks_the_signature_or_the_header() {
+    fn tampering_anywhere_never_passes_and_only_a_genuine_frame_carries_its_sequence() {
         let frame = seal(&msg(1, 10_000, CloudBody::Prior(prior())), &key()).unwrap();
         for i in 0..frame.len() {
             let mut bad = frame.clone();
             bad[i] ^= 0x01;
-            let e = rx().open(&bad, 10_000).unwrap_err();
-            assert!(
-                matches!(e, LinkError::Signature | LinkError::Malformed(_) | LinkError::Version { .. }),
-                "byte {i}: {e}"
-            );
+            let e = rx().open(&bad, Arrival::Prior, 10_000).unwrap_err();
+            assert_eq!(e.genuine_seq, None, "byte {i}: {}", e.reason);
         }
     }
 
@@ -475,14 +568,14 @@ mod tests {
     fn another_key_unsigned_and_truncated_frames_are_refused() {
         let m = msg(1, 10_000, CloudBody::Command(Command::Start));
         let other = SigningKey::from_bytes(&[1; 32]);
-        assert_eq!(rx().open(&seal(&m, &other).unwrap(), 10_000), Err(LinkError::Signature));
+        assert_eq!(cmd(&mut rx(), &seal(&m, &other).unwrap(), 10_000), Err(LinkError::Signature));
         let unsigned = encode(FrameKind::Cloud, &m).unwrap();
-        assert!(rx().open(&unsigned, 10_000).is_err());
-        assert!(matches!(rx().open(b"V2", 0), Err(LinkError::Malformed(_))));
-        assert!(matches!(rx().open(b"XYZ\x01\x01", 0), Err(LinkError::Malformed(_))));
+        assert!(cmd(&mut rx(), &unsigned, 10_000).is_err());
+        assert!(matches!(cmd(&mut rx(), b"V2", 0), Err(LinkError::Malformed(_))));
+        assert!(matches!(cmd(&mut rx(), b"XYZ\x01\x01", 0), Err(LinkError::Malformed(_))));
         let mut v2 = seal(&m, &key()).unwrap();
         v2[3] = 2;
-        assert_eq!(rx().open(&v2, 10_000), Err(LinkError::Version { got: 2 }));
+        assert_eq!(cmd(&mut rx(), &v2, 10_000), Err(LinkError::Version { got: 2 }));
         let tele = telemetry_frame(&Telemetry {
             bv_id: "bv1".into(),
             seq: 1,
@@ -498,7 +591,7 @@ mod tests {
             gate_reason: 0,
         })
         .unwrap();
-        assert!(matches!(rx().open(&tele, 0), Err(LinkError::Malformed(_))));
+        assert!(matches!(cmd(&mut rx(), &tele, 0), Err(LinkError::Malformed(_))));
         assert!(matches!(read_report(&tele), Ok(EdgeReport::Telemetry(_))));
     }
 
@@ -506,22 +599,59 @@ mod tests {
     fn replays_old_sequences_stale_and_future_frames_are_refused_and_do_not_advance() {
         let mut r = rx();
         let f5 = seal(&msg(5, 10_000, CloudBody::Command(Command::Arm)), &key()).unwrap();
-        assert!(r.open(&f5, 10_000).is_ok());
-        assert_eq!(r.open(&f5, 10_001), Err(LinkError::Replay { seq: 5, last: 5 }));
+        assert!(cmd(&mut r, &f5, 10_000).is_ok());
+        assert_eq!(cmd(&mut r, &f5, 10_001), Err(LinkError::Replay { seq: 5, last: 5 }));
+        assert_eq!(r.open(&f5, Arrival::Command, 10_001).unwrap_err().genuine_seq, Some(5), "a genuine replay");
         let f4 = seal(&msg(4, 10_000, CloudBody::Command(Command::Arm)), &key()).unwrap();
-        assert_eq!(r.open(&f4, 10_001), Err(LinkError::Replay { seq: 4, last: 5 }));
+        assert_eq!(cmd(&mut r, &f4, 10_001), Err(LinkError::Replay { seq: 4, last: 5 }));
         let stale = seal(&msg(6, 10_000, CloudBody::Command(Command::Start)), &key()).unwrap();
-        assert!(matches!(r.open(&stale, 50_001), Err(LinkError::Stale { .. })));
+        assert!(matches!(cmd(&mut r, &stale, 50_001), Err(LinkError::Stale { .. })));
         let future = seal(&msg(7, 20_000, CloudBody::Command(Command::Start)), &key()).unwrap();
-        assert!(matches!(r.open(&future, 10_000), Err(LinkError::Future { .. })));
+        assert!(matches!(cmd(&mut r, &future, 10_000), Err(LinkError::Future { .. })));
         assert_eq!(r.last_seq(), Some(5), "refused frames leave the sequence where it was");
         // The stale one is still acceptable in its window (nothing consumed its number).
-        assert!(r.open(&stale, 10_100).is_ok());
+        assert!(cmd(&mut r, &stale, 10_100).is_ok());
         let mut other = msg(8, 10_100, CloudBody::Command(Command::Abort));
         other.bv_id = "bv2".into();
-        assert!(matches!(r.open(&seal(&other, &key()).unwrap(), 10_100), Err(LinkError::NotForMe { .. })));
+        assert!(matches!(cmd(&mut r, &seal(&other, &key()).unwrap(), 10_100), Err(LinkError::NotForMe { .. })));
         other.bv_id = ALL_BVS.into();
-        assert!(r.open(&seal(&other, &key()).unwrap(), 10_100).is_ok());
+        let all = seal(&other, &key()).unwrap();
+        assert!(matches!(cmd(&mut r, &all, 10_100), Err(LinkError::WrongTopic { .. })), "an abort-all on my topic");
+        assert!(r.open(&all, Arrival::AllCommand, 10_100).is_ok());
+    }
+
+    #[test]
+    fn fleet_addressee_and_topic_scope_every_frame() {
+        let mut foreign = msg(1, 10_000, CloudBody::Command(Command::Arm));
+        foreign.fleet = "capture".into();
+        let e = cmd(&mut rx(), &seal(&foreign, &key()).unwrap(), 10_000).unwrap_err();
+        assert_eq!(e, LinkError::OtherFleet { fleet: "capture".into(), mine: "pg".into() });
+        assert_eq!(e.to_string(), "for fleet capture, this BV is in fleet pg");
+        let prior_frame = seal(&msg(2, 10_000, CloudBody::Prior(prior())), &key()).unwrap();
+        assert!(matches!(cmd(&mut rx(), &prior_frame, 10_000), Err(LinkError::WrongTopic { kind: "prior", .. })));
+        let arm = seal(&msg(3, 10_000, CloudBody::Command(Command::Arm)), &key()).unwrap();
+        for wrong in [Arrival::Prior, Arrival::AllCommand] {
+            let e = rx().open(&arm, wrong, 10_000).unwrap_err();
+            assert!(matches!(e.reason, LinkError::WrongTopic { kind: "command", .. }), "{wrong:?}");
+        }
+        let mut prior_all = msg(4, 10_000, CloudBody::Prior(prior()));
+        prior_all.bv_id = ALL_BVS.into();
+        let e = rx().open(&seal(&prior_all, &key()).unwrap(), Arrival::AllCommand, 10_000).unwrap_err();
+        assert!(matches!(e.reason, LinkError::WrongTopic { kind: "prior for every BV", .. }));
+    }
+
+    #[test]
+    fn an_abort_aged_by_a_backlog_still_stops_but_only_so_far_back() {
+        let window = Window::default();
+        let mut r = rx();
+        let late = window.max_age_ms * 5;
+        let abort = seal(&msg(9, 10_000, CloudBody::Command(Command::Abort)), &key()).unwrap();
+        let start = seal(&msg(8, 10_000, CloudBody::Command(Command::Start)), &key()).unwrap();
+        assert!(matches!(cmd(&mut r, &start, 10_000 + late), Err(LinkError::Stale { .. })), "only a stop");
+        assert!(cmd(&mut r, &abort, 10_000 + late).is_ok());
+        let ancient = seal(&msg(10, 10_000, CloudBody::Command(Command::Abort)), &key()).unwrap();
+        let too_late = window.max_age_ms * ABORT_STALE_WINDOWS + 1;
+        assert!(matches!(cmd(&mut r, &ancient, 10_000 + too_late), Err(LinkError::Stale { .. })));
     }
 
     #[test]
@@ -542,7 +672,7 @@ mod tests {
             frame.splice(at..at + 8, bad.to_le_bytes());
             let mut signed = frame.clone();
             signed.extend(key().sign(&frame).to_bytes());
-            assert!(matches!(rx().open(&signed, 5_000), Err(LinkError::Decode(_))), "{bad}");
+            assert!(matches!(cmd(&mut rx(), &signed, 5_000), Err(LinkError::Decode(_))), "{bad}");
         }
     }
 
@@ -557,7 +687,9 @@ mod tests {
                 f.extend(frame);
                 frame = f;
             }
-            prop_assert!(rx().open(&frame, 0).is_err());
+            for arrival in [Arrival::Prior, Arrival::Command, Arrival::AllCommand] {
+                prop_assert!(rx().open(&frame, arrival, 0).is_err());
+            }
             let _ = read_report(&frame);
         }
 
@@ -565,7 +697,7 @@ mod tests {
         fn set_target_round_trips(tau in 0.5f64..10.0, rush in any::<bool>(), seq in 1u64..u64::MAX) {
             let style = if rush { Style::Rush } else { Style::Yield };
             let m = msg(seq, 5_000, CloudBody::Command(Command::SetTarget(Target::new(tau, style).unwrap())));
-            prop_assert_eq!(rx().open(&seal(&m, &key()).unwrap(), 5_000).unwrap(), m);
+            prop_assert_eq!(cmd(&mut rx(), &seal(&m, &key()).unwrap(), 5_000).unwrap(), m);
         }
     }
 }
