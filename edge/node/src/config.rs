@@ -161,7 +161,7 @@ fn input(path: &Path, e: impl std::fmt::Display) -> EdgeError {
 
 /// Loads `path` and every file it names.
 pub fn load(path: &Path) -> Result<Loaded, EdgeError> {
-    let edge: EdgeConfig = load_toml(path).map_err(|e| input(path, e))?;
+    let edge: EdgeConfig = load_toml(path)?;
     let file = |written: &str| relative_to(path, written);
     let vehicle: VehicleConfig = load_toml(&file(&edge.vehicle)).map_err(|e| input(path, e))?;
     let vut_vehicle: VehicleConfig = load_toml(&file(&edge.vut_vehicle)).map_err(|e| input(path, e))?;

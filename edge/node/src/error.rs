@@ -13,6 +13,10 @@ pub enum EdgeError {
         /// What went wrong.
         source: std::io::Error,
     },
+    /// The runtime's configuration file is unreadable, malformed or out of range (the error names
+    /// the file, the field and the bound).
+    #[error(transparent)]
+    File(#[from] v2t_files::InputError),
     /// A configuration file is malformed or out of range.
     #[error("{path}: {message}")]
     Config {

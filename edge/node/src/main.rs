@@ -102,7 +102,7 @@ fn main() -> ExitCode {
             let bad_input = e.chain().any(|c| {
                 matches!(
                     c.downcast_ref::<v2t_edge::error::EdgeError>(),
-                    Some(EdgeError::Config { .. } | EdgeError::Read { .. })
+                    Some(EdgeError::Config { .. } | EdgeError::Read { .. } | EdgeError::File(_))
                 ) || c.is::<v2t_model::validate::ValidationError>()
             });
             ExitCode::from(if bad_input { 2 } else { 1 })
