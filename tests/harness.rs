@@ -248,12 +248,9 @@ impl Broker {
                     )
                 });
                 std::fs::write(&conf, format!("listener {port} 127.0.0.1\n{rest}")).unwrap();
-                let exe = ["/usr/sbin/mosquitto", "/usr/bin/mosquitto"]
-                    .into_iter()
-                    .map(Path::new)
-                    .find(|p| p.exists())
-                    .expect("mosquitto is not installed: `apt-get install mosquitto` (.ci/run does)");
-                Proc::start(exe, &["-c", conf.to_str().unwrap()], "mosquitto")
+                let exe = v2t_test_support::find("mosquitto")
+                    .expect("mosquitto is not installed: `scripts/test` installs it (the Debian package mosquitto)");
+                Proc::start(&exe, &["-c", conf.to_str().unwrap()], "mosquitto")
             }
             BrokerKind::Embedded => {
                 let listen = format!("127.0.0.1:{port}");

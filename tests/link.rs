@@ -169,6 +169,7 @@ fn priors_and_commands_cross_the_broker(kind: BrokerKind) {
 
 #[test]
 fn priors_and_commands_cross_mosquitto_bad_ones_are_refused_and_a_broker_restart_loses_nothing() {
+    v2t_test_support::require!(v2t_test_support::BROKER_TOOLS);
     priors_and_commands_cross_the_broker(BrokerKind::Mosquitto);
 }
 
@@ -181,6 +182,7 @@ fn priors_and_commands_cross_the_embedded_broker_bad_ones_are_refused_and_a_brok
 /// certificate and a password; a wrong password or a missing certificate keeps a client out.
 #[test]
 fn bvs_and_the_supervisor_log_in_with_tls_client_certificates_and_passwords() {
+    v2t_test_support::require!(v2t_test_support::TLS_TOOLS);
     use v2t_tests::harness::{edge_config_with, make_pki};
     let dir_scratch = tempdir("tls");
     let dir = dir_scratch.path();
@@ -260,6 +262,7 @@ fn bvs_and_the_supervisor_log_in_with_tls_client_certificates_and_passwords() {
 /// the gateway for the minimal-risk stop; with `"continue"` (the other tests) it does not.
 #[test]
 fn a_lost_broker_brings_the_minimal_risk_stop_when_the_policy_says_so() {
+    v2t_test_support::require!(v2t_test_support::BROKER_TOOLS);
     use v2t_tests::harness::edge_config_with;
     let dir_scratch = tempdir("linkloss");
     let dir = dir_scratch.path();
@@ -301,6 +304,7 @@ fn a_lost_broker_brings_the_minimal_risk_stop_when_the_policy_says_so() {
 /// restart; without one, the frame would pass again while younger than `max_age_s`.
 #[test]
 fn a_restarted_uplink_still_refuses_replays() {
+    v2t_test_support::require!(v2t_test_support::BROKER_TOOLS);
     use v2t_tests::harness::edge_config_with;
     let dir_scratch = tempdir("restart");
     let dir = dir_scratch.path();

@@ -72,6 +72,7 @@ fn serve_once(content: String) -> (String, mpsc::Receiver<(String, serde_json::V
 
 #[test]
 fn a_rendered_run_is_abstracted_live_recorded_and_replayed() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let scratch = tempfile::Builder::new().prefix("v2t-cli-abstract-live-").tempdir().unwrap();
     let dir = scratch.path();
     let run = dir.join("left_turn.json");

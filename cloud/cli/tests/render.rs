@@ -40,6 +40,7 @@ fn ffprobe(video: &Path) -> serde_json::Value {
 
 #[test]
 fn a_simulated_left_turn_renders_to_an_mp4_the_frame_pipeline_reads() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let dir_scratch = tempdir("render");
     let dir = dir_scratch.path();
     let (run, span) = left_turn_run(dir);
@@ -89,6 +90,7 @@ fn a_simulated_left_turn_renders_to_an_mp4_the_frame_pipeline_reads() {
 
 #[test]
 fn render_takes_the_card_and_the_map_and_other_rates() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let dir_scratch = tempdir("render-card");
     let dir = dir_scratch.path();
     let (run, span) = left_turn_run(dir);

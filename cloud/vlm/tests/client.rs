@@ -63,6 +63,7 @@ fn run_with(
 
 #[test]
 fn a_valid_answer_gives_semantics_with_the_operators_pet_and_provenance() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let (result, received) = run(vec![Reply::chat(&cut_in())]);
     let a = result.unwrap();
     assert_eq!((a.requests, a.repairs, a.schema_in_prompt), (1, 0, false));
@@ -100,6 +101,7 @@ fn a_valid_answer_gives_semantics_with_the_operators_pet_and_provenance() {
 
 #[test]
 fn a_fenced_answer_is_accepted() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let fenced = format!("Step by step: a three-lane road, …\n\n```json\n{}\n```\n", cut_in());
     let (result, received) = run(vec![Reply::chat(&fenced)]);
     let a = result.unwrap();
@@ -110,6 +112,7 @@ fn a_fenced_answer_is_accepted() {
 
 #[test]
 fn invalid_json_is_repaired_once() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let broken = cut_in().replacen("\"road_topology\": {", "\"road_topology\": {{", 1);
     let (result, received) = run(vec![Reply::chat(&broken), Reply::chat(&cut_in())]);
     let a = result.unwrap();
@@ -127,6 +130,7 @@ fn invalid_json_is_repaired_once() {
 
 #[test]
 fn invalid_json_twice_is_a_clear_error() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let (result, received) = run(vec![Reply::chat("{\"road_topology\": "), Reply::chat("I am not sure.")]);
     let e = result.unwrap_err();
     assert!(
@@ -142,6 +146,7 @@ fn invalid_json_twice_is_a_clear_error() {
 
 #[test]
 fn a_schema_violation_is_sent_back_and_fixed() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     // A cut-in by a vehicle that turns left: the maneuver does not fit the interaction type.
     let inconsistent = cut_in().replace("\"lane_change_left\"", "\"left_turn\"");
     let (result, received) = run(vec![Reply::chat(&inconsistent), Reply::chat(&cut_in())]);
@@ -153,6 +158,7 @@ fn a_schema_violation_is_sent_back_and_fixed() {
 
 #[test]
 fn schema_violations_twice_are_a_clear_error() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let unknown_field =
         cut_in().replace("\"maneuver\": \"straight\"", "\"maneuver\": \"straight\", \"confidence\": 0.9");
     let three_bvs = {
@@ -182,6 +188,7 @@ fn schema_violations_twice_are_a_clear_error() {
 
 #[test]
 fn rate_limits_are_retried_after_the_servers_wait() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let started = Instant::now();
     let (result, received) = run(vec![
         Reply::status(429, "{\"error\":\"slow down\"}").with_header("Retry-After", "0.15"),
@@ -195,6 +202,7 @@ fn rate_limits_are_retried_after_the_servers_wait() {
 
 #[test]
 fn persistent_server_errors_stop_after_the_bounded_retries() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let script = vec![Reply::status(500, "{\"error\":\"boom\"}"); 5];
     let (result, received) = run(script);
     let e = result.unwrap_err();
@@ -205,6 +213,7 @@ fn persistent_server_errors_stop_after_the_bounded_retries() {
 
 #[test]
 fn a_hanging_server_times_out() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let hang = Duration::from_secs(3);
     let started = Instant::now();
     let (result, received) = run_with(vec![Reply::chat(&cut_in()).after(hang); 2], |cfg| {
@@ -222,6 +231,7 @@ fn a_hanging_server_times_out() {
 
 #[test]
 fn without_response_format_support_the_schema_goes_into_the_prompt() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let unsupported =
         Reply::status(400, "{\"error\":{\"message\":\"Unknown parameter: 'response_format.json_schema'\"}}");
     let (result, received) = run(vec![unsupported.clone(), Reply::chat(&cut_in())]);
@@ -241,6 +251,7 @@ fn without_response_format_support_the_schema_goes_into_the_prompt() {
 
 #[test]
 fn in_prompt_mode_never_sends_response_format() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let (result, received) =
         run_with(vec![Reply::chat(&cut_in())], |cfg| cfg.request.structured_output = StructuredOutput::InPrompt);
     assert!(result.unwrap().schema_in_prompt);
@@ -249,6 +260,7 @@ fn in_prompt_mode_never_sends_response_format() {
 
 #[test]
 fn client_errors_and_refusals_are_not_retried() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let (result, received) = run(vec![Reply::status(401, "{\"error\":\"bad key\"}"); 2]);
     assert!(matches!(result, Err(VlmError::Http { status: 401, .. })), "{result:?}");
     assert_eq!(received.len(), 1);
@@ -260,6 +272,7 @@ fn client_errors_and_refusals_are_not_retried() {
 
 #[test]
 fn a_bad_pet_label_or_config_fails_before_any_request() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let server = Server::start(vec![Reply::chat(&cut_in())]);
     let cfg = config(&server);
     for pet in [0.0, -1.0, 31.0, f64::NAN] {
@@ -273,6 +286,7 @@ fn a_bad_pet_label_or_config_fails_before_any_request() {
 
 #[test]
 fn missing_ffmpeg_names_the_debian_package() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let server = Server::start(vec![]);
     let mut cfg = config(&server);
     cfg.frames.tools.ffprobe = "/nonexistent/ffprobe".into();
@@ -283,6 +297,7 @@ fn missing_ffmpeg_names_the_debian_package() {
 
 #[test]
 fn a_recorded_run_replays_offline_byte_for_byte_and_keeps_the_key_out() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let dir_scratch = temp_dir("record");
     let dir = dir_scratch.path();
     let server = Server::start(vec![
@@ -328,6 +343,7 @@ fn a_recorded_run_replays_offline_byte_for_byte_and_keeps_the_key_out() {
 
 #[test]
 fn a_recorded_timeout_replays_as_a_timeout() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let dir_scratch = temp_dir("record-timeout");
     let dir = dir_scratch.path();
     let server = Server::start(vec![Reply::chat(&cut_in()).after(Duration::from_secs(2)), Reply::chat(&cut_in())]);

@@ -8,6 +8,7 @@ use v2t_vlm::frames::{FrameError, FrameSettings, extract_frames, motion_scores, 
 
 #[test]
 fn uniform_frames_are_scaled_jpegs_with_timestamps() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let dir_scratch = temp_dir("frames");
     let dir = dir_scratch.path();
     let video = make_video(dir, "hd.mp4", "testsrc=duration=4:size=1280x720:rate=25");
@@ -31,6 +32,7 @@ fn uniform_frames_are_scaled_jpegs_with_timestamps() {
 
 #[test]
 fn motion_frames_land_where_the_picture_changes() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let dir_scratch = temp_dir("motion");
     let dir = dir_scratch.path();
     // 3 s of a still grey picture, then 3 s of testsrc: the cut at 3 s is the largest change.
@@ -52,6 +54,7 @@ fn motion_frames_land_where_the_picture_changes() {
 
 #[test]
 fn limits_and_missing_inputs_are_clear_errors() {
+    v2t_test_support::require!(v2t_test_support::VIDEO_TOOLS);
     let dir_scratch = temp_dir("limits");
     let dir = dir_scratch.path();
     let video = make_video(dir, "short.mp4", "testsrc=duration=2:size=160x120:rate=10");
