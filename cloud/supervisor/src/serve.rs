@@ -33,6 +33,16 @@ pub const SEGMENTS: usize = 4;
 /// Telemetry or a heartbeat older than this when it arrives is shown as late, not as current, ms.
 pub const LATE_AFTER_MS: u64 = 1000;
 
+/// The embedded broker hands its router at most this many messages per read from one connection.
+/// Small batches make a flooding publisher wait its turn: its reads back up into TCP instead of
+/// outpacing what the router forwards to the BVs (a flood at 590,000 messages per second still
+/// lets aborts through in tens of milliseconds; `docs/BENCHMARKS.md`).
+pub const INGRESS_BATCH: usize = 4;
+/// … and forwards at most this many messages to a subscriber per turn, so a BV that reads fast
+/// keeps up with a flood on its topics instead of falling behind and losing what the broker drops
+/// beyond [`SEGMENTS`] × [`SEGMENT_BYTES`].
+pub const EGRESS_BATCH: usize = 4096;
+
 /// Starts the embedded broker on `listen` and returns once it accepts connections.
 pub fn start_embedded_broker(listen: SocketAddr) -> Result<(), LinkError> {
     let server = serde_json::json!({
@@ -42,7 +52,7 @@ pub fn start_embedded_broker(listen: SocketAddr) -> Result<(), LinkError> {
         "connections": {
             "connection_timeout_ms": 5000,
             "max_payload_size": link::MAX_FRAME_LEN + 1024,
-            "max_inflight_count": 200,
+            "max_inflight_count": INGRESS_BATCH,
             "dynamic_filters": true
         }
     });
@@ -50,7 +60,7 @@ pub fn start_embedded_broker(listen: SocketAddr) -> Result<(), LinkError> {
         "id": 0,
         "router": {
             "max_connections": 1000,
-            "max_outgoing_packet_count": 200,
+            "max_outgoing_packet_count": EGRESS_BATCH,
             "max_segment_size": SEGMENT_BYTES,
             "max_segment_count": SEGMENTS
         },
@@ -405,6 +415,8 @@ pub fn serve(mut opts: ServeOptions, stop: &Arc<AtomicBool>) -> Result<(), LinkE
                 LinkEvent::Frame { topic, payload, arrived_ms } => {
                     match fleet.on_message(&topic, &payload, now, arrived_ms) {
                         Ok(Change::Online(bv)) => println!("serve: {bv} online"),
+                        // A summary of refused garbage says so itself ("N frames refused in 1.0 s: …").
+                        Ok(Change::Event(e)) if e.seq.is_none() => println!("serve: {}: {}", e.bv_id, e.detail),
                         Ok(Change::Event(e)) => println!("serve: {} {} {}", e.bv_id, e.verdict, e.detail),
                         Ok(Change::Quiet) => {}
                         Err(why) => println!("serve: ignored a message: {why}"),

@@ -5,8 +5,9 @@
 //! stop).
 //!
 //! [`UplinkLogic`] is the pure part (frame in, actions out) and is tested without a broker;
-//! [`MqttLink`] runs the `rumqttc` client on its own thread (QoS 1, persistent session, reconnect
-//! with backoff, TLS with rustls when the broker URL is `mqtts://`); [`run`] joins them.
+//! [`MqttLink`] runs the `rumqttc` client on its own thread (persistent session, QoS 0
+//! subscriptions — the cloud repeats a frame until it hears the BV's verdict —, QoS 1 events,
+//! reconnect with backoff, TLS with rustls when the broker URL is `mqtts://`); [`run`] joins them.
 //!
 //! Under attack from anyone who can publish on the broker: commands wait in their own bounded
 //! queue and are handled before priors; a message longer than a frame is dropped, never a reason to

@@ -1,7 +1,11 @@
 //! The MQTT side of the cloud–edge link (feature `mqtt`), shared by the BV's uplink node and the
 //! cloud supervisor: broker URLs, and a `rumqttc` client on its own thread that connects with a
 //! persistent session, resubscribes after every (re)connection, reconnects with backoff and turns
-//! everything into [`LinkEvent`]s on a channel. TLS is rustls with the ring provider.
+//! everything into [`LinkEvent`]s in a bounded inbox ([`QueueLimits`]): connection events first, then frames of
+//! the urgent lane (commands), then the bulk lane (priors, telemetry). A message longer than a frame
+//! is read and dropped (the connection stays up), and a screen may refuse garbage on the client's
+//! thread before it is queued, so a flood costs bounded memory and never delays a command behind
+//! priors. TLS is rustls with the ring provider.
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Condvar, Mutex};
