@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use clap::ValueEnum as _;
 use v2t_files::{load_toml, shipped};
 use v2t_game::regulator::RegulatorParams;
-use v2t_lab::methods::{self, Comparison, Recorded, Setup};
+use v2t_lab::methods::{self, Comparison, PaperScenario, Setup};
 use v2t_lab::steer;
 use v2t_sim::vut::VutModel;
 
@@ -101,9 +101,9 @@ fn four_methods(a: ExperimentArgs) -> anyhow::Result<()> {
         vut_vehicle: load_toml(Path::new(shipped::VUT_VEHICLE))?,
         bv_vehicle: load_toml(Path::new(shipped::BV_VEHICLE))?,
     };
-    let mut recorded = Vec::new();
+    let mut scenarios = Vec::new();
     for sc in v2t_lab::demo::SCENARIOS {
-        recorded.push(Recorded { name: sc.name.to_owned(), semantics: sc.replayed_semantics()? });
+        scenarios.push(PaperScenario { name: sc.name.to_owned(), semantics: sc.replayed_semantics()? });
     }
     let taus = if a.tau.is_empty() { steer::STEER_TAUS_S.to_vec() } else { a.tau };
     let comparison = match a.which {
@@ -112,14 +112,18 @@ fn four_methods(a: ExperimentArgs) -> anyhow::Result<()> {
         Experiment::Style => Comparison::Style,
         Experiment::Steerability => Comparison::Steerability(steer::both_styles(&taus)),
     };
-    let cases = methods::run_all(&setup, &recorded, &comparison, &models, a.repeats)?;
+    let cases = methods::run_all(&setup, &scenarios, &comparison, &models, a.repeats)?;
     let summary = methods::summarize(&cases);
     // The fidelity error is against the video's PET label: only where τ is that label.
     let labels: Vec<(String, f64)> = match a.which {
         Experiment::Adversariality | Experiment::Steerability => Vec::new(),
-        _ => recorded.iter().map(|r| (r.name.clone(), r.semantics.pet_label_s)).collect(),
+        _ => scenarios.iter().map(|r| (r.name.clone(), r.semantics.pet_label_s)).collect(),
     };
-    println!("simulated proving ground; VUT driver models written by this project; seeds 1–{}", a.repeats);
+    println!(
+        "simulated proving ground; VUT driver models written by this project; the paper's two scenarios, \
+         semantics replayed from hand-written cassettes (no model's answer); seeds 1–{}",
+        a.repeats
+    );
     print!("{}", methods::markdown(&summary, &labels));
     let steering = methods::steering_errors(&summary);
     if a.which == Experiment::Steerability {
@@ -139,7 +143,11 @@ fn regulator_on_cards(a: ExperimentArgs) -> anyhow::Result<()> {
     let models = crate::vut_models(&a.vut)?;
     let taus = if a.tau.is_empty() { steer::STEER_TAUS_S.to_vec() } else { a.tau };
     let report = steer::steerability(&settings, &scenarios, &steer::both_styles(&taus), &models, a.repeats);
-    println!("simulated proving ground; VUT driver models written by this project; seeds 1–{}", a.repeats);
+    println!(
+        "simulated proving ground; VUT driver models written by this project; scenario cards \
+         written by this project; seeds 1–{}",
+        a.repeats
+    );
     print!("{}", steer::steer_markdown(&report));
     if let Some(path) = a.json {
         write_json(&path, &report)?;

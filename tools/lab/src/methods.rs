@@ -1,8 +1,9 @@
 //! `video2track experiment adversariality|fidelity|style`: the paper's four methods (Section 4.1.2)
-//! on the two recorded scenarios in the simulated proving ground (sensor noise, delays, actuator
-//! lag), every VUT model, seeded runs.
+//! on the paper's two scenarios (a cut-in and an unprotected left turn, their semantics replayed
+//! from the shipped hand-written cassettes, not from a model's answer) in the simulated proving
+//! ground (sensor noise, delays, actuator lag), every VUT model, seeded runs.
 //!
-//! For each scenario the recorded semantics are grounded on the proving ground with the
+//! For each scenario the replayed semantics are grounded on the proving ground with the
 //! experiment's target τ and style, then:
 //!
 //! - **Predefined**: the BV follows the constant-speed trajectory along its grounded route whose
@@ -16,7 +17,7 @@
 //!
 //! - `adversariality`: rush, τ = 1.5 s; per method the mean PET_min over runs (lower is more
 //!   adversarial) and collisions.
-//! - `fidelity`: the recorded style and τ = the video's PET label; `PET^min_track` (minimum over
+//! - `fidelity`: the semantics' style and τ = the video's PET label; `PET^min_track` (minimum over
 //!   runs) against the label.
 //! - `style`: rush and yield at τ = the video's PET label; the share of runs in the asked order.
 //! - `steerability --methods`: rush and yield at every τ (1.5–5 s); per method the steering error
@@ -96,7 +97,7 @@ pub const ADVERSARIAL_TAU_S: f64 = 1.5;
 
 impl Comparison {
     /// The targets of `rec` (the video's PET label is in range: the semantics validated it).
-    pub fn targets(&self, rec: &Recorded) -> Vec<Target> {
+    pub fn targets(&self, rec: &PaperScenario) -> Vec<Target> {
         let label = |style| Target::new(rec.semantics.pet_label_s, style).ok();
         match self {
             Self::Steerability(targets) => targets.clone(),
@@ -112,7 +113,7 @@ impl Comparison {
 /// One of the paper's scenarios as the experiments take it: the semantics its hand-written
 /// cassette replays to.
 #[derive(Debug, Clone)]
-pub struct Recorded {
+pub struct PaperScenario {
     /// Name.
     pub name: String,
     /// The semantics (from the replayed cassette).
@@ -208,7 +209,7 @@ pub fn scenario_of_prior(
 /// The grounded scenario and the two priors (the constant-speed stand-in, the best diffusion
 /// variant) of `rec` at `target`.
 pub fn priors(
-    rec: &Recorded,
+    rec: &PaperScenario,
     target: Target,
     setup: &Setup<'_>,
     seed: u64,
@@ -273,13 +274,13 @@ pub fn run_case(setup: &Setup<'_>, scenario: &Scenario, method: Method, model: V
 /// available cores.
 pub fn run_all(
     setup: &Setup<'_>,
-    recorded: &[Recorded],
+    scenarios: &[PaperScenario],
     comparison: &Comparison,
     models: &[VutModel],
     repeats: usize,
 ) -> Result<Vec<MethodCase>, MethodsError> {
     let mut jobs = Vec::new();
-    for rec in recorded {
+    for rec in scenarios {
         for target in comparison.targets(rec) {
             let (grounded, stand_in, diffusion) = priors(rec, target, setup, 1)?;
             let name = format!("{} ({}, τ {:.2} s)", rec.name, target.style(), target.tau_s());
