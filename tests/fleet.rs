@@ -133,7 +133,9 @@ fn one_serve_supervises_two_bvs_each_with_its_own_prior_and_target() {
     let out = upload(wrong.to_str().unwrap(), "3");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.contains("refused") && stderr.contains("signature"), "{stderr}");
-    serve.expect_line("bv2 refused", Duration::from_secs(5));
+    // Not signed with the cloud's key: counted in bv2's summary of refused frames, which serve prints.
+    let summary = serve.expect_line("bv2: ", Duration::from_secs(5));
+    assert!(summary.contains("frames refused") && summary.contains("bad signature"), "{summary}");
     assert!(bv2.priors.receive().unwrap().is_none(), "a refused prior reached bv2's regulator");
 
     // Re-target bv2 live; the status table shows both BVs with their priors.
