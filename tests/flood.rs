@@ -120,6 +120,20 @@ fn percentile(sorted: &[f64], q: f64) -> f64 {
     sorted[((sorted.len() - 1) as f64 * q).round() as usize]
 }
 
+/// The gateway's side of bv1's uplink `node` (its safety requests on iceoryx2, kept with the bus
+/// they come from) and the supervisor's, once the node is connected and bv1's telemetry arrives.
+fn attach(node: &Proc, ns: &str, port: u16, key: v2t_wire::link::SigningKey) -> (Bus<ipc::Service>, Safety, Cloud) {
+    v2t_tests::harness::iceoryx2_config();
+    let bus = Bus::<ipc::Service>::new("test-cloud", ns).unwrap();
+    let safety = bus.subscriber::<SafetyCommand>(services::SAFETY).unwrap();
+    node.expect_line("connected", Duration::from_secs(10));
+    let cloud = Cloud::connect(port, key);
+    cloud.telemetry("bv1", Duration::from_secs(5));
+    (bus, safety, cloud)
+}
+
+type Safety = iceoryx2::port::subscriber::Subscriber<ipc::Service, SafetyCommand, ()>;
+
 /// One abort as the supervisor sends it: a signed abort, and a fresh copy (its own sequence
 /// number) every [`RESEND_EVERY`] until the minimal-risk stop request appears on iceoryx2 — frames
 /// to a BV travel at QoS 0, and a broker may drop one for a subscriber that a flood has put behind.
@@ -131,7 +145,7 @@ struct Abort {
     copies: u32,
 }
 
-fn abort(cloud: &mut Cloud, safety: &iceoryx2::port::subscriber::Subscriber<ipc::Service, SafetyCommand, ()>) -> Abort {
+fn abort(cloud: &mut Cloud, safety: &Safety) -> Abort {
     while safety.receive().unwrap().is_some() {}
     let t0 = now_ns();
     let start = Instant::now();
@@ -176,12 +190,7 @@ fn flood(kind: BrokerKind) {
         }
         None => uplink_node(&cfg, &ns, "uplink", &[]),
     };
-    v2t_tests::harness::iceoryx2_config();
-    let bus = Bus::<ipc::Service>::new("test-cloud", &ns).unwrap();
-    let safety = bus.subscriber::<SafetyCommand>(services::SAFETY).unwrap();
-    node.expect_line("connected", Duration::from_secs(10));
-    let mut cloud = Cloud::connect(broker.port, key);
-    cloud.telemetry("bv1", Duration::from_secs(5));
+    let (_bus, safety, mut cloud) = attach(&node, &ns, broker.port, key);
     let watch = HeartbeatWatch::start(&ns);
     let targets = vec![topics::bv("pg", "bv1", topics::PRIOR), topics::bv("pg", "bv1", topics::CMD)];
     let secs = flood_seconds();
@@ -280,12 +289,7 @@ fn oversize(broker: &Broker, key: v2t_wire::link::SigningKey, cfg: &std::path::P
     let tag: String = label.chars().filter(char::is_ascii_alphanumeric).collect();
     let ns = format!("v2t/test/oversize{tag}{}", std::process::id());
     let node = uplink_node(cfg, &ns, "uplink", &[]);
-    v2t_tests::harness::iceoryx2_config();
-    let bus = Bus::<ipc::Service>::new("test-cloud", &ns).unwrap();
-    let safety = bus.subscriber::<SafetyCommand>(services::SAFETY).unwrap();
-    node.expect_line("connected", Duration::from_secs(10));
-    let mut cloud = Cloud::connect(broker.port, key);
-    cloud.telemetry("bv1", Duration::from_secs(5));
+    let (_bus, safety, mut cloud) = attach(&node, &ns, broker.port, key);
     let mut latencies = Vec::new();
     for (size, qos) in
         [(10usize << 20, 0u8), (10 << 20, 1), (10 << 20, 2), (100 << 20, 0), (100 << 20, 1), (100 << 20, 2)]
