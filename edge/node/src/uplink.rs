@@ -13,8 +13,8 @@
 //! queue and are handled before priors; a message longer than a frame is dropped, never a reason to
 //! lose the connection; garbage is refused by the cheapest check that catches it (header, body,
 //! fleet, addressee, topic) before any signature is verified, and only counted, in one event per
-//! second; the node spends at most [`FRAME_BUDGET_NS`] on frames before its telemetry, heartbeats
-//! and liveness, so a flood never stops the BV.
+//! second; the node spends at most `FRAME_BUDGET_NS` (2 ms of each 5 ms tick) on frames before
+//! its telemetry, heartbeats and liveness, so a flood never stops the BV.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};

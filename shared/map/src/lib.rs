@@ -3,7 +3,7 @@
 //! A proving ground's `.xodr` is read into plain data ([`xodr`]), every lane becomes a centreline
 //! polyline with boundaries, marks and links ([`graph`]), and the map is cut into fragments where
 //! interactions happen — intersections, multi-lane segments, merges — with anchors that grounding
-//! pins a scenario to ([`library`]). Nothing here does IO except [`Map::load`] and [`inspect`] (a
+//! pins a scenario to ([`library`]). Nothing here does IO except [`Map::load`] and [`inspect()`] (a
 //! map with its library and its hand annotations, ready for grounding).
 //!
 //! ```
