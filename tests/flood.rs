@@ -21,7 +21,7 @@ use v2t_edge::ports::Bus;
 use v2t_supervisor::link::RESEND_EVERY;
 use v2t_tests::harness::{
     Broker, BrokerKind, Cloud, Flood, Proc, bin, edge_config, publish_packet, raw_mqtt, rss_mb, tempdir, uplink_node,
-    write_keys,
+    uplink_node_on, write_keys,
 };
 use v2t_tests::repo_root;
 use v2t_wire::link::{CloudBody, Command as CloudCommand, topics};
@@ -177,19 +177,7 @@ fn flood(kind: BrokerKind) {
     let broker = Broker::start(kind, dir, &secret);
     let cfg = edge_config(dir, broker.port, &public, "bv1");
     let ns = format!("v2t/test/flood{kind:?}{}", std::process::id());
-    let node = match &uplink_cpu {
-        Some(cpu) => {
-            let edge = bin("v2t-edge");
-            let args = ["-c", cpu, edge.to_str().unwrap(), "node", "uplink", "--config", cfg.to_str().unwrap()];
-            Proc::start_env(
-                std::path::Path::new("taskset"),
-                &[&args[..], &["--namespace", &ns]].concat(),
-                "uplink",
-                &[],
-            )
-        }
-        None => uplink_node(&cfg, &ns, "uplink", &[]),
-    };
+    let node = uplink_node_on(uplink_cpu.as_deref(), &cfg, &ns, "uplink", &[]);
     let (_bus, safety, mut cloud) = attach(&node, &ns, broker.port, key);
     let watch = HeartbeatWatch::start(&ns);
     let targets = vec![topics::bv("pg", "bv1", topics::PRIOR), topics::bv("pg", "bv1", topics::CMD)];

@@ -175,8 +175,17 @@ impl Drop for Proc {
 /// `v2t-edge node uplink` with the configuration `cfg` in the iceoryx2 namespace `ns`, and extra
 /// environment variables.
 pub fn uplink_node(cfg: &Path, ns: &str, tag: &str, env: &[(&str, &str)]) -> Proc {
-    let args = ["node", "uplink", "--config", cfg.to_str().unwrap(), "--namespace", ns];
-    Proc::start_env(&bin("v2t-edge"), &args, tag, env)
+    uplink_node_on(None, cfg, ns, tag, env)
+}
+
+/// [`uplink_node`], pinned to `cpu` (a `taskset` CPU list) when one is given.
+pub fn uplink_node_on(cpu: Option<&str>, cfg: &Path, ns: &str, tag: &str, env: &[(&str, &str)]) -> Proc {
+    let edge = bin("v2t-edge");
+    let args = [edge.to_str().unwrap(), "node", "uplink", "--config", cfg.to_str().unwrap(), "--namespace", ns];
+    match cpu {
+        Some(cpu) => Proc::start_env(Path::new("taskset"), &[&["-c", cpu][..], &args].concat(), tag, env),
+        None => Proc::start_env(&edge, &args[1..], tag, env),
+    }
 }
 
 /// Which broker a test runs against.

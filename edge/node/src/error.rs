@@ -5,14 +5,6 @@ use std::path::PathBuf;
 /// Why a node could not start or had to stop.
 #[derive(Debug, thiserror::Error)]
 pub enum EdgeError {
-    /// A configuration file could not be read.
-    #[error("cannot read {path}: {source}")]
-    Read {
-        /// The file.
-        path: PathBuf,
-        /// What went wrong.
-        source: std::io::Error,
-    },
     /// The runtime's configuration file is unreadable, malformed or out of range (the error names
     /// the file, the field and the bound).
     #[error(transparent)]
@@ -53,6 +45,12 @@ pub enum EdgeError {
 }
 
 impl EdgeError {
+    /// Whether the operator's input is at fault (a configuration file unreadable, malformed or out
+    /// of range: exit code 2), not the runtime's work.
+    pub fn is_input(&self) -> bool {
+        matches!(self, Self::File(_) | Self::Config { .. })
+    }
+
     /// An iceoryx2 failure of `what` on `service`.
     pub fn ipc(what: &'static str, service: &str, detail: impl std::fmt::Debug) -> Self {
         Self::Ipc { what, service: service.to_owned(), detail: format!("{detail:?}") }

@@ -100,10 +100,8 @@ fn main() -> ExitCode {
             eprintln!("v2t-edge: {e:#}");
             // Bad configuration is bad input (2); anything else is a failure of the work (1).
             let bad_input = e.chain().any(|c| {
-                matches!(
-                    c.downcast_ref::<v2t_edge::error::EdgeError>(),
-                    Some(EdgeError::Config { .. } | EdgeError::Read { .. } | EdgeError::File(_))
-                ) || c.is::<v2t_model::validate::ValidationError>()
+                c.downcast_ref::<EdgeError>().is_some_and(EdgeError::is_input)
+                    || c.is::<v2t_model::validate::ValidationError>()
             });
             ExitCode::from(if bad_input { 2 } else { 1 })
         }

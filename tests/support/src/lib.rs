@@ -163,6 +163,23 @@ mod tests {
         );
     }
 
+    /// `scripts/test` installs what these lists name: its own table (tool:package, in bash) must
+    /// hold every tool a test can require, with the same package.
+    #[test]
+    fn the_test_script_installs_every_tool_a_test_requires() {
+        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/test");
+        let text = std::fs::read_to_string(&script).unwrap_or_else(|e| panic!("{}: {e}", script.display()));
+        let table = text
+            .lines()
+            .find_map(|l| l.strip_prefix("TOOLS=(").and_then(|rest| rest.strip_suffix(')')))
+            .unwrap_or_else(|| panic!("{}: no `TOOLS=(…)` line", script.display()));
+        let entries: Vec<&str> = table.split_whitespace().collect();
+        for tool in BROKER_TOOLS.iter().chain(TLS_TOOLS).chain(VIDEO_TOOLS) {
+            let entry = format!("{}:{}", tool.name, tool.package);
+            assert!(entries.contains(&entry.as_str()), "scripts/test's TOOLS lacks {entry}: {table}");
+        }
+    }
+
     #[test]
     #[should_panic(expected = "v2t-ghost is not installed: run `scripts/test`")]
     fn a_missing_tool_fails_the_test_unless_allowed() {

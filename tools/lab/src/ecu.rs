@@ -109,7 +109,7 @@ impl EcuError {
     /// Whether the input (files, options) is at fault.
     pub fn is_input(&self) -> bool {
         matches!(self, Self::Card(_) | Self::Input(_) | Self::World(_) | Self::Target(_))
-            || matches!(self, Self::Edge(EdgeError::Config { .. } | EdgeError::Read { .. } | EdgeError::File(_)))
+            || matches!(self, Self::Edge(e) if e.is_input())
     }
 }
 
