@@ -156,6 +156,25 @@ impl ControlSamples {
         }
     }
 
+    /// Adds every sample of `other`.
+    pub fn extend(&mut self, other: &Self) {
+        self.accel_mps2.extend_from_slice(&other.accel_mps2);
+        self.jerk_mps3.extend_from_slice(&other.jerk_mps3);
+        self.yaw_rate_radps.extend_from_slice(&other.yaw_rate_radps);
+    }
+
+    /// Root mean square per quantity (`None` where there is no sample): with W₁ it says in which
+    /// direction two distributions differ (a rougher or a calmer driver).
+    pub fn rms(&self) -> ControlDistances {
+        let rms =
+            |xs: &[f64]| (!xs.is_empty()).then(|| (xs.iter().map(|x| x * x).sum::<f64>() / xs.len() as f64).sqrt());
+        ControlDistances {
+            accel_mps2: rms(&self.accel_mps2),
+            jerk_mps3: rms(&self.jerk_mps3),
+            yaw_rate_radps: rms(&self.yaw_rate_radps),
+        }
+    }
+
     /// W₁ distance to `other` per quantity (`None` where either side has no samples).
     pub fn distance(&self, other: &Self) -> ControlDistances {
         ControlDistances {

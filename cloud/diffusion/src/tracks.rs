@@ -117,6 +117,45 @@ impl Track {
         self.dims.unwrap_or(Dimensions { length_m: 4.6, width_m: 1.9 })
     }
 
+    /// The track on a finer time grid of period `dt_s` (from its first sample to its last): positions
+    /// by uniform Catmull–Rom interpolation between the recorded samples (C¹, through every
+    /// sample), velocity and heading dropped (inverse kinematics derives them). Meant for a track
+    /// without gaps whose period is a multiple of `dt_s` (e.g. 0.2 s → 0.1 s); `None` when `dt_s`
+    /// is not a positive number below the track's period or the track has fewer than two samples.
+    pub fn resampled(&self, dt_s: f64) -> Option<Track> {
+        if !(dt_s.is_finite() && dt_s > 0.0 && dt_s < self.dt_s) || self.samples.len() < 2 {
+            return None;
+        }
+        let (t0, t1) = self.span_s()?;
+        let n = ((t1 - t0) / dt_s + 1e-6).floor() as usize;
+        let p = |k: usize| {
+            let s = self.samples.get(k.min(self.samples.len() - 1))?;
+            Some(Point2::new(s.x_m, s.y_m))
+        };
+        let mut samples = Vec::with_capacity(n + 1);
+        let mut k = 0;
+        for j in 0..=n {
+            let t = t0 + j as f64 * dt_s;
+            while k + 2 < self.samples.len() && self.samples.get(k + 1).is_some_and(|s| s.t_s <= t) {
+                k += 1;
+            }
+            let (a, b) = (self.samples.get(k)?, self.samples.get(k + 1)?);
+            let u = ((t - a.t_s) / (b.t_s - a.t_s)).clamp(0.0, 1.0);
+            let (p1, p2) = (p(k)?, p(k + 1)?);
+            let p0 = if k == 0 { p1.add(p1.sub(p2)) } else { p(k - 1)? };
+            let p3 = if k + 2 >= self.samples.len() { p2.add(p2.sub(p1)) } else { p(k + 2)? };
+            let (u2, u3) = (u * u, u * u * u);
+            let c = |x0: f64, x1: f64, x2: f64, x3: f64| {
+                0.5 * (2.0 * x1
+                    + (x2 - x0) * u
+                    + (2.0 * x0 - 5.0 * x1 + 4.0 * x2 - x3) * u2
+                    + (3.0 * x1 - x0 - 3.0 * x2 + x3) * u3)
+            };
+            samples.push(TrackSample::at(t, c(p0.x, p1.x, p2.x, p3.x), c(p0.y, p1.y, p2.y, p3.y)));
+        }
+        Some(Track { samples, dt_s, ..self.clone() })
+    }
+
     /// Indices `k` where the time step to sample `k + 1` is more than 1.5 sampling periods: holes in
     /// the record.
     pub fn gaps(&self) -> Vec<usize> {
@@ -194,6 +233,23 @@ mod tests {
         assert_eq!(e.tracks[0].id, "2");
         assert!((e.t_start_s - 0.5).abs() < 1e-12 && (e.t_end_s - 1.4).abs() < 1e-12);
         assert!((e.track("10").unwrap().path_length_m() - 4.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn resampling_goes_through_the_samples_and_keeps_straight_motion() {
+        let t = Track { dt_s: 0.2, ..track("1", 0.0, 6) };
+        // track() spaces samples 0.1 s apart; re-time them at 0.2 s, x = k metres (5 m/s).
+        let t = Track {
+            samples: t.samples.iter().enumerate().map(|(k, s)| TrackSample { t_s: 0.2 * k as f64, ..*s }).collect(),
+            ..t
+        };
+        let r = t.resampled(0.1).unwrap();
+        assert_eq!(r.samples.len(), 11);
+        for (j, s) in r.samples.iter().enumerate() {
+            assert!((s.t_s - 0.1 * j as f64).abs() < 1e-9);
+            assert!((s.x_m - 0.5 * j as f64).abs() < 1e-9, "uniform motion stays uniform: {} at {j}", s.x_m);
+        }
+        assert!(t.resampled(0.2).is_none() && t.resampled(f64::NAN).is_none());
     }
 
     #[test]

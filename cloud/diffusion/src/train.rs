@@ -1,5 +1,6 @@
-//! Training the denoiser on a synthetic corpus: windows of `T` steps around each episode's
-//! interaction, a held-out split by episode, ε-prediction with AdamW.
+//! Training the denoiser on synthetic and recorded corpora: windows of `T` steps around each
+//! episode's interaction, a held-out split by episode (synthetic) or by recording (recorded),
+//! ε-prediction with AdamW, from scratch or on from saved weights.
 //!
 //! **Windows.** Slot 0 is the episode's actor, slot 1 the other vehicle of its mined interaction,
 //! slot 2 a third vehicle if any. Each agent passes the conflict point at the time its trajectory
@@ -8,8 +9,15 @@
 //! agents' routes (the topology library's maneuvers they drove) and the conflict point with the
 //! passage times and order.
 //!
-//! **Split.** Episodes whose index is a multiple of 10 are held out (10 %), so no held-out window
-//! shares an episode with a training window.
+//! **Recorded windows.** Recordings seldom hold two vehicles for the whole horizon (NGSIM's
+//! CommonRoad excerpts are 4–10 s long). A recorded window starts where both conflict vehicles are
+//! recorded, holds at least [`MIN_WINDOW_STEPS`] steps of each, and masks the steps after a
+//! vehicle's data ends out of the loss; its routes are the lanes the vehicles ended in. Recorded
+//! windows start at every step (synthetic ones every `stride` steps).
+//!
+//! **Split.** Synthetic episodes whose index is a multiple of 10 are held out (10 %), so no
+//! held-out window shares an episode with a training window; a recorded corpus is held out whole
+//! or not at all (its files are the recordings: the split is by recording).
 //!
 //! **Loss.** `‖ε − ε_θ(√ᾱ_k U_0 + √(1 − ᾱ_k) ε, k, c)‖²` over the used slots, `k` uniform in
 //! `1..=K`; AdamW (weight decay 1e-4), learning rate warmed up over 100 steps then cosine-decayed to
@@ -42,6 +50,8 @@ const WINDOW_MARGIN_S: f64 = 0.5;
 pub struct Window {
     /// Index of its episode in the corpus.
     pub episode: usize,
+    /// Episode step it starts at.
+    pub start_step: usize,
     /// Normalized controls `[slot][channel][step]`, zero for empty slots.
     pub z0: Vec<f32>,
     /// 1 where `z0` is data, 0 for empty slots.
@@ -54,8 +64,10 @@ pub struct Window {
     pub condition: Condition,
     /// The recorded controls of the used slots, in slot order.
     pub controls: Vec<Vec<Control>>,
-    /// Where each used slot is at the window's end.
+    /// Where each used slot is at the end of its data.
     pub end_positions: Vec<Point2>,
+    /// Steps of data of each used slot (the horizon, or fewer for a recording that ends early).
+    pub data_steps: Vec<usize>,
 }
 
 /// What can go wrong preparing data or training.
@@ -142,56 +154,187 @@ pub fn write_slot(out: &mut [f32], slot: usize, steps: usize, controls: &[Contro
     }
 }
 
+/// One vehicle of a training episode, borrowed from a synthetic or a recorded corpus.
+#[derive(Debug, Clone)]
+pub struct TrainingAgent<'a> {
+    /// Its id.
+    pub id: &'a str,
+    /// Episode step of `states[0]`.
+    pub start_step: usize,
+    /// States, one more than controls.
+    pub states: &'a [State],
+    /// Controls.
+    pub controls: &'a [Control],
+    /// Its route (`None`: the agent cannot fill a slot).
+    pub route: Option<ReferencePath>,
+}
+
+/// One episode as training sees it: an interaction, its vehicles, its split.
+#[derive(Debug, Clone)]
+pub struct TrainingEpisode<'a> {
+    /// Synthetic episode id or recording id (the held-out split keeps groups whole).
+    pub group: String,
+    /// Whether it belongs to the held-out split.
+    pub heldout: bool,
+    /// Time step, s.
+    pub dt_s: f64,
+    /// The interaction.
+    pub mined: &'a crate::mining::Interaction,
+    /// The vehicles.
+    pub agents: Vec<TrainingAgent<'a>>,
+    /// Whether every window must hold every agent for the whole horizon (the synthetic corpus);
+    /// otherwise a window may end an agent's data early ([`MIN_WINDOW_STEPS`] at least for the two
+    /// conflict vehicles) and the rest of its steps are masked out of the loss.
+    pub full_windows_only: bool,
+}
+
+/// Recorded data shorter than the horizon: the two conflict vehicles need at least this many steps
+/// in a window.
+pub const MIN_WINDOW_STEPS: usize = 30;
+
+/// The synthetic episodes as training episodes (routes from `library`); with `hold_out` those
+/// whose index is a multiple of 10 are held out ([`is_heldout`]), else all train.
+pub fn synthetic_episodes<'a>(
+    episodes: &'a [SyntheticEpisode],
+    library: &TopologyLibrary,
+    hold_out: bool,
+) -> Vec<TrainingEpisode<'a>> {
+    let routes = routes_of(library);
+    episodes
+        .iter()
+        .enumerate()
+        .map(|(i, e)| TrainingEpisode {
+            group: e.id.clone(),
+            heldout: hold_out && is_heldout(i),
+            dt_s: e.dt_s,
+            mined: &e.mined,
+            agents: e
+                .agents
+                .iter()
+                .map(|a| TrainingAgent {
+                    id: &a.id,
+                    start_step: 0,
+                    states: &a.states,
+                    controls: &a.controls,
+                    route: routes.get(&a.route_id).cloned(),
+                })
+                .collect(),
+            full_windows_only: true,
+        })
+        .collect()
+}
+
+/// The recorded episodes sampled at [`crate::synth::DT_S`] as training episodes, all in the split
+/// `heldout`; the others (another sampling period) are counted in the second number.
+pub fn recorded_episodes(
+    episodes: &[crate::recorded::RecordedEpisode],
+    heldout: bool,
+) -> (Vec<TrainingEpisode<'_>>, usize) {
+    let mut out = Vec::new();
+    let mut skipped = 0;
+    for e in episodes {
+        if (e.dt_s - crate::synth::DT_S).abs() > 1e-9 {
+            skipped += 1;
+            continue;
+        }
+        let t0 = e.agents.iter().map(|a| a.start_s).fold(f64::INFINITY, f64::min);
+        let agents = e
+            .agents
+            .iter()
+            .map(|a| TrainingAgent {
+                id: &a.id,
+                start_step: ((a.start_s - t0) / e.dt_s).round().max(0.0) as usize,
+                states: &a.states,
+                controls: &a.controls,
+                route: ReferencePath::from_points(&a.route).ok(),
+            })
+            .collect();
+        // The interaction's times are recording times: windows count from the episode's start.
+        out.push(TrainingEpisode {
+            group: e.recording.clone(),
+            heldout,
+            dt_s: e.dt_s,
+            mined: &e.mined,
+            agents,
+            full_windows_only: false,
+        });
+    }
+    (out, skipped)
+}
+
 /// The windows of one episode (see the module doc).
 pub fn episode_windows(
     index: usize,
-    episode: &SyntheticEpisode,
-    routes: &HashMap<String, ReferencePath>,
+    episode: &TrainingEpisode<'_>,
     cfg: &DenoiserConfig,
     norm: &ControlNormalization,
     stride: usize,
 ) -> Vec<Window> {
     let dt = episode.dt_s;
-    let mined = &episode.mined;
+    let mined = episode.mined;
     let find = |id: &str| episode.agents.iter().position(|a| a.id == id);
     let (Some(actor), Some(other)) = (find(&mined.actor), find(&mined.other)) else { return Vec::new() };
     let mut order = vec![actor, other];
     order.extend((0..episode.agents.len()).filter(|i| *i != actor && *i != other));
     order.truncate(cfg.slots);
-    let n = episode.agents.iter().map(|a| a.controls.len()).min().unwrap_or(0);
-    if n < cfg.steps {
-        return Vec::new();
-    }
+    // Each agent's data: episode steps [start, end) of controls.
+    let span = |i: usize| episode.agents.get(i).map(|a| (a.start_step, a.start_step + a.controls.len()));
+    let (Some(span0), Some(span1)) = (span(actor), span(other)) else { return Vec::new() };
+    let first = span0.0.max(span1.0);
+    let last_end = if episode.full_windows_only {
+        order.iter().filter_map(|&i| span(i)).map(|s| s.1).min().unwrap_or(0)
+    } else {
+        span0.1.min(span1.1)
+    };
+    let min_steps = if episode.full_windows_only { cfg.steps } else { MIN_WINDOW_STEPS.min(cfg.steps) };
+    // Passage times in episode seconds.
     let pass: Vec<Option<f64>> = order
         .iter()
         .take(2)
-        .map(|&i| episode.agents.get(i).and_then(|a| passage_time_s(&a.states, mined.conflict_point, dt)))
+        .map(|&i| {
+            let a = episode.agents.get(i)?;
+            passage_time_s(a.states, mined.conflict_point, dt).map(|t| t + a.start_step as f64 * dt)
+        })
         .collect();
-    let horizon = cfg.steps as f64 * dt;
     let mut out = Vec::new();
-    let mut w0 = 0;
-    while w0 + cfg.steps <= n {
+    let mut w0 = first;
+    while w0 + min_steps <= last_end {
         let t0 = w0 as f64 * dt;
-        let inside =
-            pass.iter().all(|p| p.is_some_and(|t| t - t0 >= WINDOW_MARGIN_S && t - t0 <= horizon - WINDOW_MARGIN_S));
+        // Steps of data per slot in this window.
+        let lengths: Vec<Option<usize>> = order
+            .iter()
+            .map(|&i| {
+                let (a, b) = span(i)?;
+                (a <= w0 && w0 < b).then(|| (b - w0).min(cfg.steps)).filter(|n| *n >= min_steps)
+            })
+            .collect();
+        let inside = pass.iter().zip(&lengths).all(|(p, n)| {
+            let data_s = n.map_or(0.0, |n| n as f64 * dt);
+            p.is_some_and(|t| t - t0 >= WINDOW_MARGIN_S && t - t0 <= data_s - WINDOW_MARGIN_S)
+        });
         if inside {
             let mut z0 = vec![0.0f32; cfg.sample_len()];
             let mut mask = vec![0.0f32; cfg.sample_len()];
             let mut slots = vec![None; cfg.slots];
             let mut recorded = Vec::new();
             let mut end_positions = Vec::new();
-            for (slot, &i) in order.iter().enumerate() {
-                let Some(agent) = episode.agents.get(i) else { continue };
-                let (Some(start), Some(controls)) = (agent.states.get(w0), agent.controls.get(w0..w0 + cfg.steps))
+            let mut data_steps = Vec::new();
+            for (slot, (&i, n)) in order.iter().zip(&lengths).enumerate() {
+                let (Some(agent), Some(n)) = (episode.agents.get(i), n) else { continue };
+                let local = w0 - agent.start_step;
+                let (Some(start), Some(controls)) = (agent.states.get(local), agent.controls.get(local..local + n))
                 else {
                     continue;
                 };
-                let Some(route) = routes.get(&agent.route_id) else { continue };
+                let Some(route) = &agent.route else { continue };
                 write_slot(&mut z0, slot, cfg.steps, controls, norm);
                 recorded.push(controls.to_vec());
-                end_positions.push(agent.states.get(w0 + cfg.steps).map_or(start.position(), State::position));
-                for v in mask.iter_mut().skip(2 * slot * cfg.steps).take(2 * cfg.steps) {
-                    *v = 1.0;
+                end_positions.push(agent.states.get(local + n).map_or(start.position(), State::position));
+                data_steps.push(*n);
+                for ch in 0..2 {
+                    for v in mask.iter_mut().skip((2 * slot + ch) * cfg.steps).take(*n) {
+                        *v = 1.0;
+                    }
                 }
                 let anchor = pass.get(slot).copied().flatten().map(|t| (mined.conflict_point, t - t0));
                 let order = (slot < 2)
@@ -200,19 +343,25 @@ pub fn episode_windows(
                     *s = Some(SlotCondition { start: *start, route_local: route_ahead(route, start), anchor, order });
                 }
             }
-            let condition = Condition { slots, kind: KindClass::of_mined(mined.kind) };
-            out.push(Window {
-                episode: index,
-                z0,
-                mask,
-                cond: condition.features(cfg),
-                time: condition.time_features(cfg),
-                condition,
-                controls: recorded,
-                end_positions,
-            });
+            // Both conflict vehicles must fill their slots.
+            if slots.first().is_some_and(Option::is_some) && slots.get(1).is_some_and(Option::is_some) {
+                let condition = Condition { slots, kind: KindClass::of_mined(mined.kind) };
+                out.push(Window {
+                    episode: index,
+                    start_step: w0,
+                    z0,
+                    mask,
+                    cond: condition.features(cfg),
+                    time: condition.time_features(cfg),
+                    condition,
+                    controls: recorded,
+                    end_positions,
+                    data_steps,
+                });
+            }
         }
-        w0 += stride.max(1);
+        // Recorded data are scarce: their windows start at every step.
+        w0 += if episode.full_windows_only { stride.max(1) } else { 1 };
     }
     out
 }
@@ -222,17 +371,17 @@ pub fn episode_windows(
 pub struct Dataset {
     /// Architecture the windows are shaped for.
     pub config: DenoiserConfig,
-    /// Fitted on the training episodes.
+    /// Fitted on the training episodes (or taken from the weights training starts from).
     pub normalization: ControlNormalization,
     /// Training windows.
     pub train: Vec<Window>,
-    /// Held-out windows (episodes with index % 10 == 0).
+    /// Held-out windows.
     pub heldout: Vec<Window>,
     /// Held-out episode indices.
     pub heldout_episodes: Vec<usize>,
 }
 
-/// Whether an episode belongs to the held-out split.
+/// Whether a synthetic episode belongs to the held-out split (index a multiple of 10).
 pub fn is_heldout(index: usize) -> bool {
     index.is_multiple_of(10)
 }
@@ -251,26 +400,34 @@ pub fn routes_of(library: &TopologyLibrary) -> HashMap<String, ReferencePath> {
 }
 
 impl Dataset {
-    /// Windows of every episode (start every `stride` steps).
+    /// Windows of every synthetic episode (start every `stride` steps); routes from `library`.
     pub fn build(
         episodes: &[SyntheticEpisode],
         library: &TopologyLibrary,
         config: DenoiserConfig,
         stride: usize,
     ) -> Result<Self, TrainError> {
+        Self::build_from(&synthetic_episodes(episodes, library, true), config, stride, None)
+    }
+
+    /// Windows of training episodes of any source (start every `stride` steps); the normalization
+    /// is fitted on the training split's controls unless given.
+    pub fn build_from(
+        episodes: &[TrainingEpisode<'_>],
+        config: DenoiserConfig,
+        stride: usize,
+        normalization: Option<ControlNormalization>,
+    ) -> Result<Self, TrainError> {
         config.check().map_err(|e| TrainError::Option { field: "config", reason: e.to_string() })?;
-        let normalization = fit_normalization(
-            episodes
-                .iter()
-                .enumerate()
-                .filter(|(i, _)| !is_heldout(*i))
-                .flat_map(|(_, e)| e.agents.iter().flat_map(|a| a.controls.iter())),
-        );
-        let routes = routes_of(library);
+        let normalization = normalization.unwrap_or_else(|| {
+            fit_normalization(
+                episodes.iter().filter(|e| !e.heldout).flat_map(|e| e.agents.iter().flat_map(|a| a.controls.iter())),
+            )
+        });
         let (mut train, mut heldout, mut heldout_episodes) = (Vec::new(), Vec::new(), Vec::new());
         for (i, e) in episodes.iter().enumerate() {
-            let w = episode_windows(i, e, &routes, &config, &normalization, stride);
-            if is_heldout(i) {
+            let w = episode_windows(i, e, &config, &normalization, stride);
+            if e.heldout {
                 heldout_episodes.push(i);
                 heldout.extend(w);
             } else {
@@ -389,16 +546,36 @@ fn batch_tensors(windows: &[&Window], cfg: &DenoiserConfig) -> candle_core::Resu
 impl Trainer {
     /// A fresh network for `config`.
     pub fn new(config: DenoiserConfig, options: TrainOptions) -> Result<Self, TrainError> {
+        Self::check(&options)?;
+        let varmap = VarMap::new();
+        let vb = VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu);
+        let denoiser = Denoiser::new(config, vb).map_err(tensor_err)?;
+        reseed(&varmap, options.seed).map_err(tensor_err)?;
+        Self::with(varmap, denoiser, options)
+    }
+
+    /// A trainer that goes on from the weights in `bytes` (a weights file): their architecture, and
+    /// their normalization, which the training data must then use (returned).
+    pub fn from_weights(bytes: &[u8], options: TrainOptions) -> Result<(Self, ControlNormalization), TrainError> {
+        Self::check(&options)?;
+        let (model, varmap) = crate::weights::from_bytes_with_variables(bytes)
+            .map_err(|e| TrainError::Option { field: "init", reason: e.to_string() })?;
+        let normalization = model.meta.normalization;
+        Ok((Self::with(varmap, model.denoiser, options)?, normalization))
+    }
+
+    fn check(options: &TrainOptions) -> Result<(), TrainError> {
         if options.steps == 0 || options.batch == 0 || options.eval_every == 0 {
             return Err(TrainError::Option { field: "steps/batch/eval_every", reason: "must be > 0".into() });
         }
         if !(options.learning_rate > 0.0 && options.learning_rate < 1.0) {
             return Err(TrainError::Option { field: "learning_rate", reason: "must lie in (0, 1)".into() });
         }
-        let varmap = VarMap::new();
-        let vb = VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu);
-        let denoiser = Denoiser::new(config, vb).map_err(tensor_err)?;
-        reseed(&varmap, options.seed).map_err(tensor_err)?;
+        Ok(())
+    }
+
+    fn with(varmap: VarMap, denoiser: Denoiser, options: TrainOptions) -> Result<Self, TrainError> {
+        let config = *denoiser.config();
         let params = candle_nn::ParamsAdamW { lr: options.learning_rate, weight_decay: 1e-4, ..Default::default() };
         let optimizer = candle_nn::AdamW::new(varmap.all_vars(), params).map_err(tensor_err)?;
         Ok(Self {
@@ -552,14 +729,22 @@ impl Trainer {
     }
 
     /// The metadata to save with these weights.
-    pub fn meta(&self, data: &Dataset, command: String, source: String, heldout_loss: f64) -> ModelMeta {
+    /// `synthetic`: whether every training window came from simulated data.
+    pub fn meta(
+        &self,
+        data: &Dataset,
+        command: String,
+        source: String,
+        synthetic: bool,
+        heldout_loss: f64,
+    ) -> ModelMeta {
         ModelMeta {
             config: *self.denoiser.config(),
             normalization: data.normalization,
             training: TrainingRecord {
                 command,
                 data: source,
-                synthetic: true,
+                synthetic,
                 train_windows: data.train.len(),
                 heldout_windows: data.heldout.len(),
                 steps: self.step,

@@ -227,6 +227,12 @@ pub fn read_meta(bytes: &[u8]) -> Result<ModelMeta, WeightsError> {
 
 /// A model from the bytes of a weights file.
 pub fn from_bytes(bytes: &[u8]) -> Result<Model, WeightsError> {
+    from_bytes_with_variables(bytes).map(|(model, _)| model)
+}
+
+/// A model from the bytes of a weights file, with the variables that hold its weights (to train
+/// on from there).
+pub fn from_bytes_with_variables(bytes: &[u8]) -> Result<(Model, VarMap), WeightsError> {
     let meta = read_meta(bytes)?;
     let device = Device::Cpu;
     let loaded = candle_core::safetensors::load_buffer(bytes, &device).map_err(tensor_err)?;
@@ -258,7 +264,7 @@ pub fn from_bytes(bytes: &[u8]) -> Result<Model, WeightsError> {
             return Err(WeightsError::Unexpected((*name).clone()));
         }
     }
-    Ok(Model { denoiser, meta })
+    Ok((Model { denoiser, meta }, varmap))
 }
 
 /// A model from a weights file.

@@ -1,15 +1,23 @@
-//! CommonRoad XML (2020a) dynamic obstacles.
+//! CommonRoad XML scenarios: dynamic obstacles as tracks, lanelets as a [`LaneletNetwork`].
 //!
-//! Every `dynamicObstacle` becomes a [`Track`]: its `initialState` and the `state`s of its
+//! Both formats found in published scenarios are read: **2020a** (`dynamicObstacle`) and the older
+//! **2018b** (`obstacle` with `<role>dynamic</role>`; static obstacles are skipped). Every dynamic
+//! obstacle becomes a [`Track`]: its `initialState` and the `state`s of its
 //! `trajectory`, each at `time × timeStepSize` (the scenario's attribute). A state gives
 //! `position/point/{x,y}` (or the centre of a `rectangle`/`circle` position), `orientation`,
 //! `time` and `velocity`, each either `exact` or an interval (`intervalStart`/`intervalEnd`; the
 //! midpoint is used, for time the start). CommonRoad's velocity is along the orientation, so
 //! `vx = v cos ψ`, `vy = v sin ψ`. `type` and `shape/rectangle/{length,width}` give the kind and
-//! footprint. Lanelets, static obstacles and everything else are ignored. Errors name the line.
+//! footprint. Every `lanelet` (both formats: `leftBound`/`rightBound` point lists with an optional
+//! `lineMarking`, `predecessor`/`successor`/`adjacentLeft`/`adjacentRight` references) goes into
+//! the [`LaneletNetwork`] ([`parse_scenario`]). Traffic signs, lights and intersections are
+//! ignored. Errors name the line.
 
 use v2t_model::metrics::Dimensions;
 
+use v2t_model::geometry::Point2;
+
+use crate::lanes::{Adjacent, Lanelet, LaneletNetwork};
 use crate::tracks::{AgentKind, Episode, Track, TrackSample};
 
 /// What can go wrong reading a CommonRoad file.
@@ -60,6 +68,25 @@ pub enum CommonRoadError {
         obstacle: String,
         /// The time step.
         step: i64,
+    },
+    /// A lanelet whose bounds are unusable (fewer than two points, or left and right counts that
+    /// differ).
+    #[error("line {line}: lanelet `{lanelet}`: {reason}")]
+    Lanelet {
+        /// Line of the lanelet.
+        line: u32,
+        /// Lanelet id.
+        lanelet: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A version this reader does not know.
+    #[error("line {line}: commonRoadVersion `{version}` is not one of 2018a, 2018b, 2020a")]
+    Version {
+        /// Line of the root element.
+        line: u32,
+        /// The attribute's text.
+        version: String,
     },
     /// The file could not be read.
     #[error("{path}: {message}")]
@@ -148,12 +175,96 @@ fn state_sample(
     Ok((step, TrackSample { t_s: step as f64 * dt_s, x_m: x, y_m: y, vx_mps: vx, vy_mps: vy, psi_rad: psi }))
 }
 
-/// Parses CommonRoad XML into an episode named after its `benchmarkID` (or `name`).
-pub fn parse(xml: &str, name: &str) -> Result<Episode, CommonRoadError> {
+/// A parsed scenario: its tracks and its lanelet network.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scenario {
+    /// The dynamic obstacles as tracks, named after the `benchmarkID` (or the given name).
+    pub episode: Episode,
+    /// The lanelets.
+    pub lanes: LaneletNetwork,
+    /// `commonRoadVersion` as written (empty when absent).
+    pub version: String,
+    /// The `source` attribute (e.g. `NGSIM`), empty when absent.
+    pub source: String,
+}
+
+/// Whether `node` is a dynamic obstacle of either format.
+fn is_dynamic_obstacle(node: Node<'_, '_>) -> bool {
+    node.has_tag_name("dynamicObstacle")
+        || (node.has_tag_name("obstacle")
+            && child(node, "role").and_then(|r| r.text()).is_some_and(|r| r.trim() == "dynamic"))
+}
+
+fn bound_points(doc: &roxmltree::Document<'_>, bound: Node<'_, '_>, id: &str) -> Result<Vec<Point2>, CommonRoadError> {
+    let mut out = Vec::new();
+    for p in bound.children().filter(|c| c.has_tag_name("point")) {
+        let x = child(p, "x").map(|n| number(doc, n, id)).transpose()?;
+        let y = child(p, "y").map(|n| number(doc, n, id)).transpose()?;
+        match x.zip(y) {
+            Some((x, y)) => out.push(Point2::new(x, y)),
+            None => {
+                return Err(CommonRoadError::Lanelet {
+                    line: line(doc, p),
+                    lanelet: id.to_owned(),
+                    reason: "a bound point without x or y".into(),
+                });
+            }
+        }
+    }
+    Ok(out)
+}
+
+fn lanelet(doc: &roxmltree::Document<'_>, node: Node<'_, '_>) -> Result<Lanelet, CommonRoadError> {
+    let id = node.attribute("id").unwrap_or("").to_owned();
+    let err = |reason: String| CommonRoadError::Lanelet { line: line(doc, node), lanelet: id.clone(), reason };
+    let bound = |name: &str| -> Result<(Vec<Point2>, Option<String>), CommonRoadError> {
+        let b = child(node, name).ok_or_else(|| err(format!("no `{name}`")))?;
+        let marking = child(b, "lineMarking").and_then(|m| m.text()).map(|t| t.trim().to_owned());
+        Ok((bound_points(doc, b, &id)?, marking))
+    };
+    let (left, left_marking) = bound("leftBound")?;
+    let (right, right_marking) = bound("rightBound")?;
+    if left.len() < 2 || left.len() != right.len() {
+        return Err(err(format!(
+            "left bound has {} points and right bound {}: both need the same count, at least 2",
+            left.len(),
+            right.len()
+        )));
+    }
+    let refs = |name: &str| -> Vec<String> {
+        node.children().filter(|c| c.has_tag_name(name)).filter_map(|c| c.attribute("ref")).map(str::to_owned).collect()
+    };
+    let adjacent = |name: &str| {
+        child(node, name).and_then(|a| {
+            Some(Adjacent {
+                id: a.attribute("ref")?.to_owned(),
+                same_direction: a.attribute("drivingDir") != Some("opposite"),
+            })
+        })
+    };
+    Ok(Lanelet {
+        id: id.clone(),
+        left,
+        right,
+        left_marking,
+        right_marking,
+        predecessors: refs("predecessor"),
+        successors: refs("successor"),
+        adjacent_left: adjacent("adjacentLeft"),
+        adjacent_right: adjacent("adjacentRight"),
+    })
+}
+
+/// Parses CommonRoad XML (2020a or 2018b) into its tracks and lanelet network.
+pub fn parse_scenario(xml: &str, name: &str) -> Result<Scenario, CommonRoadError> {
     let doc = roxmltree::Document::parse(xml).map_err(|e| CommonRoadError::Xml(e.to_string()))?;
     let root = doc.root_element();
     if !root.has_tag_name("commonRoad") {
         return Err(CommonRoadError::NotCommonRoad(root.tag_name().name().to_owned()));
+    }
+    let version = root.attribute("commonRoadVersion").unwrap_or("").trim().to_owned();
+    if !matches!(version.as_str(), "" | "2018a" | "2018b" | "2020a") {
+        return Err(CommonRoadError::Version { line: line(&doc, root), version });
     }
     let raw = root.attribute("timeStepSize").unwrap_or("");
     let dt_s = raw
@@ -163,7 +274,7 @@ pub fn parse(xml: &str, name: &str) -> Result<Episode, CommonRoadError> {
         .filter(|v| v.is_finite() && *v > 0.0)
         .ok_or_else(|| CommonRoadError::TimeStepSize { line: line(&doc, root), value: raw.to_owned() })?;
     let mut tracks = Vec::new();
-    for obstacle in root.children().filter(|c| c.has_tag_name("dynamicObstacle")) {
+    for obstacle in root.children().filter(|c| is_dynamic_obstacle(*c)) {
         let id = obstacle.attribute("id").unwrap_or("").to_owned();
         let kind = child(obstacle, "type").and_then(|t| t.text()).map_or(AgentKind::Unknown, AgentKind::from_label);
         let dims = child(obstacle, "shape").and_then(|s| child(s, "rectangle")).and_then(|r| {
@@ -193,16 +304,36 @@ pub fn parse(xml: &str, name: &str) -> Result<Episode, CommonRoadError> {
         }
         tracks.push(Track { id, dt_s, kind, dims, samples: samples.into_iter().map(|s| s.2).collect() });
     }
+    let lanelets = root
+        .children()
+        .filter(|c| c.has_tag_name("lanelet"))
+        .map(|l| lanelet(&doc, l))
+        .collect::<Result<Vec<_>, _>>()?;
     let name = root.attribute("benchmarkID").filter(|s| !s.trim().is_empty()).unwrap_or(name);
-    Ok(Episode::from_tracks(name, tracks))
+    Ok(Scenario {
+        episode: Episode::from_tracks(name, tracks),
+        lanes: LaneletNetwork::new(lanelets),
+        version,
+        source: root.attribute("source").unwrap_or("").to_owned(),
+    })
+}
+
+/// Parses CommonRoad XML into an episode named after its `benchmarkID` (or `name`).
+pub fn parse(xml: &str, name: &str) -> Result<Episode, CommonRoadError> {
+    parse_scenario(xml, name).map(|s| s.episode)
+}
+
+/// Reads and parses a CommonRoad file (tracks and lanelets); `name` defaults to the file stem.
+pub fn parse_scenario_file(path: &std::path::Path) -> Result<Scenario, CommonRoadError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| CommonRoadError::Io { path: path.display().to_string(), message: e.to_string() })?;
+    let stem = path.file_stem().map_or_else(|| "commonroad".to_owned(), |s| s.to_string_lossy().into_owned());
+    parse_scenario(&text, &stem)
 }
 
 /// Reads and parses a CommonRoad file; `name` defaults to the file stem.
 pub fn parse_file(path: &std::path::Path) -> Result<Episode, CommonRoadError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| CommonRoadError::Io { path: path.display().to_string(), message: e.to_string() })?;
-    let stem = path.file_stem().map_or_else(|| "commonroad".to_owned(), |s| s.to_string_lossy().into_owned());
-    parse(&text, &stem)
+    parse_scenario_file(path).map(|s| s.episode)
 }
 
 #[cfg(test)]

@@ -1,0 +1,661 @@
+//! The corpus of **recorded** human driving: interactions mined from imported recordings, each
+//! with its two vehicles' states, controls (inverse kinematics) and routes (the lane network), and
+//! where the data came from and under which licence.
+//!
+//! **Import** ([`import_scenario`]): a recording's tracks are mined ([`crate::mining`]); for every
+//! interaction between two vehicles, each vehicle's track (the piece without gaps around the
+//! conflict) is smoothed and inverted into states and controls ([`crate::inverse`]) and given its
+//! route on the recording's lane network ([`LaneletNetwork::route_of`]; a recording without lanes,
+//! such as a CSV file, gives each vehicle its own smoothed path as route, and says so in
+//! [`RecordedAgent::route_from`]: such a route tells the model more than a lane would). An interaction whose
+//! vehicle has no route (outside every lanelet) or whose inversion fails is counted, not kept.
+//! Every episode keeps its recording, source file, dataset and licence tag.
+//!
+//! **On disk**: JSON lines. The first line is a [`RecordedHeader`] (`"format":
+//! "v2t-recorded-corpus"`, version, `"synthetic": false`, the source files with their track
+//! counts); every following line is one [`RecordedEpisode`]. Reading checks the format, the
+//! version and the count and names the line of any error. Writing goes to a temporary file that is
+//! renamed into place, so an error never leaves half a corpus.
+
+use serde::{Deserialize, Serialize};
+use v2t_model::geometry::Point2;
+use v2t_model::kinematics::{Control, State};
+use v2t_model::metrics::Dimensions;
+
+use crate::inverse::{InverseOptions, split_at_gaps, to_controls};
+use crate::lanes::LaneletNetwork;
+use crate::mining::{InteractionKind, MiningOptions, mine};
+use crate::stats::Histogram;
+use crate::tracks::{AgentKind, Episode, Track};
+
+/// Format name in the header.
+pub const FORMAT: &str = "v2t-recorded-corpus";
+/// Format version written and read.
+pub const VERSION: u32 = 1;
+/// Route points are kept this far apart, m.
+const ROUTE_SPACING_M: f64 = 2.0;
+
+/// One imported file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SourceFile {
+    /// The file as given to the importer.
+    pub file: String,
+    /// Its recording (scenario) id.
+    pub recording: String,
+    /// The dataset it holds (e.g. `NGSIM US-101`).
+    pub dataset: String,
+    /// Licence tag of the data (e.g. `NGSIM: US DOT public data; CommonRoad conversion BSD-3-Clause`).
+    pub licence: String,
+    /// The file format (e.g. `CommonRoad 2018b`).
+    pub format: String,
+    /// Sampling period of the recording, s (the episodes' may be finer: `--resample`).
+    pub dt_s: f64,
+    /// Tracks in the file (every road user).
+    pub tracks: usize,
+    /// … of which motor vehicles.
+    pub vehicles: usize,
+    /// Interactions mined.
+    pub mined: usize,
+    /// … of which kept as episodes.
+    pub kept: usize,
+    /// … dropped because a vehicle is on no lanelet.
+    pub no_route: usize,
+    /// … dropped because inverse kinematics failed (too short a piece, a hole at the conflict).
+    pub no_controls: usize,
+    /// … dropped because the lanes show no interaction ([`on_lanes`]): two vehicles side by side
+    /// in their own lanes whose driven corridors touch, or a vehicle leaving the other's lane.
+    pub not_interaction: usize,
+}
+
+/// One vehicle of a recorded episode.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RecordedAgent {
+    /// Track id in the recording.
+    pub id: String,
+    /// Kind of road user.
+    pub kind: AgentKind,
+    /// Footprint, when recorded.
+    pub dims: Option<Dimensions>,
+    /// Recording time of `states[0]`, s.
+    pub start_s: f64,
+    /// Smoothed states at `start_s + k · dt`, one more than controls.
+    pub states: Vec<State>,
+    /// Controls whose rollout gives the states.
+    pub controls: Vec<Control>,
+    /// Its route: the centreline of the lane it ends in ([`LaneletNetwork::route_of`]), or, for a
+    /// recording without lanes (CSV), its own smoothed path; points about 2 m apart.
+    pub route: Vec<Point2>,
+    /// Where the route came from: `lanes` or `driven path`.
+    pub route_from: String,
+    /// RMS distance between recorded and smoothed positions, m.
+    pub smoothing_rms_m: f64,
+}
+
+/// One mined interaction with its two vehicles.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RecordedEpisode {
+    /// `<recording>/<actor>-<other>@<conflict time>`.
+    pub id: String,
+    /// Recording id (the held-out split is by recording).
+    pub recording: String,
+    /// Dataset.
+    pub dataset: String,
+    /// Licence tag of the data.
+    pub licence: String,
+    /// Sampling period, s.
+    pub dt_s: f64,
+    /// The interaction (recording time).
+    pub mined: crate::mining::Interaction,
+    /// The actor first, then the other vehicle.
+    pub agents: Vec<RecordedAgent>,
+}
+
+impl RecordedEpisode {
+    /// The measured PET, s.
+    pub fn pet_s(&self) -> f64 {
+        self.mined.pet_s
+    }
+}
+
+/// A recorded corpus.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RecordedCorpus {
+    /// The files imported, in order.
+    pub sources: Vec<SourceFile>,
+    /// The episodes, file by file.
+    pub episodes: Vec<RecordedEpisode>,
+}
+
+/// What the importer is told about a file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImportOptions {
+    /// Dataset name.
+    pub dataset: String,
+    /// Licence tag.
+    pub licence: String,
+    /// Mining settings (the smoother's position noise among them).
+    pub mining: MiningOptions,
+    /// Inverse kinematics settings.
+    pub inverse: InverseOptions,
+    /// Resample every vehicle's track to this period before inverse kinematics (e.g. 0.2 s
+    /// recordings to the model's 0.1 s), s; `None` keeps the recorded period.
+    pub resample_s: Option<f64>,
+}
+
+/// The piece of `track` (cut at gaps) nearest in time to `t_s` (the one covering it, if any).
+fn piece_at(track: &Track, t_s: f64) -> Option<Track> {
+    let gap = |p: &Track| p.span_s().map_or(f64::INFINITY, |(a, b)| (a - t_s).max(t_s - b).max(0.0));
+    split_at_gaps(track).into_iter().min_by(|x, y| gap(x).total_cmp(&gap(y)))
+}
+
+fn thin(points: &[Point2], spacing_m: f64) -> Vec<Point2> {
+    let mut out: Vec<Point2> = Vec::new();
+    for (k, p) in points.iter().enumerate() {
+        let last = k + 1 == points.len();
+        if out.last().is_none_or(|q| q.dist(*p) >= spacing_m) || last {
+            out.push(*p);
+        }
+    }
+    out
+}
+
+/// Paths this close in heading at the conflict run alongside: rad.
+const PARALLEL_RAD: f64 = 0.35;
+/// A vehicle this close to a lane's centreline drives in that lane: m (half a lane).
+const SAME_LANE_M: f64 = 1.8;
+
+/// The interaction's kind read again on the lanes. Short recordings hide the join that map-less
+/// mining looks for (a lane change whose paths part again within seconds reads as a crossing), so
+/// where the two vehicles run alongside at the conflict: if one of them changes lanes it is the
+/// actor, and the kind is a cut-in when it passes the conflict first and a lane change behind
+/// otherwise, provided the other vehicle ends in the mover's target lane. If neither changes lanes
+/// (they only drove side by side) or the mover leaves the other's lane (it only vacates a place
+/// ahead of it), `None`. Interactions at an
+/// angle (left turns, crossings, merges) keep their kind. The flag says that the actor is the
+/// second of `agents` (the mover was mined as the other vehicle).
+pub fn on_lanes(
+    it: &crate::mining::Interaction,
+    agents: &[RecordedAgent],
+    lanes: &LaneletNetwork,
+) -> Option<(InteractionKind, bool)> {
+    let heading_at = |a: &RecordedAgent| {
+        a.states
+            .iter()
+            .min_by(|x, y| x.position().dist(it.conflict_point).total_cmp(&y.position().dist(it.conflict_point)))
+            .map(|s| s.theta_rad)
+    };
+    let (Some(a), Some(b)) = (agents.first(), agents.get(1)) else { return Some((it.kind, false)) };
+    let parallel = heading_at(a)
+        .zip(heading_at(b))
+        .is_some_and(|(x, y)| v2t_model::geometry::wrap_angle(x - y).abs() < PARALLEL_RAD);
+    if !parallel {
+        return Some((it.kind, false));
+    }
+    let moved = |x: &RecordedAgent| lanes.changes_lanes(&x.states.iter().map(State::position).collect::<Vec<_>>());
+    let (mover, swap) = match (moved(a), moved(b)) {
+        (false, false) => return None,
+        (true, false) | (true, true) => (a, false),
+        (false, true) => (b, true),
+    };
+    // It must move into the other's lane: the other ends on the mover's route (its target lane). A
+    // mover that leaves the other's lane only vacates a place ahead of it.
+    let other = if swap { a } else { b };
+    let on_route = v2t_model::path::ReferencePath::from_points(&mover.route)
+        .ok()
+        .zip(other.states.last())
+        .is_some_and(|(route, end)| route.project(end.position()).is_some_and(|f| f.l_m.abs() <= SAME_LANE_M));
+    if !on_route {
+        return None;
+    }
+    let kind = if it.first == mover.id { InteractionKind::CutIn } else { InteractionKind::LaneChange };
+    Some((kind, swap))
+}
+
+/// Imports one recording (its tracks and lane network): the episodes and the file's summary.
+pub fn import_scenario(
+    episode: &Episode,
+    lanes: &LaneletNetwork,
+    file: &str,
+    format: &str,
+    options: &ImportOptions,
+) -> (SourceFile, Vec<RecordedEpisode>) {
+    let interactions = mine(episode, &options.mining);
+    let mut source = SourceFile {
+        file: file.to_owned(),
+        recording: episode.id.clone(),
+        dataset: options.dataset.clone(),
+        licence: options.licence.clone(),
+        format: format.to_owned(),
+        dt_s: episode.dt_s,
+        tracks: episode.tracks.len(),
+        vehicles: episode.tracks.iter().filter(|t| t.kind.is_vehicle()).count(),
+        mined: interactions.len(),
+        kept: 0,
+        no_route: 0,
+        no_controls: 0,
+        not_interaction: 0,
+    };
+    let mut out = Vec::new();
+    for it in interactions {
+        let mut agents = Vec::new();
+        let mut failed = None;
+        for id in [&it.actor, &it.other] {
+            let Some(track) = episode.track(id) else {
+                failed = Some(false);
+                break;
+            };
+            let Some(piece) = piece_at(track, it.conflict_time_s) else {
+                failed = Some(false);
+                break;
+            };
+            let piece = match options.resample_s {
+                Some(dt) if dt < piece.dt_s - 1e-9 => match piece.resampled(dt) {
+                    Some(p) => p,
+                    None => {
+                        failed = Some(false);
+                        break;
+                    }
+                },
+                _ => piece,
+            };
+            let Ok(inv) = to_controls(&piece, &options.inverse) else {
+                failed = Some(false);
+                break;
+            };
+            let positions: Vec<Point2> = inv.trajectory.states.iter().map(State::position).collect();
+            let (route, route_from) = if lanes.is_empty() {
+                (Some(positions.clone()), "driven path")
+            } else {
+                (lanes.route_of(&positions), "lanes")
+            };
+            let Some(route) = route else {
+                failed = Some(true);
+                break;
+            };
+            agents.push(RecordedAgent {
+                id: track.id.clone(),
+                kind: track.kind,
+                dims: track.dims,
+                start_s: piece.samples.first().map_or(0.0, |s| s.t_s),
+                states: inv.trajectory.states,
+                controls: inv.trajectory.controls,
+                route: thin(&route, ROUTE_SPACING_M),
+                route_from: route_from.to_owned(),
+                smoothing_rms_m: inv.smoothing_rms_m,
+            });
+        }
+        let mut it = it;
+        if failed.is_none() && !lanes.is_empty() {
+            match on_lanes(&it, &agents, lanes) {
+                Some((kind, swap)) => {
+                    it.kind = kind;
+                    if swap {
+                        std::mem::swap(&mut it.actor, &mut it.other);
+                        agents.reverse();
+                    }
+                }
+                None => {
+                    source.not_interaction += 1;
+                    continue;
+                }
+            }
+        }
+        match failed {
+            Some(true) => source.no_route += 1,
+            Some(false) => source.no_controls += 1,
+            None => {
+                source.kept += 1;
+                out.push(RecordedEpisode {
+                    id: format!("{}/{}-{}@{:.1}", episode.id, it.actor, it.other, it.conflict_time_s),
+                    recording: episode.id.clone(),
+                    dataset: options.dataset.clone(),
+                    licence: options.licence.clone(),
+                    dt_s: options.resample_s.filter(|dt| *dt < episode.dt_s - 1e-9).unwrap_or(episode.dt_s),
+                    mined: it,
+                    agents,
+                });
+            }
+        }
+    }
+    (source, out)
+}
+
+/// First line of a recorded corpus file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RecordedHeader {
+    /// [`FORMAT`].
+    pub format: String,
+    /// [`VERSION`].
+    pub version: u32,
+    /// Always false: recorded, not simulated.
+    pub synthetic: bool,
+    /// The imported files.
+    pub sources: Vec<SourceFile>,
+    /// Number of episode lines that follow.
+    pub episodes: usize,
+}
+
+/// What can go wrong reading a recorded corpus.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RecordedIoError {
+    /// No header line.
+    #[error("empty corpus file")]
+    Empty,
+    /// A line that is not the expected JSON.
+    #[error("line {line}: {message}")]
+    Json {
+        /// Line (1-based).
+        line: usize,
+        /// What serde said.
+        message: String,
+    },
+    /// Not a recorded corpus.
+    #[error("line 1: format `{found}`, expected `{FORMAT}`")]
+    Format {
+        /// Format in the header.
+        found: String,
+    },
+    /// A version this reader does not know.
+    #[error("line 1: version {found}, this reader knows {VERSION}")]
+    Version {
+        /// Version in the header.
+        found: u32,
+    },
+    /// The header's count disagrees with the lines.
+    #[error("header announces {announced} episodes, the file has {found}")]
+    Count {
+        /// From the header.
+        announced: usize,
+        /// Lines found.
+        found: usize,
+    },
+    /// A file could not be read or written.
+    #[error("{path}: {message}")]
+    Io {
+        /// The file.
+        path: String,
+        /// What the OS said.
+        message: String,
+    },
+}
+
+/// The corpus as JSON lines.
+pub fn to_jsonl(corpus: &RecordedCorpus) -> Result<String, serde_json::Error> {
+    let header = RecordedHeader {
+        format: FORMAT.to_owned(),
+        version: VERSION,
+        synthetic: false,
+        sources: corpus.sources.clone(),
+        episodes: corpus.episodes.len(),
+    };
+    let mut out = serde_json::to_string(&header)?;
+    out.push('\n');
+    for e in &corpus.episodes {
+        out.push_str(&serde_json::to_string(e)?);
+        out.push('\n');
+    }
+    Ok(out)
+}
+
+/// The format name in the first line of a corpus text (either kind), if it has one.
+pub fn format_of(text: &str) -> Option<String> {
+    let first = text.lines().find(|l| !l.trim().is_empty())?;
+    let raw: serde_json::Value = serde_json::from_str(first).ok()?;
+    raw.get("format").and_then(|v| v.as_str()).map(str::to_owned)
+}
+
+/// Reads a recorded corpus from JSON lines.
+pub fn from_jsonl(text: &str) -> Result<RecordedCorpus, RecordedIoError> {
+    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
+    let (_, first) = lines.next().ok_or(RecordedIoError::Empty)?;
+    let raw: serde_json::Value =
+        serde_json::from_str(first).map_err(|e| RecordedIoError::Json { line: 1, message: e.to_string() })?;
+    let format = raw.get("format").and_then(|v| v.as_str()).unwrap_or("").to_owned();
+    if format != FORMAT {
+        return Err(RecordedIoError::Format { found: format });
+    }
+    let version = raw.get("version").and_then(serde_json::Value::as_u64).unwrap_or(0);
+    if version != u64::from(VERSION) {
+        return Err(RecordedIoError::Version { found: u32::try_from(version).unwrap_or(u32::MAX) });
+    }
+    let header: RecordedHeader =
+        serde_json::from_value(raw).map_err(|e| RecordedIoError::Json { line: 1, message: e.to_string() })?;
+    let mut episodes = Vec::with_capacity(header.episodes);
+    for (i, line) in lines {
+        let e: RecordedEpisode =
+            serde_json::from_str(line).map_err(|e| RecordedIoError::Json { line: i + 1, message: e.to_string() })?;
+        episodes.push(e);
+    }
+    if episodes.len() != header.episodes {
+        return Err(RecordedIoError::Count { announced: header.episodes, found: episodes.len() });
+    }
+    Ok(RecordedCorpus { sources: header.sources, episodes })
+}
+
+/// Reads a recorded corpus file.
+pub fn read_file(path: &std::path::Path) -> Result<RecordedCorpus, RecordedIoError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| RecordedIoError::Io { path: path.display().to_string(), message: e.to_string() })?;
+    from_jsonl(&text)
+}
+
+/// Writes a recorded corpus file: to `<path>.partial`, then renamed into place.
+pub fn write_file(corpus: &RecordedCorpus, path: &std::path::Path) -> Result<(), RecordedIoError> {
+    let io = |e: std::io::Error| RecordedIoError::Io { path: path.display().to_string(), message: e.to_string() };
+    let text = to_jsonl(corpus).map_err(|e| RecordedIoError::Json { line: 0, message: e.to_string() })?;
+    let mut partial = path.as_os_str().to_owned();
+    partial.push(".partial");
+    let partial = std::path::PathBuf::from(partial);
+    std::fs::write(&partial, text).map_err(io)?;
+    std::fs::rename(&partial, path).map_err(io)
+}
+
+/// Counts of a recorded corpus, per dataset and kind, with the PET histogram.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RecordedStats {
+    /// One row per dataset, in first-seen order.
+    pub datasets: Vec<DatasetStats>,
+    /// Total tracks of every file.
+    pub tracks: usize,
+    /// Total motor-vehicle tracks.
+    pub vehicles: usize,
+    /// Total episodes.
+    pub episodes: usize,
+}
+
+/// One dataset's counts.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DatasetStats {
+    /// Dataset name.
+    pub dataset: String,
+    /// Licence tags seen.
+    pub licences: Vec<String>,
+    /// Files and recordings.
+    pub files: usize,
+    /// Tracks.
+    pub tracks: usize,
+    /// Motor-vehicle tracks.
+    pub vehicles: usize,
+    /// Sampling periods seen, s.
+    pub periods_s: Vec<f64>,
+    /// Episodes per interaction kind.
+    pub kinds: Vec<(InteractionKind, usize)>,
+    /// Mined interactions dropped for want of a route or of controls.
+    pub dropped: usize,
+    /// PET histogram of the episodes, 0–6 s in bins of 0.5 s.
+    pub pet: Histogram,
+}
+
+const KINDS: [InteractionKind; 5] = [
+    InteractionKind::CutIn,
+    InteractionKind::LaneChange,
+    InteractionKind::LeftTurn,
+    InteractionKind::Crossing,
+    InteractionKind::Merge,
+];
+
+impl RecordedCorpus {
+    /// Counts per dataset.
+    pub fn stats(&self) -> RecordedStats {
+        let mut rows: Vec<DatasetStats> = Vec::new();
+        let row = |rows: &mut Vec<DatasetStats>, dataset: &str| -> usize {
+            if let Some(i) = rows.iter().position(|r| r.dataset == dataset) {
+                return i;
+            }
+            rows.push(DatasetStats {
+                dataset: dataset.to_owned(),
+                licences: Vec::new(),
+                files: 0,
+                tracks: 0,
+                vehicles: 0,
+                periods_s: Vec::new(),
+                kinds: KINDS.iter().map(|k| (*k, 0)).collect(),
+                dropped: 0,
+                pet: Histogram::new(0.0, 6.0, 12).unwrap_or_else(unreachable_histogram),
+            });
+            rows.len() - 1
+        };
+        for s in &self.sources {
+            let i = row(&mut rows, &s.dataset);
+            let Some(r) = rows.get_mut(i) else { continue };
+            r.files += 1;
+            r.tracks += s.tracks;
+            r.vehicles += s.vehicles;
+            r.dropped += s.no_route + s.no_controls + s.not_interaction;
+            if !r.licences.contains(&s.licence) {
+                r.licences.push(s.licence.clone());
+            }
+            if !r.periods_s.iter().any(|p| (p - s.dt_s).abs() < 1e-9) {
+                r.periods_s.push(s.dt_s);
+            }
+        }
+        for e in &self.episodes {
+            let i = row(&mut rows, &e.dataset);
+            let Some(r) = rows.get_mut(i) else { continue };
+            if let Some(k) = r.kinds.iter_mut().find(|(k, _)| *k == e.mined.kind) {
+                k.1 += 1;
+            }
+            r.pet.add(e.pet_s());
+        }
+        RecordedStats {
+            tracks: rows.iter().map(|r| r.tracks).sum(),
+            vehicles: rows.iter().map(|r| r.vehicles).sum(),
+            episodes: self.episodes.len(),
+            datasets: rows,
+        }
+    }
+}
+
+/// `Histogram::new(0, 6, 12)` cannot fail; this keeps the code free of a panic path.
+fn unreachable_histogram() -> Histogram {
+    Histogram { lo: 0.0, hi: 6.0, counts: vec![0; 12], underflow: 0, overflow: 0, non_finite: 0 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lanes::{Adjacent, Lanelet};
+    use crate::tracks::TrackSample;
+
+    fn lanelet(id: &str, y: f64, adj: Option<(&str, bool)>) -> Lanelet {
+        let xs = [-50.0, 50.0, 150.0, 250.0];
+        let adjacent = adj.map(|(a, _)| Adjacent { id: a.into(), same_direction: true });
+        let (left_adj, right_adj) = match adj {
+            Some((_, true)) => (adjacent, None),
+            Some((_, false)) => (None, adjacent),
+            None => (None, None),
+        };
+        Lanelet {
+            id: id.into(),
+            left: xs.iter().map(|&x| Point2::new(x, y + 1.75)).collect(),
+            right: xs.iter().map(|&x| Point2::new(x, y - 1.75)).collect(),
+            left_marking: None,
+            right_marking: None,
+            predecessors: Vec::new(),
+            successors: Vec::new(),
+            adjacent_left: left_adj,
+            adjacent_right: right_adj,
+        }
+    }
+
+    /// A cut-in on a two-lane road: `cutter` from y = 3.5 to y = 0 ahead of `follower`.
+    fn cut_in() -> (Episode, LaneletNetwork) {
+        let track = |id: &str, f: &dyn Fn(f64) -> (f64, f64)| Track {
+            id: id.into(),
+            dt_s: 0.1,
+            kind: AgentKind::Car,
+            dims: None,
+            samples: (0..100)
+                .map(|k| {
+                    let t = 0.1 * k as f64;
+                    let (x, y) = f(t);
+                    TrackSample::at(t, x, y)
+                })
+                .collect(),
+        };
+        let follower = track("1", &|t| (10.0 * t, 0.0));
+        let cutter = track("2", &|t| {
+            let f = ((t - 2.0) / 4.0).clamp(0.0, 1.0);
+            let s = f * f * (3.0 - 2.0 * f);
+            (12.0 + 11.0 * t, 3.5 * (1.0 - s))
+        });
+        let lanes =
+            LaneletNetwork::new(vec![lanelet("a", 0.0, Some(("b", true))), lanelet("b", 3.5, Some(("a", false)))]);
+        (Episode::from_tracks("REC-1", vec![follower, cutter]), lanes)
+    }
+
+    fn options() -> ImportOptions {
+        ImportOptions {
+            dataset: "test".into(),
+            licence: "Apache-2.0 (made by this test)".into(),
+            mining: MiningOptions::default(),
+            inverse: InverseOptions::default(),
+            resample_s: None,
+        }
+    }
+
+    #[test]
+    fn a_cut_in_is_imported_with_routes_and_controls() {
+        let (e, lanes) = cut_in();
+        let (source, episodes) = import_scenario(&e, &lanes, "x.xml", "CommonRoad 2020a", &options());
+        assert_eq!((source.tracks, source.vehicles, source.kept), (2, 2, episodes.len()));
+        let ep = episodes.iter().find(|e| e.mined.kind == InteractionKind::CutIn).expect("a cut-in");
+        assert_eq!(ep.agents[0].id, "2", "the cutter is the actor");
+        assert!(ep.agents[0].route.iter().all(|p| p.y.abs() < 1e-9), "cutter's route is the target lane");
+        assert_eq!(ep.agents[0].controls.len() + 1, ep.agents[0].states.len());
+        assert_eq!(ep.licence, "Apache-2.0 (made by this test)");
+        assert_eq!(ep.agents[0].route_from, "lanes");
+        // Off the network: counted, not kept.
+        let far = LaneletNetwork::new(vec![lanelet("z", 100.0, None)]);
+        let (source, episodes) = import_scenario(&e, &far, "x.xml", "f", &options());
+        assert!(episodes.is_empty() && source.no_route == source.mined && source.mined > 0);
+        // No lanes at all (CSV): the driven paths, marked.
+        let (_, episodes) = import_scenario(&e, &LaneletNetwork::default(), "x.csv", "CSV", &options());
+        assert!(
+            !episodes.is_empty() && episodes.iter().all(|e| e.agents.iter().all(|a| a.route_from == "driven path"))
+        );
+    }
+
+    #[test]
+    fn the_corpus_reads_back_and_bad_files_are_named() {
+        let (e, lanes) = cut_in();
+        let (source, episodes) = import_scenario(&e, &lanes, "x.xml", "CommonRoad 2020a", &options());
+        let corpus = RecordedCorpus { sources: vec![source], episodes };
+        let text = to_jsonl(&corpus).unwrap();
+        assert_eq!(from_jsonl(&text).unwrap(), corpus);
+        assert_eq!(format_of(&text).as_deref(), Some(FORMAT));
+        let stats = corpus.stats();
+        assert_eq!((stats.tracks, stats.episodes), (2, corpus.episodes.len()));
+        let mut lines: Vec<&str> = text.lines().collect();
+        lines.pop();
+        assert!(matches!(from_jsonl(&lines.join("\n")), Err(RecordedIoError::Count { .. })));
+        let bad = text.replacen("\"dt_s\":0.1", "\"dt_s\":\"x\"", 2);
+        assert!(matches!(from_jsonl(&bad), Err(RecordedIoError::Json { line: 1 | 2, .. })));
+        assert!(matches!(from_jsonl("{\"format\":\"v2t-synthetic-corpus\"}"), Err(RecordedIoError::Format { .. })));
+        assert!(matches!(from_jsonl(""), Err(RecordedIoError::Empty)));
+    }
+}
