@@ -121,7 +121,8 @@ fn four_methods(a: ExperimentArgs) -> anyhow::Result<()> {
     };
     println!(
         "simulated proving ground; VUT driver models written by this project; the paper's two scenarios, \
-         semantics replayed from hand-written cassettes (no model's answer); seeds 1–{}",
+         semantics replayed from hand-written cassettes (no model's answer); Diffusion-only and Video2Track on the {}; seeds 1–{}",
+        v2t_lab::demo::prior_kind(Path::new(shipped::WEIGHTS), &model),
         a.repeats
     );
     print!("{}", methods::markdown(&summary, &labels));

@@ -11,6 +11,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod abstract_cmd;
+mod corpus;
 mod demo;
 mod experiment;
 mod export;
@@ -54,6 +55,12 @@ enum Command {
     /// held-out windows of the corpus and the recorded ones, without guidance, with anchors only
     /// and with full guidance.
     Realism(train::RealismCmd),
+    /// Recorded human driving for training and realism: import recordings (CommonRoad XML, CSV)
+    /// into a corpus, print a corpus's counts.
+    Corpus {
+        #[command(subcommand)]
+        command: corpus::CorpusCommand,
+    },
     /// Train the trajectory-prior denoiser (default: on the synthetic corpus generated on the
     /// proving ground); writes OUT/denoiser.safetensors, OUT/metrics.jsonl, OUT/checkpoints/.
     Train(train::TrainCmd),
@@ -99,6 +106,7 @@ fn execute(command: Command) -> anyhow::Result<()> {
         Command::Generate(a) => generate::run(a),
         Command::Realism(a) => train::realism(a),
         Command::Train(a) => train::train(a),
+        Command::Corpus { command } => corpus::run(command),
         Command::Ground(a) => ground::run(a),
         Command::Export { command } => export::run(command),
         Command::Map { command } => map::run(command),

@@ -6,9 +6,12 @@ use std::io::Write as _;
 use std::path::PathBuf;
 
 use v2t_diffusion::denoiser::DenoiserConfig;
-use v2t_diffusion::synth::{SyntheticCorpus, generate_corpus, read_jsonl_file};
+use v2t_diffusion::recorded::{self, RecordedCorpus};
+use v2t_diffusion::synth::{SyntheticCorpus, from_jsonl, generate_corpus};
 use v2t_diffusion::train::{Dataset, TrainMetrics, TrainOptions, Trainer};
 use v2t_diffusion::weights;
+
+use crate::Usage;
 
 /// Default corpus: episodes and seed of the synthetic corpus the shipped weights were trained on.
 pub const DEFAULT_EPISODES: usize = 1000;
@@ -47,6 +50,13 @@ pub struct TrainCmd {
     /// Output directory.
     #[arg(long, default_value = "target/train")]
     out: PathBuf,
+    /// Train on from these weights (their architecture and normalization; --hidden and --blocks
+    /// are then ignored) instead of a fresh network.
+    #[arg(long)]
+    init: Option<PathBuf>,
+    /// Draw each recorded training window this many times as often as a synthetic one (1–100).
+    #[arg(long, default_value_t = 1)]
+    recorded_repeat: usize,
 }
 
 /// `realism`'s arguments.
@@ -86,7 +96,12 @@ pub fn train(a: TrainCmd) -> anyhow::Result<()> {
         out: a.out,
         checkpoint_every: a.checkpoint_every,
         command,
+        init: a.init,
+        recorded_repeat: a.recorded_repeat,
     };
+    if !(1..=100).contains(&args.recorded_repeat) {
+        return Err(Usage(format!("--recorded-repeat {}: must lie in 1..=100", args.recorded_repeat)).into());
+    }
     let done = run_training(&args)?;
     println!(
         "trained {} parameters in {:.0} s, held-out loss {:.4}; wrote {} and {}",
@@ -113,17 +128,24 @@ pub fn realism(a: RealismCmd) -> anyhow::Result<()> {
 /// The corpus `train` learns from and `realism` compares with (also the command-line options).
 #[derive(Debug, Clone, clap::Args)]
 pub struct CorpusSource {
-    /// A corpus file (JSON lines, as the synthetic corpus writer makes it); default: generate the
-    /// synthetic corpus on --map (the one the shipped weights were trained on).
+    /// Corpus files (JSON lines, repeatable): synthetic (as the `synthetic_corpus` example writes
+    /// it: its episodes with index ≡ 0 mod 10 are held out) or recorded (`corpus import`: training
+    /// data for `train`; for `realism` the held-out reference, whole).
     #[arg(long)]
-    pub data: Option<PathBuf>,
-    /// The corpus's map (routes come from its topology library).
+    pub data: Vec<PathBuf>,
+    /// Recorded corpus files held out whole (repeatable): `train` measures its held-out loss on
+    /// them alone (every synthetic episode then trains); `realism` takes them as its floor (the
+    /// training side) when given with a recorded --data.
+    #[arg(long)]
+    pub heldout_data: Vec<PathBuf>,
+    /// The synthetic corpus's map (routes come from its topology library).
     #[arg(long, default_value = v2t_files::shipped::MAP)]
     pub map: PathBuf,
-    /// Episodes of the generated corpus.
-    #[arg(long, default_value_t = DEFAULT_EPISODES)]
-    pub episodes: usize,
-    /// Seed of the generated corpus.
+    /// Episodes of the synthetic corpus generated on --map (default: 1000 without --data, none
+    /// with it).
+    #[arg(long)]
+    pub episodes: Option<usize>,
+    /// Seed of the generated synthetic corpus.
     #[arg(long, default_value_t = DEFAULT_CORPUS_SEED)]
     pub corpus_seed: u64,
 }
@@ -145,6 +167,10 @@ struct TrainArgs {
     pub checkpoint_every: usize,
     /// The command line, recorded in the weights.
     pub command: String,
+    /// Weights to train on from (their architecture and normalization), instead of a fresh network.
+    pub init: Option<PathBuf>,
+    /// How many times each recorded training window is drawn relative to a synthetic one.
+    pub recorded_repeat: usize,
 }
 
 /// What training produced.
@@ -162,31 +188,106 @@ struct TrainOutcome {
     pub elapsed_s: f64,
 }
 
-fn load_corpus(args: &CorpusSource, map: &v2t_map::Map) -> anyhow::Result<(SyntheticCorpus, String)> {
-    match &args.data {
-        Some(path) => {
-            let corpus = read_jsonl_file(path)?;
-            let source = format!(
-                "{} ({} episodes, seed {}, map {})",
+/// Every corpus named by a [`CorpusSource`], read.
+struct Corpora {
+    synthetic: Vec<SyntheticCorpus>,
+    recorded: Vec<RecordedCorpus>,
+    heldout: Vec<RecordedCorpus>,
+    /// What they are, for the weights' training record.
+    source: String,
+}
+
+impl Corpora {
+    /// Whether any episode is recorded (not simulated).
+    fn has_recorded(&self) -> bool {
+        self.recorded.iter().chain(&self.heldout).any(|c| !c.episodes.is_empty())
+    }
+}
+
+fn read_recorded(path: &std::path::Path) -> anyhow::Result<RecordedCorpus> {
+    recorded::read_file(path).map_err(|e| Usage(format!("{}: {e}", path.display())).into())
+}
+
+fn load_corpora(args: &CorpusSource, map: &v2t_map::Map) -> anyhow::Result<Corpora> {
+    let mut out = Corpora { synthetic: Vec::new(), recorded: Vec::new(), heldout: Vec::new(), source: String::new() };
+    let mut parts = Vec::new();
+    for path in &args.data {
+        let text = std::fs::read_to_string(path).map_err(|e| Usage(format!("{}: {e}", path.display())))?;
+        if recorded::format_of(&text).as_deref() == Some(recorded::FORMAT) {
+            let c = recorded::from_jsonl(&text).map_err(|e| Usage(format!("{}: {e}", path.display())))?;
+            parts.push(format!("recorded {} ({} episodes: {})", path.display(), c.episodes.len(), datasets(&c)));
+            out.recorded.push(c);
+        } else {
+            let c = from_jsonl(&text).map_err(|e| Usage(format!("{}: {e}", path.display())))?;
+            parts.push(format!(
+                "synthetic {} ({} episodes, seed {}, map {})",
                 path.display(),
-                corpus.episodes.len(),
-                corpus.seed,
-                corpus.map
-            );
-            Ok((corpus, source))
-        }
-        None => {
-            eprintln!("generating the synthetic corpus: {} episodes, seed {} …", args.episodes, args.corpus_seed);
-            let corpus = generate_corpus(map, args.episodes, args.corpus_seed)?;
-            let source = format!(
-                "synthetic corpus generated on {} ({} episodes, corpus seed {})",
-                args.map.display(),
-                corpus.episodes.len(),
-                args.corpus_seed
-            );
-            Ok((corpus, source))
+                c.episodes.len(),
+                c.seed,
+                c.map
+            ));
+            out.synthetic.push(c);
         }
     }
+    for path in &args.heldout_data {
+        let c = read_recorded(path)?;
+        parts.push(format!("held out: recorded {} ({} episodes: {})", path.display(), c.episodes.len(), datasets(&c)));
+        out.heldout.push(c);
+    }
+    let episodes = args.episodes.unwrap_or(if args.data.is_empty() { DEFAULT_EPISODES } else { 0 });
+    if episodes > 0 {
+        eprintln!("generating the synthetic corpus: {episodes} episodes, seed {} …", args.corpus_seed);
+        let corpus = generate_corpus(map, episodes, args.corpus_seed)?;
+        parts.push(format!(
+            "synthetic corpus generated on {} ({} episodes, corpus seed {})",
+            args.map.display(),
+            corpus.episodes.len(),
+            args.corpus_seed
+        ));
+        out.synthetic.push(corpus);
+    }
+    if parts.is_empty() {
+        return Err(Usage("no data: give --data, --heldout-data or --episodes > 0".into()).into());
+    }
+    out.source = parts.join("; ");
+    Ok(out)
+}
+
+/// The datasets and licences of a recorded corpus, for the training record.
+fn datasets(c: &RecordedCorpus) -> String {
+    let mut seen: Vec<String> = Vec::new();
+    for s in &c.sources {
+        let d = format!("{} [{}]", s.dataset, s.licence);
+        if !seen.contains(&d) {
+            seen.push(d);
+        }
+    }
+    seen.join(", ")
+}
+
+/// The training episodes of every corpus; recorded episodes at another sampling period than the
+/// model's are left out (and counted on stderr).
+fn training_episodes<'a>(
+    corpora: &'a Corpora,
+    library: &v2t_map::library::TopologyLibrary,
+) -> Vec<v2t_diffusion::train::TrainingEpisode<'a>> {
+    use v2t_diffusion::train::{recorded_episodes, synthetic_episodes};
+    let mut out = Vec::new();
+    // With recorded held-out data, that is the held-out split and every synthetic episode trains.
+    let hold_out = corpora.heldout.iter().all(|c| c.episodes.is_empty());
+    for c in &corpora.synthetic {
+        out.extend(synthetic_episodes(&c.episodes, library, hold_out));
+    }
+    let mut skipped = 0;
+    for (c, heldout) in corpora.recorded.iter().map(|c| (c, false)).chain(corpora.heldout.iter().map(|c| (c, true))) {
+        let (e, n) = recorded_episodes(&c.episodes, heldout);
+        out.extend(e);
+        skipped += n;
+    }
+    if skipped > 0 {
+        eprintln!("{skipped} recorded episodes left out: sampled at another period than the model's 0.1 s");
+    }
+    out
 }
 
 fn progress(m: &TrainMetrics, total: usize) {
@@ -213,27 +314,57 @@ fn run_training(args: &TrainArgs) -> anyhow::Result<TrainOutcome> {
     let started = std::time::Instant::now();
     let map = v2t_map::Map::load(&args.corpus.map)?;
     let library = v2t_map::library::TopologyLibrary::build(&map);
-    let (corpus, source) = load_corpus(&args.corpus, &map)?;
-    let data = Dataset::build(&corpus.episodes, &library, args.config, args.stride)?;
+    let corpora = load_corpora(&args.corpus, &map)?;
+    let synthetic = !corpora.has_recorded();
+    let mut source = corpora.source.clone();
+    let (mut trainer, normalization) = match &args.init {
+        Some(path) => {
+            let bytes = std::fs::read(path).map_err(|e| Usage(format!("--init {}: {e}", path.display())))?;
+            let (t, n) = Trainer::from_weights(&bytes, args.options)
+                .map_err(|e| Usage(format!("--init {}: {e}", path.display())))?;
+            source = format!("{source}; trained on from {}", path.display());
+            (t, Some(n))
+        }
+        None => (Trainer::new(args.config, args.options)?, None),
+    };
+    let config = *trainer.denoiser().config();
+    let episodes = training_episodes(&corpora, &library);
+    let mut data = Dataset::build_from(&episodes, config, args.stride, normalization)?;
+    let recorded_train =
+        data.train.iter().filter(|w| episodes.get(w.episode).is_some_and(|e| !e.full_windows_only)).count();
+    if args.recorded_repeat > 1 {
+        let extra: Vec<_> = data
+            .train
+            .iter()
+            .filter(|w| episodes.get(w.episode).is_some_and(|e| !e.full_windows_only))
+            .cloned()
+            .collect();
+        for _ in 1..args.recorded_repeat {
+            data.train.extend(extra.iter().cloned());
+        }
+        source = format!("{source}; recorded training windows repeated {}×", args.recorded_repeat);
+    }
     eprintln!(
-        "{} training windows, {} held-out windows ({} held-out episodes)",
+        "{} training windows ({} recorded, ×{}), {} held-out windows ({} held-out episodes)",
         data.train.len(),
+        recorded_train,
+        args.recorded_repeat.max(1),
         data.heldout.len(),
         data.heldout_episodes.len()
     );
     std::fs::create_dir_all(args.out.join("checkpoints"))?;
     let metrics_path = args.out.join("metrics.jsonl");
     let mut metrics_file = std::fs::File::create(&metrics_path)?;
-    let mut trainer = Trainer::new(args.config, args.options)?;
     let parameters = trainer.parameters();
-    eprintln!("denoiser: {parameters} parameters, {:?}", args.config);
+    eprintln!("denoiser: {parameters} parameters, {config:?}");
     let mut io_error: Option<anyhow::Error> = None;
     let heldout = trainer.run(&data, |t, m| {
         progress(m, args.options.steps);
         let line = serde_json::to_string(m).map_err(anyhow::Error::from);
         let written = line.and_then(|l| writeln!(metrics_file, "{l}").map_err(anyhow::Error::from));
         let checkpoint = if args.checkpoint_every > 0 && m.step % args.checkpoint_every == 0 {
-            let meta = t.meta(&data, args.command.clone(), source.clone(), m.heldout_loss.unwrap_or(f64::NAN));
+            let meta =
+                t.meta(&data, args.command.clone(), source.clone(), synthetic, m.heldout_loss.unwrap_or(f64::NAN));
             let path = args.out.join("checkpoints").join(format!("step-{:06}.safetensors", m.step));
             weights::save(t.varmap(), &meta, &path).map_err(anyhow::Error::from)
         } else {
@@ -247,7 +378,7 @@ fn run_training(args: &TrainArgs) -> anyhow::Result<TrainOutcome> {
     if let Some(e) = io_error {
         return Err(e.context("writing metrics or a checkpoint"));
     }
-    let meta = trainer.meta(&data, args.command.clone(), source, heldout);
+    let meta = trainer.meta(&data, args.command.clone(), source, synthetic, heldout);
     let weights_path = args.out.join("denoiser.safetensors");
     weights::save(trainer.varmap(), &meta, &weights_path)?;
     Ok(TrainOutcome {
@@ -258,6 +389,9 @@ fn run_training(args: &TrainArgs) -> anyhow::Result<TrainOutcome> {
         elapsed_s: started.elapsed().as_secs_f64(),
     })
 }
+
+/// Recorded windows compared by `realism` start at least this many steps (2 s) apart.
+const RECORDED_WINDOW_SPACING_STEPS: usize = 20;
 
 /// What the realism measurement needs.
 #[derive(Debug, Clone)]
@@ -272,16 +406,36 @@ struct RealismArgs {
     pub seed: u64,
 }
 
-/// The realism table (W₁ against the held-out split of the corpus the weights were trained on)
-/// for no guidance, anchors only and full guidance.
+/// The realism table for no guidance, anchors only and full guidance: W₁ against the held-out
+/// split of a synthetic corpus, or against every window of the recorded --data corpora (then the
+/// floor row compares the recorded --heldout-data corpora's windows with them, when given).
 fn realism_rows(args: &RealismArgs) -> anyhow::Result<Vec<v2t_diffusion::realism::RealismRow>> {
     use v2t_diffusion::guidance::GuidanceWeights;
+    use v2t_diffusion::train::{TrainingEpisode, Window, episode_windows, recorded_episodes};
     let model = weights::load(&args.weights)?;
     let map = v2t_map::Map::load(&args.corpus.map)?;
     let library = v2t_map::library::TopologyLibrary::build(&map);
-    let (corpus, _) = load_corpus(&args.corpus, &map)?;
-    let data = Dataset::build(&corpus.episodes, &library, model.meta.config, 5)?;
+    let corpora = load_corpora(&args.corpus, &map)?;
+    let cfg = model.meta.config;
+    let norm = model.meta.normalization;
+    let windows_of = |episodes: &[TrainingEpisode<'_>]| -> Vec<Window> {
+        episodes.iter().enumerate().flat_map(|(i, e)| episode_windows(i, e, &cfg, &norm, 5)).collect()
+    };
+    let (heldout, floor, spacing) = if corpora.recorded.is_empty() {
+        let data = Dataset::build_from(&training_episodes(&corpora, &library), cfg, 5, Some(norm))?;
+        (data.heldout, Some(data.train), None)
+    } else {
+        let reference: Vec<_> = corpora.recorded.iter().flat_map(|c| recorded_episodes(&c.episodes, true).0).collect();
+        let floor: Vec<_> = corpora.heldout.iter().flat_map(|c| recorded_episodes(&c.episodes, false).0).collect();
+        let floor = (!floor.is_empty()).then(|| windows_of(&floor));
+        (windows_of(&reference), floor, Some(RECORDED_WINDOW_SPACING_STEPS))
+    };
+    if heldout.is_empty() {
+        return Err(Usage("no held-out window in the data (recorded episodes need 0.1 s sampling)".into()).into());
+    }
     let anchor_only = GuidanceWeights { anchor: 1.0, boundary: 0.0, clearance: 0.0, kinematic: 0.0 };
+    // Solid boundaries come from the synthetic corpus's map: recorded windows lie elsewhere.
+    let boundary_map = corpora.recorded.is_empty().then_some(&map);
     let modes = [
         ("no guidance", None),
         ("anchor only", Some(anchor_only)),
@@ -289,8 +443,10 @@ fn realism_rows(args: &RealismArgs) -> anyhow::Result<Vec<v2t_diffusion::realism
     ];
     let rows = v2t_diffusion::realism::realism(
         &model,
-        &data,
-        Some(&map),
+        &heldout,
+        floor.as_deref(),
+        spacing,
+        boundary_map,
         &modes,
         args.windows,
         args.seed,
@@ -302,19 +458,31 @@ fn realism_rows(args: &RealismArgs) -> anyhow::Result<Vec<v2t_diffusion::realism
 /// The realism rows as a markdown table.
 fn realism_table(rows: &[v2t_diffusion::realism::RealismRow]) -> String {
     let f = |v: Option<f64>, unit: &str| v.map_or("-".to_owned(), |x| format!("{x:.3} {unit}"));
+    let fi = |v: Option<f64>, i: Option<(f64, f64)>, unit: &str| match (v, i) {
+        (Some(x), Some((lo, hi))) => format!("{x:.3} ({lo:.3}–{hi:.3}) {unit}"),
+        _ => f(v, unit),
+    };
+    let g = |v: Option<f64>| v.map_or("-".to_owned(), |x| format!("{x:.3}"));
     let mut out = String::from(
-        "| vs held-out | windows | W1 acceleration | W1 jerk | W1 yaw rate | median anchor error |\n|---|---|---|---|---|---|\n",
+        "| vs held-out | windows | W1 acceleration | W1 jerk | W1 yaw rate | median anchor error | RMS a / jerk / yaw rate |\n|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         out.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} / {} / {} |\n",
             r.name,
             r.windows,
-            f(r.distances.accel_mps2, "m/s²"),
-            f(r.distances.jerk_mps3, "m/s³"),
-            f(r.distances.yaw_rate_radps, "rad/s"),
-            f(r.median_anchor_error_m, "m")
+            fi(r.distances.accel_mps2, r.interval.and_then(|i| i.accel_mps2), "m/s²"),
+            fi(r.distances.jerk_mps3, r.interval.and_then(|i| i.jerk_mps3), "m/s³"),
+            fi(r.distances.yaw_rate_radps, r.interval.and_then(|i| i.yaw_rate_radps), "rad/s"),
+            f(r.median_anchor_error_m, "m"),
+            g(r.rms.accel_mps2),
+            g(r.rms.jerk_mps3),
+            g(r.rms.yaw_rate_radps)
         ));
     }
+    out.push_str(&format!(
+        "\nIn brackets: 5–95 % of W1 over {} bootstrap draws of the held-out windows.\n",
+        v2t_diffusion::realism::BOOTSTRAP_DRAWS
+    ));
     out
 }

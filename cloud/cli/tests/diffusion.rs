@@ -149,3 +149,106 @@ fn a_small_training_run_writes_weights_that_generate_and_realism_read() {
         assert!(table.contains(row), "{table}");
     }
 }
+
+fn recordings(split: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/diffusion/recordings/ngsim").join(split)
+}
+
+#[test]
+fn recorded_corpus_imports_counts_trains_and_measures_realism() {
+    let dir_scratch = tempdir("corpus");
+    let dir = dir_scratch.path();
+    let licence = "NGSIM: US DOT public data; CommonRoad conversion BSD-3-Clause / MIT";
+    let (train, heldout) = (dir.join("train.jsonl"), dir.join("heldout.jsonl"));
+    let text = ok(&[
+        "corpus",
+        "import",
+        s(&recordings("train")),
+        "--dataset",
+        "NGSIM train",
+        "--licence",
+        licence,
+        "-o",
+        s(&train),
+    ]);
+    assert!(text.contains("imported 7 files: 198 tracks"), "{text}");
+    ok(&[
+        "corpus",
+        "import",
+        s(&recordings("heldout")),
+        "--dataset",
+        "NGSIM held out",
+        "--licence",
+        licence,
+        "-o",
+        s(&heldout),
+    ]);
+    let stats = ok(&["corpus", "stats", s(&train), s(&heldout), "--json", s(&dir.join("stats.json"))]);
+    assert!(
+        stats.contains("| NGSIM train | NGSIM: US DOT public data") && stats.contains("total: 250 tracks"),
+        "{stats}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("stats.json")).unwrap()).unwrap();
+    assert_eq!(json["tracks"], 250);
+    // A few steps on the recordings from the shipped weights, held out by recording.
+    let out = dir.join("run");
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/diffusion/denoiser.safetensors");
+    let text = ok(&[
+        "train",
+        "--data",
+        s(&train),
+        "--heldout-data",
+        s(&heldout),
+        "--init",
+        s(&shipped),
+        "--steps",
+        "2",
+        "--batch",
+        "4",
+        "--eval-every",
+        "2",
+        "--checkpoint-every",
+        "0",
+        "--out",
+        s(&out),
+    ]);
+    assert!(text.contains("held-out loss"), "{text}");
+    let weights = out.join("denoiser.safetensors");
+    let meta = v2t_diffusion::weights::load(&weights).unwrap().meta;
+    assert!(!meta.training.synthetic && meta.training.data.contains("NGSIM held out"), "{:?}", meta.training);
+    let table = ok(&[
+        "realism",
+        "--weights",
+        s(&weights),
+        "--data",
+        s(&heldout),
+        "--heldout-data",
+        s(&train),
+        "--windows",
+        "3",
+    ]);
+    for row in ["training data (floor)", "no guidance", "anchor only", "full"] {
+        assert!(table.contains(row), "{table}");
+    }
+}
+
+#[test]
+fn a_bad_recording_is_named_and_nothing_is_written() {
+    let dir_scratch = tempdir("corpus-bad");
+    let dir = dir_scratch.path();
+    let good = recordings("heldout").join("USA_Peach-4_8_T-1.xml");
+    let text = std::fs::read_to_string(&good).unwrap();
+    let bad = dir.join("bad.xml");
+    std::fs::write(&bad, text.replacen("<exact>0</exact>", "<exact>zero</exact>", 1)).unwrap();
+    let out = dir.join("out.jsonl");
+    let o = video2track(&["corpus", "import", s(&good), s(&bad), "--dataset", "d", "--licence", "l", "-o", s(&out)]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("bad.xml: line ") && err.contains("`zero`"), "{err}");
+    assert!(!out.exists(), "nothing half-written");
+    let err = fails(&["corpus", "import", s(&good), "--dataset", "d", "--licence", " ", "-o", s(&out)]);
+    assert!(err.contains("--licence"), "{err}");
+    let err = fails(&["corpus", "stats", s(&good)]);
+    assert!(err.contains("USA_Peach-4_8_T-1.xml") && err.contains("line 1"), "{err}");
+}

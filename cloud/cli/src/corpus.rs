@@ -1,0 +1,251 @@
+//! `video2track corpus import|stats`: recordings of human driving (CommonRoad XML of both published
+//! formats, INTERACTION/highD-style CSV) → the recorded corpus that `train` and `realism` read, with
+//! every episode's source file and licence tag; and the counts of a corpus.
+
+use std::path::{Path, PathBuf};
+
+use v2t_diffusion::import::{commonroad, csv};
+use v2t_diffusion::lanes::LaneletNetwork;
+use v2t_diffusion::mining::MiningOptions;
+use v2t_diffusion::recorded::{self, ImportOptions, RecordedCorpus, RecordedStats};
+
+use crate::Usage;
+
+/// `corpus` subcommands.
+#[derive(Debug, clap::Subcommand)]
+pub enum CorpusCommand {
+    /// Import recordings (files or directories of `.xml`/`.csv`): mine their interactions, turn
+    /// the vehicles' tracks into controls and routes, write the corpus as JSON lines. Nothing is
+    /// written unless every file imports.
+    Import(ImportArgs),
+    /// Counts of recorded corpora: tracks per dataset, episodes per interaction kind, PET histogram.
+    Stats(StatsArgs),
+}
+
+/// `corpus import`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct ImportArgs {
+    /// Recording files (CommonRoad `.xml`, or `.csv` as `import::csv` reads them) or directories
+    /// searched for them (sorted by name).
+    #[arg(required = true)]
+    inputs: Vec<PathBuf>,
+    /// What the recordings are (e.g. "NGSIM US-101"): one name for all inputs.
+    #[arg(long)]
+    dataset: String,
+    /// The data's licence tag, kept with every episode (e.g. "NGSIM: US DOT public data;
+    /// CommonRoad conversion BSD-3-Clause").
+    #[arg(long)]
+    licence: String,
+    /// Position noise of the recordings for the smoother, m.
+    #[arg(long, default_value_t = 0.1)]
+    position_noise: f64,
+    /// Frame rate of CSV files without a `timestamp_ms` column, Hz (INTERACTION 10, highD 25).
+    #[arg(long, default_value_t = 10.0)]
+    csv_frame_rate: f64,
+    /// Resample tracks to this period before inverse kinematics, s (e.g. 0.1 for 0.2 s
+    /// recordings such as MONA or inD: the model works at 0.1 s; Catmull–Rom between samples).
+    #[arg(long)]
+    resample: Option<f64>,
+    /// Output corpus (JSON lines).
+    #[arg(long, short)]
+    out: PathBuf,
+}
+
+/// `corpus stats`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct StatsArgs {
+    /// Recorded corpus files.
+    #[arg(required = true)]
+    corpora: Vec<PathBuf>,
+    /// Write the counts as JSON here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+/// Runs a `corpus` subcommand.
+pub fn run(command: CorpusCommand) -> anyhow::Result<()> {
+    match command {
+        CorpusCommand::Import(a) => import(a),
+        CorpusCommand::Stats(a) => stats(a),
+    }
+}
+
+/// The recording files under `inputs`, in the order given (directories sorted by name).
+fn recording_files(inputs: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for input in inputs {
+        if input.is_dir() {
+            let mut found = Vec::new();
+            let mut stack = vec![input.clone()];
+            while let Some(dir) = stack.pop() {
+                let entries = std::fs::read_dir(&dir).map_err(|e| Usage(format!("{}: {e}", dir.display())))?;
+                for entry in entries {
+                    let path = entry.map_err(|e| Usage(format!("{}: {e}", dir.display())))?.path();
+                    if path.is_dir() {
+                        stack.push(path);
+                    } else if matches!(path.extension().and_then(|e| e.to_str()), Some("xml" | "csv")) {
+                        found.push(path);
+                    }
+                }
+            }
+            found.sort();
+            if found.is_empty() {
+                return Err(Usage(format!("{}: no .xml or .csv file in it", input.display())).into());
+            }
+            out.extend(found);
+        } else if input.is_file() {
+            out.push(input.clone());
+        } else {
+            return Err(Usage(format!("{}: no such file or directory", input.display())).into());
+        }
+    }
+    Ok(out)
+}
+
+fn import(a: ImportArgs) -> anyhow::Result<()> {
+    if !(a.position_noise.is_finite() && (0.0..=2.0).contains(&a.position_noise)) {
+        return Err(Usage(format!("--position-noise {}: must lie in [0, 2] m", a.position_noise)).into());
+    }
+    if !(a.csv_frame_rate.is_finite() && (1.0..=100.0).contains(&a.csv_frame_rate)) {
+        return Err(Usage(format!("--csv-frame-rate {}: must lie in [1, 100] Hz", a.csv_frame_rate)).into());
+    }
+    if let Some(dt) = a.resample
+        && !(dt.is_finite() && (0.01..=1.0).contains(&dt))
+    {
+        return Err(Usage(format!("--resample {dt}: must lie in [0.01, 1] s")).into());
+    }
+    for (field, value) in [("--dataset", &a.dataset), ("--licence", &a.licence)] {
+        if value.trim().is_empty() {
+            return Err(Usage(format!("{field} is empty: say what the data is and under which licence")).into());
+        }
+    }
+    let options = ImportOptions {
+        dataset: a.dataset.clone(),
+        licence: a.licence.clone(),
+        mining: MiningOptions { position_noise_m: a.position_noise, ..MiningOptions::default() },
+        inverse: v2t_diffusion::inverse::InverseOptions { position_noise_m: a.position_noise, ..Default::default() },
+        resample_s: a.resample,
+    };
+    let files = recording_files(&a.inputs)?;
+    let mut corpus = RecordedCorpus::default();
+    for file in &files {
+        let (episode, lanes, format) = read_recording(file, a.csv_frame_rate)?;
+        let (source, episodes) =
+            recorded::import_scenario(&episode, &lanes, &file.display().to_string(), &format, &options);
+        eprintln!(
+            "{}: {} tracks, {} interactions mined, {} kept ({} without a lane, {} without controls, {} not an interaction on the lanes)",
+            file.display(),
+            source.tracks,
+            source.mined,
+            source.kept,
+            source.no_route,
+            source.no_controls,
+            source.not_interaction
+        );
+        corpus.sources.push(source);
+        corpus.episodes.extend(episodes);
+    }
+    recorded::write_file(&corpus, &a.out)?;
+    let s = corpus.stats();
+    println!(
+        "imported {} files: {} tracks ({} vehicles), {} interaction episodes; wrote {}",
+        files.len(),
+        s.tracks,
+        s.vehicles,
+        s.episodes,
+        a.out.display()
+    );
+    Ok(())
+}
+
+/// A recording's tracks, lane network (empty for CSV: its vehicles' routes are then their driven
+/// paths) and format name.
+fn read_recording(
+    file: &Path,
+    csv_frame_rate_hz: f64,
+) -> anyhow::Result<(v2t_diffusion::tracks::Episode, LaneletNetwork, String)> {
+    match file.extension().and_then(|e| e.to_str()) {
+        Some("xml") => {
+            let s = commonroad::parse_scenario_file(file).map_err(|e| Usage(format!("{}: {e}", file.display())))?;
+            let version = if s.version.is_empty() { "unversioned".to_owned() } else { s.version.clone() };
+            if s.lanes.is_empty() {
+                return Err(Usage(format!(
+                    "{}: no lanelet: the routes of its vehicles cannot be found (CommonRoad files carry their lanes)",
+                    file.display()
+                ))
+                .into());
+            }
+            Ok((s.episode, s.lanes, format!("CommonRoad {version}")))
+        }
+        Some("csv") => {
+            let text = std::fs::read_to_string(file).map_err(|e| Usage(format!("{}: {e}", file.display())))?;
+            let stem = file.file_stem().map_or_else(|| "csv".to_owned(), |s| s.to_string_lossy().into_owned());
+            let options = csv::CsvOptions { frame_rate_hz: Some(csv_frame_rate_hz) };
+            let parsed = csv::parse(&text, &stem, &options).map_err(|e| Usage(format!("{}: {e}", file.display())))?;
+            Ok((parsed.episode, LaneletNetwork::default(), "CSV".to_owned()))
+        }
+        _ => Err(Usage(format!("{}: not a .xml (CommonRoad) or .csv recording", file.display())).into()),
+    }
+}
+
+fn stats(a: StatsArgs) -> anyhow::Result<()> {
+    let mut all = RecordedCorpus::default();
+    for path in &a.corpora {
+        let c = recorded::read_file(path).map_err(|e| Usage(format!("{}: {e}", path.display())))?;
+        all.sources.extend(c.sources);
+        all.episodes.extend(c.episodes);
+    }
+    let s = all.stats();
+    print!("{}", stats_table(&s));
+    if let Some(path) = a.json {
+        crate::write_json(&path, &s)?;
+    }
+    Ok(())
+}
+
+/// The counts as markdown.
+fn stats_table(s: &RecordedStats) -> String {
+    let mut out = String::from(
+        "| dataset | licence | files | tracks | vehicles | period | cut-in | lane change | left turn | crossing | merge | dropped |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for d in &s.datasets {
+        let periods: Vec<String> = d.periods_s.iter().map(|p| format!("{p} s")).collect();
+        let kinds: Vec<String> = d.kinds.iter().map(|(_, n)| n.to_string()).collect();
+        out.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            d.dataset,
+            d.licences.join("; "),
+            d.files,
+            d.tracks,
+            d.vehicles,
+            periods.join(", "),
+            kinds.join(" | "),
+            d.dropped
+        ));
+    }
+    out.push_str(&format!(
+        "\ntotal: {} tracks ({} vehicles), {} interaction episodes\n\nPET of the episodes (s):\n\n| dataset |",
+        s.tracks, s.vehicles, s.episodes
+    ));
+    let Some(first) = s.datasets.first() else { return out };
+    let bins = first.pet.counts.len();
+    let width = (first.pet.hi - first.pet.lo) / bins.max(1) as f64;
+    for k in 0..bins {
+        out.push_str(&format!(
+            " {:.1}–{:.1} |",
+            first.pet.lo + width * k as f64,
+            first.pet.lo + width * (k + 1) as f64
+        ));
+    }
+    out.push_str(" < 0 | ≥ 6 |\n|---|");
+    out.push_str(&"---|".repeat(bins + 2));
+    out.push('\n');
+    for d in &s.datasets {
+        out.push_str(&format!("| {} |", d.dataset));
+        for c in &d.pet.counts {
+            out.push_str(&format!(" {c} |"));
+        }
+        out.push_str(&format!(" {} | {} |\n", d.pet.underflow, d.pet.overflow));
+    }
+    out
+}
