@@ -83,27 +83,63 @@ fn every_configuration_file_loads_and_validates() {
             }
             "maps" if rel.ends_with("README.md") => {}
             // The shipped denoiser weights: they load (format, version, architecture, every tensor's
-            // shape, no NaN), were trained on the synthetic corpus, their metrics file ends with the
-            // held-out loss the weights record, and the README names the command that made them.
+            // shape, no NaN), say truthfully whether they saw recorded driving (the default weights
+            // learnt from the shipped NGSIM recordings, the `_synthetic` ones from simulation only),
+            // their metrics file ends with the held-out loss the weights record, and the README names
+            // the command that made them.
             "diffusion" if rel.ends_with(".safetensors") => {
                 let model = v2t_diffusion::weights::load(path).unwrap_or_else(|e| panic!("{e}"));
-                assert!(model.meta.training.synthetic, "{rel}: training data not marked synthetic");
-            }
-            "diffusion" if rel.ends_with("metrics.jsonl") => {
-                let text = std::fs::read_to_string(path).unwrap();
+                let synthetic_only = rel.ends_with("_synthetic.safetensors");
+                assert_eq!(model.meta.training.synthetic, synthetic_only, "{rel}: synthetic flag");
+                if !synthetic_only {
+                    assert!(model.meta.training.data.contains("NGSIM"), "{rel}: {}", model.meta.training.data);
+                }
+                let metrics = path.with_file_name(
+                    rel.trim_start_matches("diffusion/")
+                        .replace("denoiser", "metrics")
+                        .replace(".safetensors", ".jsonl"),
+                );
+                let text =
+                    std::fs::read_to_string(&metrics).unwrap_or_else(|e| panic!("{rel}: {}: {e}", metrics.display()));
                 let lines: Vec<v2t_diffusion::train::TrainMetrics> =
                     text.lines().map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{rel}: {e}"))).collect();
-                let weights = v2t_diffusion::weights::load(&path.with_file_name("denoiser.safetensors")).unwrap();
                 let last = lines.last().and_then(|m| m.heldout_loss).unwrap();
-                assert_eq!(last, weights.meta.training.heldout_loss, "{rel}: not the run of the weights");
-                assert_eq!(lines.last().unwrap().step, weights.meta.training.steps);
+                assert_eq!(last, model.meta.training.heldout_loss, "{rel}: not the run of its metrics");
+                assert_eq!(lines.last().unwrap().step, model.meta.training.steps);
+                let readme = std::fs::read_to_string(path.with_file_name("README.md")).unwrap();
+                let args = model.meta.training.command.split_once(" train ").map(|(_, a)| a.to_owned()).unwrap();
+                assert!(
+                    readme.contains(&format!("video2track train {args}")),
+                    "README does not name {rel}'s command: {args}"
+                );
             }
-            "diffusion" if rel.ends_with("README.md") => {
+            "diffusion" if rel.ends_with(".jsonl") => {
+                let weights = path.with_file_name(
+                    rel.trim_start_matches("diffusion/")
+                        .replace("metrics", "denoiser")
+                        .replace(".jsonl", ".safetensors"),
+                );
+                assert!(weights.exists(), "{rel}: no weights {}", weights.display());
+            }
+            "diffusion" if rel.ends_with("README.md") => {}
+            // The recordings: each reads (either CommonRoad format) with lanes and NGSIM tracks, the
+            // data card lists it, and every licence text the card points to is there.
+            "diffusion" if rel.starts_with("diffusion/recordings/ngsim/") => {
+                let s = v2t_diffusion::import::commonroad::parse_scenario_file(path)
+                    .unwrap_or_else(|e| panic!("{rel}: {e}"));
+                assert!(s.source.contains("NGSIM") && !s.lanes.is_empty() && !s.episode.tracks.is_empty(), "{rel}");
+                let card = std::fs::read_to_string(config.join("diffusion/DATA.md")).unwrap();
+                let name = rel.trim_start_matches("diffusion/recordings/ngsim/");
+                assert!(card.contains(&format!("`{name}`")), "DATA.md does not list {name}");
+            }
+            "diffusion" if rel.starts_with("diffusion/recordings/licences/") => {
                 let text = std::fs::read_to_string(path).unwrap();
-                let weights = v2t_diffusion::weights::load(&path.with_file_name("denoiser.safetensors")).unwrap();
-                let args = weights.meta.training.command.split_once(" train ").map(|(_, a)| a.to_owned()).unwrap();
-                assert!(text.contains(&format!("video2track train {args}")), "{rel} does not name the command: {args}");
+                assert!(
+                    text.contains("Copyright") && text.contains("Permission") || text.contains("Redistribution"),
+                    "{rel}"
+                );
             }
+            "diffusion" if rel.ends_with("DATA.md") => {}
             "diffusion" if rel.ends_with(".gitignore") => {
                 assert!(std::fs::read_to_string(path).unwrap().contains("checkpoints/"));
             }

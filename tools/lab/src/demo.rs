@@ -57,9 +57,16 @@ pub const SCENARIOS: [DemoScenario; 2] = [
     },
 ];
 
-/// What the prior is, in every output.
-pub const PRIOR_KIND: &str =
-    "guided diffusion prior (shipped weights, trained on the synthetic corpus; best of 8 variants)";
+/// What the prior is, in every output: the weights file and what its training data were (its
+/// metadata), so that a figure says whether recorded driving went into it.
+pub fn prior_kind(weights: &Path, model: &v2t_diffusion::weights::Model) -> String {
+    let data = if model.meta.training.synthetic {
+        "trained on the synthetic corpus only"
+    } else {
+        "trained on recorded human driving and the synthetic corpus"
+    };
+    format!("guided diffusion prior ({}, {data}; best of {VARIANTS} variants)", weights.display())
+}
 
 /// Variants generated per scenario.
 pub const VARIANTS: usize = 8;
@@ -145,6 +152,8 @@ pub struct ScenarioSummary {
 /// The whole demo.
 #[derive(Debug, Clone, Serialize)]
 pub struct Summary {
+    /// What the priors are ([`prior_kind`]).
+    pub prior: String,
     /// Per scenario.
     pub scenarios: Vec<ScenarioSummary>,
     /// Wall time, s.
@@ -183,7 +192,7 @@ pub fn run(opts: &DemoOptions) -> Result<Summary, DemoError> {
         scenarios.push(summary);
         runs.push((run, grounded));
     }
-    let summary = Summary { scenarios, wall_s: t0.elapsed().as_secs_f64() };
+    let summary = Summary { prior: prior_kind(&opts.weights, &model), scenarios, wall_s: t0.elapsed().as_secs_f64() };
     write(&opts.out.join("summary.json"), &pretty(&summary))?;
     write(&opts.out.join("report.html"), &report::html(&summary, &runs))?;
     Ok(summary)
@@ -286,7 +295,7 @@ fn run_one(
         interaction: interaction.into(),
         style: format!("{:?}", grounded.style).to_lowercase(),
         fragment: grounded.fragment_id.clone(),
-        prior: PRIOR_KIND.into(),
+        prior: prior_kind(&opts.weights, model),
         pet_min_track_s: pet,
         fidelity_error_rel: fidelity,
         order_ok: at(r, "/conflicts/0/order_matches_style").as_bool(),

@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 
 use serde_json::Value;
 
-use super::{PRIOR_KIND, Summary, at};
+use super::{Summary, at};
 
 pub(super) fn html(summary: &Summary, runs: &[(Value, v2t_model::grounded::GroundedScenario)]) -> String {
     let mut h = String::from(
@@ -21,7 +21,7 @@ pub(super) fn html(summary: &Summary, runs: &[(Value, v2t_model::grounded::Groun
          each run closes the loop through the BV's onboard processes (iceoryx2) and the simulated proving ground. \
          Wall time {:.1} s.</p><table><tr><th>scenario</th><th>style</th><th>PET video (s)</th><th>PET<sup>min</sup> track (s)</th>\
          <th>fidelity error</th><th>order</th><th>collision</th><th>min distance (m)</th></tr>",
-        esc(PRIOR_KIND),
+        esc(&summary.prior),
         summary.wall_s
     );
     for s in &summary.scenarios {
