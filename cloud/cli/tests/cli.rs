@@ -140,6 +140,7 @@ fn help_lists_only_real_commands() {
             "abstract",
             "generate",
             "realism",
+            "corpus",
             "train",
             "ground",
             "export",

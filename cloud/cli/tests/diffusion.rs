@@ -234,6 +234,36 @@ fn recorded_corpus_imports_counts_trains_and_measures_realism() {
 }
 
 #[test]
+fn a_csv_recording_imports_with_its_driven_paths_as_routes() {
+    let dir_scratch = tempdir("corpus-csv");
+    let dir = dir_scratch.path();
+    // INTERACTION-style: a follower at 10 m/s, a faster car cutting into its lane ahead of it.
+    let mut csv = String::from("track_id,frame_id,timestamp_ms,x,y\n");
+    for k in 0..100 {
+        let t = 0.1 * f64::from(k);
+        let f = ((t - 2.0) / 4.0).clamp(0.0, 1.0);
+        let y = 3.5 * (1.0 - f * f * (3.0 - 2.0 * f));
+        csv.push_str(&format!(
+            "1,{k},{},{:.3},0\n2,{k},{},{:.3},{y:.3}\n",
+            100 * k,
+            10.0 * t,
+            100 * k,
+            12.0 + 11.0 * t
+        ));
+    }
+    let file = dir.join("cut_in.csv");
+    std::fs::write(&file, csv).unwrap();
+    let out = dir.join("csv.jsonl");
+    let text = ok(&["corpus", "import", s(&file), "--dataset", "made here", "--licence", "Apache-2.0", "-o", s(&out)]);
+    assert!(text.contains("imported 1 files: 2 tracks"), "{text}");
+    let corpus = v2t_diffusion::recorded::read_file(&out).unwrap();
+    let cut_in =
+        corpus.episodes.iter().find(|e| e.mined.kind == v2t_diffusion::mining::InteractionKind::CutIn).unwrap();
+    assert_eq!(cut_in.mined.actor, "2");
+    assert!(cut_in.file.ends_with("cut_in.csv") && cut_in.agents.iter().all(|a| a.route_from == "driven path"));
+}
+
+#[test]
 fn a_bad_recording_is_named_and_nothing_is_written() {
     let dir_scratch = tempdir("corpus-bad");
     let dir = dir_scratch.path();

@@ -140,7 +140,7 @@ impl LaneletNetwork {
         self.lanelets.get(i)
     }
 
-    /// The lanelet containing `p` that runs within [`HEADING_TOLERANCE_RAD`] of `heading_rad`
+    /// The lanelet containing `p` that runs within 1 rad of `heading_rad`
     /// (the one whose direction is closest when several do).
     pub fn locate(&self, p: Point2, heading_rad: f64) -> Option<usize> {
         self.lanelets

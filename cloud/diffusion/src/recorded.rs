@@ -101,6 +101,8 @@ pub struct RecordedEpisode {
     pub id: String,
     /// Recording id (the held-out split is by recording).
     pub recording: String,
+    /// The file it was imported from, as given to the importer.
+    pub file: String,
     /// Dataset.
     pub dataset: String,
     /// Licence tag of the data.
@@ -311,6 +313,7 @@ pub fn import_scenario(
                 out.push(RecordedEpisode {
                     id: format!("{}/{}-{}@{:.1}", episode.id, it.actor, it.other, it.conflict_time_s),
                     recording: episode.id.clone(),
+                    file: file.to_owned(),
                     dataset: options.dataset.clone(),
                     licence: options.licence.clone(),
                     dt_s: options.resample_s.filter(|dt| *dt < episode.dt_s - 1e-9).unwrap_or(episode.dt_s),
@@ -628,6 +631,7 @@ mod tests {
         assert!(ep.agents[0].route.iter().all(|p| p.y.abs() < 1e-9), "cutter's route is the target lane");
         assert_eq!(ep.agents[0].controls.len() + 1, ep.agents[0].states.len());
         assert_eq!(ep.licence, "Apache-2.0 (made by this test)");
+        assert_eq!(ep.file, "x.xml");
         assert_eq!(ep.agents[0].route_from, "lanes");
         // Off the network: counted, not kept.
         let far = LaneletNetwork::new(vec![lanelet("z", 100.0, None)]);
