@@ -182,6 +182,20 @@ fn read_recording(
             let stem = file.file_stem().map_or_else(|| "csv".to_owned(), |s| s.to_string_lossy().into_owned());
             let options = csv::CsvOptions { frame_rate_hz: Some(csv_frame_rate_hz) };
             let parsed = csv::parse(&text, &stem, &options).map_err(|e| Usage(format!("{}: {e}", file.display())))?;
+            let bound = commonroad::MAX_COORDINATE_M;
+            for t in &parsed.episode.tracks {
+                if let Some(s) = t.samples.iter().find(|s| s.x_m.abs() > bound || s.y_m.abs() > bound) {
+                    return Err(Usage(format!(
+                        "{}: track {} at {} s: position ({:e}, {:e}) outside ±{bound:e} m",
+                        file.display(),
+                        t.id,
+                        s.t_s,
+                        s.x_m,
+                        s.y_m
+                    ))
+                    .into());
+                }
+            }
             Ok((parsed.episode, LaneletNetwork::default(), "CSV".to_owned()))
         }
         _ => Err(Usage(format!("{}: not a .xml (CommonRoad) or .csv recording", file.display())).into()),

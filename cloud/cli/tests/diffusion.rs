@@ -279,6 +279,12 @@ fn a_bad_recording_is_named_and_nothing_is_written() {
     assert!(!out.exists(), "nothing half-written");
     let err = fails(&["corpus", "import", s(&good), "--dataset", "d", "--licence", " ", "-o", s(&out)]);
     assert!(err.contains("--licence"), "{err}");
+    let far = dir.join("far.csv");
+    std::fs::write(&far, "track_id,frame_id,timestamp_ms,x,y\n1,0,0,0,0\n1,1,100,1e12,0\n1,2,200,2e12,0\n").unwrap();
+    let o = video2track(&["corpus", "import", s(&far), "--dataset", "d", "--licence", "l", "-o", s(&out)]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("far.csv: track 1 at 0.1 s") && err.contains("outside ±1e6 m"), "{err}");
     let err = fails(&["corpus", "stats", s(&good)]);
     assert!(err.contains("USA_Peach-4_8_T-1.xml") && err.contains("line 1"), "{err}");
 }

@@ -121,9 +121,14 @@ impl Track {
     /// by uniform Catmull–Rom interpolation between the recorded samples (C¹, through every
     /// sample), velocity and heading dropped (inverse kinematics derives them). Meant for a track
     /// without gaps whose period is a multiple of `dt_s` (e.g. 0.2 s → 0.1 s); `None` when `dt_s`
-    /// is not a positive number below the track's period or the track has fewer than two samples.
+    /// is not a positive number below the track's period, more than 20 times finer than it, or the
+    /// track has fewer than two samples.
     pub fn resampled(&self, dt_s: f64) -> Option<Track> {
-        if !(dt_s.is_finite() && dt_s > 0.0 && dt_s < self.dt_s) || self.samples.len() < 2 {
+        if !(dt_s.is_finite() && dt_s > 0.0 && dt_s < self.dt_s && self.dt_s / dt_s <= 20.0) || self.samples.len() < 2 {
+            return None;
+        }
+        // A gap-free track holds at most 1.5 periods between samples: its span bounds the output.
+        if !self.gaps().is_empty() {
             return None;
         }
         let (t0, t1) = self.span_s()?;
@@ -249,7 +254,10 @@ mod tests {
             assert!((s.t_s - 0.1 * j as f64).abs() < 1e-9);
             assert!((s.x_m - 0.5 * j as f64).abs() < 1e-9, "uniform motion stays uniform: {} at {j}", s.x_m);
         }
-        assert!(t.resampled(0.2).is_none() && t.resampled(f64::NAN).is_none());
+        assert!(t.resampled(0.2).is_none() && t.resampled(f64::NAN).is_none() && t.resampled(0.001).is_none());
+        let mut holed = t.clone();
+        holed.samples.remove(3);
+        assert!(holed.resampled(0.1).is_none(), "a track with a hole is cut at it first");
     }
 
     #[test]

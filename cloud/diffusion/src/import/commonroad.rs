@@ -30,7 +30,7 @@ pub enum CommonRoadError {
     #[error("root element is `{0}`, expected `commonRoad`")]
     NotCommonRoad(String),
     /// `timeStepSize` missing or not a positive finite number.
-    #[error("line {line}: timeStepSize `{value}` is not a positive number")]
+    #[error("line {line}: timeStepSize `{value}` is not a number in (0, {MAX_TIME_STEP_SIZE_S}] s")]
     TimeStepSize {
         /// Line of the root element.
         line: u32,
@@ -58,6 +58,21 @@ pub enum CommonRoadError {
         element: String,
         /// Its text.
         value: String,
+    },
+    /// A number outside what a recording can hold (a coordinate beyond [`MAX_COORDINATE_M`], a
+    /// time step beyond [`MAX_TIME_STEP`], a step size beyond (0, [`MAX_TIME_STEP_SIZE_S`]]).
+    #[error("line {line}: `{element}` is {value:e}, outside ±{bound:e} (obstacle or lanelet `{id}`)")]
+    Range {
+        /// Line of the element.
+        line: u32,
+        /// Obstacle or lanelet id.
+        id: String,
+        /// Element name.
+        element: String,
+        /// The value.
+        value: f64,
+        /// The bound.
+        bound: f64,
     },
     /// Two states of one obstacle at the same time step.
     #[error("line {line}: obstacle `{obstacle}`: time step {step} given twice")]
@@ -99,6 +114,44 @@ pub enum CommonRoadError {
 }
 
 type Node<'a, 'i> = roxmltree::Node<'a, 'i>;
+
+/// Coordinates beyond this are refused, m: a scenario's frame is local (published ones stay within
+/// a few kilometres), and mining and inverse kinematics work in memory proportional to distances.
+pub const MAX_COORDINATE_M: f64 = 1e6;
+/// Time steps beyond this are refused (10⁷ steps of 0.1 s are 11 days).
+pub const MAX_TIME_STEP: f64 = 1e7;
+/// Step sizes beyond this are refused, s.
+pub const MAX_TIME_STEP_SIZE_S: f64 = 10.0;
+
+/// `value` of `node` within ±`bound`, or a [`CommonRoadError::Range`].
+fn within(
+    doc: &roxmltree::Document<'_>,
+    node: Node<'_, '_>,
+    id: &str,
+    value: f64,
+    bound: f64,
+) -> Result<f64, CommonRoadError> {
+    if value.abs() <= bound {
+        Ok(value)
+    } else {
+        Err(CommonRoadError::Range {
+            line: line(doc, node),
+            id: id.to_owned(),
+            element: node.tag_name().name().to_owned(),
+            value,
+            bound,
+        })
+    }
+}
+
+/// The `x` and `y` children of `p`, each within ±[`MAX_COORDINATE_M`].
+fn xy(doc: &roxmltree::Document<'_>, p: Node<'_, '_>, id: &str) -> Result<Option<(f64, f64)>, CommonRoadError> {
+    let coordinate = |name: &str| -> Result<Option<f64>, CommonRoadError> {
+        let Some(n) = child(p, name) else { return Ok(None) };
+        within(doc, n, id, number(doc, n, id)?, MAX_COORDINATE_M).map(Some)
+    };
+    Ok(coordinate("x")?.zip(coordinate("y")?))
+}
 
 fn line(doc: &roxmltree::Document<'_>, node: Node<'_, '_>) -> u32 {
     doc.text_pos_at(node.range().start).row
@@ -152,9 +205,7 @@ fn position(
         ["rectangle", "circle"].into_iter().find_map(|shape| child(pos, shape).and_then(|s| child(s, "center")))
     });
     let Some(p) = point else { return Ok(None) };
-    let x = child(p, "x").map(|n| number(doc, n, obstacle)).transpose()?;
-    let y = child(p, "y").map(|n| number(doc, n, obstacle)).transpose()?;
-    Ok(x.zip(y))
+    xy(doc, p, obstacle)
 }
 
 fn state_sample(
@@ -165,7 +216,9 @@ fn state_sample(
 ) -> Result<(i64, TrackSample), CommonRoadError> {
     let missing = |what| CommonRoadError::Missing { line: line(doc, state), obstacle: obstacle.to_owned(), what };
     let (x, y) = position(doc, state, obstacle)?.ok_or_else(|| missing("position/point"))?;
-    let step = value(doc, state, "time", obstacle, true)?.ok_or_else(|| missing("time"))?.round() as i64;
+    let raw_step = value(doc, state, "time", obstacle, true)?.ok_or_else(|| missing("time"))?;
+    let time_node = child(state, "time").unwrap_or(state);
+    let step = within(doc, time_node, obstacle, raw_step, MAX_TIME_STEP)?.round() as i64;
     let psi = value(doc, state, "orientation", obstacle, false)?;
     let v = value(doc, state, "velocity", obstacle, false)?;
     let (vx, vy) = match (v, psi) {
@@ -198,9 +251,7 @@ fn is_dynamic_obstacle(node: Node<'_, '_>) -> bool {
 fn bound_points(doc: &roxmltree::Document<'_>, bound: Node<'_, '_>, id: &str) -> Result<Vec<Point2>, CommonRoadError> {
     let mut out = Vec::new();
     for p in bound.children().filter(|c| c.has_tag_name("point")) {
-        let x = child(p, "x").map(|n| number(doc, n, id)).transpose()?;
-        let y = child(p, "y").map(|n| number(doc, n, id)).transpose()?;
-        match x.zip(y) {
+        match xy(doc, p, id)? {
             Some((x, y)) => out.push(Point2::new(x, y)),
             None => {
                 return Err(CommonRoadError::Lanelet {
@@ -271,7 +322,7 @@ pub fn parse_scenario(xml: &str, name: &str) -> Result<Scenario, CommonRoadError
         .trim()
         .parse::<f64>()
         .ok()
-        .filter(|v| v.is_finite() && *v > 0.0)
+        .filter(|v| v.is_finite() && *v > 0.0 && *v <= MAX_TIME_STEP_SIZE_S)
         .ok_or_else(|| CommonRoadError::TimeStepSize { line: line(&doc, root), value: raw.to_owned() })?;
     let mut tracks = Vec::new();
     for obstacle in root.children().filter(|c| is_dynamic_obstacle(*c)) {
@@ -436,6 +487,17 @@ mod tests {
         assert!(matches!(e, CommonRoadError::DuplicateTime { line: 4, step: 0, .. }), "{e}");
         let e = parse(&obstacle("<state><time><exact>1</exact></time></state>".into()), "x").unwrap_err();
         assert!(matches!(e, CommonRoadError::Missing { line: 4, what: "position/point", .. }), "{e}");
+        let e = parse(&obstacle(state("1e9", 1)), "x").unwrap_err();
+        assert!(
+            matches!(e, CommonRoadError::Range { line: 4, ref element, bound, .. } if element == "x" && bound == MAX_COORDINATE_M),
+            "{e}"
+        );
+        let far_in_time = obstacle(state("1", 1).replace("<exact>1</exact></time>", "<exact>1e300</exact></time>"));
+        let e = parse(&far_in_time, "x").unwrap_err();
+        assert!(matches!(e, CommonRoadError::Range { line: 4, ref element, .. } if element == "time"), "{e}");
+        assert!(e.to_string().contains("line 4: `time` is 1e300, outside ±1e7"), "{e}");
+        let huge_dt = r#"<commonRoad timeStepSize="1e9"></commonRoad>"#;
+        assert!(matches!(parse(huge_dt, "x"), Err(CommonRoadError::TimeStepSize { .. })));
         let bad_dt = r#"<commonRoad timeStepSize="-1"></commonRoad>"#;
         assert!(matches!(parse(bad_dt, "x"), Err(CommonRoadError::TimeStepSize { line: 1, .. })));
         assert!(matches!(parse("<OpenDRIVE/>", "x"), Err(CommonRoadError::NotCommonRoad(_))));
