@@ -143,6 +143,16 @@ fn every_configuration_file_loads_and_validates() {
             "diffusion" if rel.ends_with(".gitignore") => {
                 assert!(std::fs::read_to_string(path).unwrap().contains("checkpoints/"));
             }
+            // The human reference: it validates, names recorded data, and measures its own classes.
+            "realism" if rel.ends_with(".json") => {
+                let text = std::fs::read_to_string(path).unwrap();
+                let r: v2t_model::realism::HumanReference =
+                    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{rel}: {e}"));
+                r.validate().unwrap_or_else(|e| panic!("{rel}: {e}"));
+                assert!(!r.classes.is_empty() && r.provenance.contains("NGSIM"), "{rel}");
+                assert!(r.classes.iter().all(|c| c.vehicles >= v2t_model::realism::MIN_VEHICLES), "{rel}");
+            }
+            "realism" if rel.ends_with("README.md") => {}
             // The VLM prompt and the recorded exchanges: a cassette replays to its semantics.json.
             "vlm" => v2t_vlm::check_config_file(path).unwrap_or_else(|e| panic!("config/{rel}: {e}")),
             _ => panic!("config/{rel}: no validator knows this file; add one to tests/config_files.rs"),

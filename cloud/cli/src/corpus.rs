@@ -20,6 +20,20 @@ pub enum CorpusCommand {
     Import(ImportArgs),
     /// Counts of recorded corpora: tracks per dataset, episodes per interaction kind, PET histogram.
     Stats(StatsArgs),
+    /// Human reference distributions per manoeuvre class (straight through, left turn, lane
+    /// change) from recorded corpora: the file the realism of a run is measured against.
+    Reference(ReferenceArgs),
+}
+
+/// `corpus reference`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct ReferenceArgs {
+    /// Recorded corpus files (every episode at one sampling period).
+    #[arg(required = true)]
+    corpora: Vec<PathBuf>,
+    /// Output file (JSON).
+    #[arg(long, short)]
+    out: PathBuf,
 }
 
 /// `corpus import`'s arguments.
@@ -67,7 +81,67 @@ pub fn run(command: CorpusCommand) -> anyhow::Result<()> {
     match command {
         CorpusCommand::Import(a) => import(a),
         CorpusCommand::Stats(a) => stats(a),
+        CorpusCommand::Reference(a) => reference(a),
     }
+}
+
+/// The human reference of recorded corpora: the actor of a left turn is a left turn, the actor of a
+/// cut-in or lane change a lane change, the other vehicle of any interaction straight through when
+/// its path is straight ([`ManoeuvreClass::of_states`]); each vehicle once per class.
+fn reference(a: ReferenceArgs) -> anyhow::Result<()> {
+    use v2t_diffusion::mining::InteractionKind as K;
+    use v2t_model::realism::{HumanReference, ManoeuvreClass, motion_samples};
+    let mut vehicles = Vec::new();
+    let mut seen = std::collections::HashSet::new();
+    let mut sources: Vec<String> = Vec::new();
+    let mut dt: Option<f64> = None;
+    for path in &a.corpora {
+        let c = recorded::read_file(path).map_err(|e| Usage(format!("{}: {e}", path.display())))?;
+        for s in &c.sources {
+            let tag = format!("{} [{}]", s.dataset, s.licence);
+            if !sources.contains(&tag) {
+                sources.push(tag);
+            }
+        }
+        for e in &c.episodes {
+            match dt {
+                None => dt = Some(e.dt_s),
+                Some(d) if (d - e.dt_s).abs() > 1e-9 => {
+                    return Err(Usage(format!(
+                        "{}: episode {} is sampled at {} s, the others at {d} s: import with --resample to one period",
+                        path.display(),
+                        e.id,
+                        e.dt_s
+                    ))
+                    .into());
+                }
+                Some(_) => {}
+            }
+            for (k, agent) in e.agents.iter().enumerate() {
+                let class = match (k, e.mined.kind) {
+                    (0, K::LeftTurn) => ManoeuvreClass::LeftTurn,
+                    (0, K::CutIn | K::LaneChange) => ManoeuvreClass::LaneChange,
+                    (1, _) if ManoeuvreClass::of_states(&agent.states) == ManoeuvreClass::Straight => {
+                        ManoeuvreClass::Straight
+                    }
+                    _ => continue,
+                };
+                if seen.insert((e.recording.clone(), agent.id.clone(), class)) {
+                    let (acc, jerk, yaw) = motion_samples(&agent.states, e.dt_s);
+                    vehicles.push((class, acc, jerk, yaw));
+                }
+            }
+        }
+    }
+    let Some(dt) = dt else { return Err(Usage("no episode in the corpora".into()).into()) };
+    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    let provenance = format!("recorded human driving: {}; made by `{command}`", sources.join(", "));
+    let r = HumanReference::from_vehicles(provenance, dt, &vehicles);
+    r.validate().map_err(|e| Usage(format!("the reference: {e}")))?;
+    for c in &r.classes {
+        println!("{:?}: {} vehicles, {} samples", c.class, c.vehicles, c.samples);
+    }
+    crate::write_json(&a.out, &r)
 }
 
 /// The recording files under `inputs`, in the order given (directories sorted by name).

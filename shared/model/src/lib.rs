@@ -27,6 +27,7 @@ pub mod kinematics;
 pub mod metrics;
 pub mod path;
 pub mod prior;
+pub mod realism;
 pub mod semantics;
 pub mod target;
 pub mod validate;
