@@ -282,24 +282,30 @@ impl LaneletNetwork {
     }
 }
 
+/// An eastbound lanelet 3.5 m wide centred on `y`, its bounds through `xs`, linked to nothing
+/// (for tests).
+#[cfg(test)]
+pub(crate) fn straight_lanelet(id: &str, xs: &[f64], y: f64) -> Lanelet {
+    Lanelet {
+        id: id.into(),
+        left: xs.iter().map(|&x| Point2::new(x, y + 1.75)).collect(),
+        right: xs.iter().map(|&x| Point2::new(x, y - 1.75)).collect(),
+        left_marking: None,
+        right_marking: None,
+        predecessors: Vec::new(),
+        successors: Vec::new(),
+        adjacent_left: None,
+        adjacent_right: None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     /// A straight lanelet from x0 to x1 at lane centre y (width 3.5 m, eastbound).
     fn lane(id: &str, x0: f64, x1: f64, y: f64) -> Lanelet {
-        let xs = [x0, 0.5 * (x0 + x1), x1];
-        Lanelet {
-            id: id.into(),
-            left: xs.iter().map(|&x| Point2::new(x, y + 1.75)).collect(),
-            right: xs.iter().map(|&x| Point2::new(x, y - 1.75)).collect(),
-            left_marking: None,
-            right_marking: None,
-            predecessors: Vec::new(),
-            successors: Vec::new(),
-            adjacent_left: None,
-            adjacent_right: None,
-        }
+        straight_lanelet(id, &[x0, 0.5 * (x0 + x1), x1], y)
     }
 
     /// Two lanes (y = 0 and y = 3.5) of three lanelets each, 50 m long.

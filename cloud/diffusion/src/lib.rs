@@ -36,6 +36,7 @@ pub mod generate;
 pub mod guidance;
 pub mod import;
 pub mod inverse;
+pub mod jsonl;
 pub mod lanes;
 pub mod mining;
 pub mod realism;

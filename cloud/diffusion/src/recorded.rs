@@ -342,49 +342,8 @@ pub struct RecordedHeader {
     pub episodes: usize,
 }
 
-/// What can go wrong reading a recorded corpus.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum RecordedIoError {
-    /// No header line.
-    #[error("empty corpus file")]
-    Empty,
-    /// A line that is not the expected JSON.
-    #[error("line {line}: {message}")]
-    Json {
-        /// Line (1-based).
-        line: usize,
-        /// What serde said.
-        message: String,
-    },
-    /// Not a recorded corpus.
-    #[error("line 1: format `{found}`, expected `{FORMAT}`")]
-    Format {
-        /// Format in the header.
-        found: String,
-    },
-    /// A version this reader does not know.
-    #[error("line 1: version {found}, this reader knows {VERSION}")]
-    Version {
-        /// Version in the header.
-        found: u32,
-    },
-    /// The header's count disagrees with the lines.
-    #[error("header announces {announced} episodes, the file has {found}")]
-    Count {
-        /// From the header.
-        announced: usize,
-        /// Lines found.
-        found: usize,
-    },
-    /// A file could not be read or written.
-    #[error("{path}: {message}")]
-    Io {
-        /// The file.
-        path: String,
-        /// What the OS said.
-        message: String,
-    },
-}
+/// What can go wrong reading or writing a recorded corpus.
+pub type RecordedIoError = crate::jsonl::JsonlError;
 
 /// The corpus as JSON lines.
 pub fn to_jsonl(corpus: &RecordedCorpus) -> Result<String, serde_json::Error> {
@@ -395,13 +354,7 @@ pub fn to_jsonl(corpus: &RecordedCorpus) -> Result<String, serde_json::Error> {
         sources: corpus.sources.clone(),
         episodes: corpus.episodes.len(),
     };
-    let mut out = serde_json::to_string(&header)?;
-    out.push('\n');
-    for e in &corpus.episodes {
-        out.push_str(&serde_json::to_string(e)?);
-        out.push('\n');
-    }
-    Ok(out)
+    crate::jsonl::to_string(&header, &corpus.episodes)
 }
 
 /// The format name in the first line of a corpus text (either kind), if it has one.
@@ -413,48 +366,20 @@ pub fn format_of(text: &str) -> Option<String> {
 
 /// Reads a recorded corpus from JSON lines.
 pub fn from_jsonl(text: &str) -> Result<RecordedCorpus, RecordedIoError> {
-    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
-    let (_, first) = lines.next().ok_or(RecordedIoError::Empty)?;
-    let raw: serde_json::Value =
-        serde_json::from_str(first).map_err(|e| RecordedIoError::Json { line: 1, message: e.to_string() })?;
-    let format = raw.get("format").and_then(|v| v.as_str()).unwrap_or("").to_owned();
-    if format != FORMAT {
-        return Err(RecordedIoError::Format { found: format });
-    }
-    let version = raw.get("version").and_then(serde_json::Value::as_u64).unwrap_or(0);
-    if version != u64::from(VERSION) {
-        return Err(RecordedIoError::Version { found: u32::try_from(version).unwrap_or(u32::MAX) });
-    }
-    let header: RecordedHeader =
-        serde_json::from_value(raw).map_err(|e| RecordedIoError::Json { line: 1, message: e.to_string() })?;
-    let mut episodes = Vec::with_capacity(header.episodes);
-    for (i, line) in lines {
-        let e: RecordedEpisode =
-            serde_json::from_str(line).map_err(|e| RecordedIoError::Json { line: i + 1, message: e.to_string() })?;
-        episodes.push(e);
-    }
-    if episodes.len() != header.episodes {
-        return Err(RecordedIoError::Count { announced: header.episodes, found: episodes.len() });
-    }
+    let (header, episodes): (RecordedHeader, Vec<RecordedEpisode>) =
+        crate::jsonl::parse(text, FORMAT, VERSION, |_| true, FORMAT, |h: &RecordedHeader| h.episodes)?;
     Ok(RecordedCorpus { sources: header.sources, episodes })
 }
 
 /// Reads a recorded corpus file.
 pub fn read_file(path: &std::path::Path) -> Result<RecordedCorpus, RecordedIoError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| RecordedIoError::Io { path: path.display().to_string(), message: e.to_string() })?;
-    from_jsonl(&text)
+    from_jsonl(&crate::jsonl::read_text(path)?)
 }
 
 /// Writes a recorded corpus file: to `<path>.partial`, then renamed into place.
 pub fn write_file(corpus: &RecordedCorpus, path: &std::path::Path) -> Result<(), RecordedIoError> {
-    let io = |e: std::io::Error| RecordedIoError::Io { path: path.display().to_string(), message: e.to_string() };
     let text = to_jsonl(corpus).map_err(|e| RecordedIoError::Json { line: 0, message: e.to_string() })?;
-    let mut partial = path.as_os_str().to_owned();
-    partial.push(".partial");
-    let partial = std::path::PathBuf::from(partial);
-    std::fs::write(&partial, text).map_err(io)?;
-    std::fs::rename(&partial, path).map_err(io)
+    crate::jsonl::write_atomic(path, &text)
 }
 
 /// Counts of a recorded corpus, per dataset and kind, with the PET histogram.
@@ -565,24 +490,14 @@ mod tests {
     use crate::tracks::TrackSample;
 
     fn lanelet(id: &str, y: f64, adj: Option<(&str, bool)>) -> Lanelet {
-        let xs = [-50.0, 50.0, 150.0, 250.0];
+        let mut l = crate::lanes::straight_lanelet(id, &[-50.0, 50.0, 150.0, 250.0], y);
         let adjacent = adj.map(|(a, _)| Adjacent { id: a.into(), same_direction: true });
-        let (left_adj, right_adj) = match adj {
-            Some((_, true)) => (adjacent, None),
-            Some((_, false)) => (None, adjacent),
-            None => (None, None),
-        };
-        Lanelet {
-            id: id.into(),
-            left: xs.iter().map(|&x| Point2::new(x, y + 1.75)).collect(),
-            right: xs.iter().map(|&x| Point2::new(x, y - 1.75)).collect(),
-            left_marking: None,
-            right_marking: None,
-            predecessors: Vec::new(),
-            successors: Vec::new(),
-            adjacent_left: left_adj,
-            adjacent_right: right_adj,
+        match adj {
+            Some((_, true)) => l.adjacent_left = adjacent,
+            Some((_, false)) => l.adjacent_right = adjacent,
+            None => {}
         }
+        l
     }
 
     /// A cut-in on a two-lane road: `cutter` from y = 3.5 to y = 0 ahead of `follower`.
