@@ -87,7 +87,7 @@ pub fn run(command: CorpusCommand) -> anyhow::Result<()> {
 
 /// The human reference of recorded corpora: the actor of a left turn is a left turn, the actor of a
 /// cut-in or lane change a lane change, the other vehicle of any interaction straight through when
-/// its path is straight ([`ManoeuvreClass::of_states`]); each vehicle once per class.
+/// its path is straight ([`v2t_model::realism::ManoeuvreClass::of_states`]); each vehicle once per class.
 fn reference(a: ReferenceArgs) -> anyhow::Result<()> {
     use v2t_diffusion::mining::InteractionKind as K;
     use v2t_model::realism::{HumanReference, ManoeuvreClass, motion_samples};
