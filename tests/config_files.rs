@@ -94,11 +94,7 @@ fn every_configuration_file_loads_and_validates() {
                 if !synthetic_only {
                     assert!(model.meta.training.data.contains("NGSIM"), "{rel}: {}", model.meta.training.data);
                 }
-                let metrics = path.with_file_name(
-                    rel.trim_start_matches("diffusion/")
-                        .replace("denoiser", "metrics")
-                        .replace(".safetensors", ".jsonl"),
-                );
+                let metrics = renamed(path, [("denoiser", "metrics"), (".safetensors", ".jsonl")]);
                 let text =
                     std::fs::read_to_string(&metrics).unwrap_or_else(|e| panic!("{rel}: {}: {e}", metrics.display()));
                 let lines: Vec<v2t_diffusion::train::TrainMetrics> =
@@ -114,11 +110,7 @@ fn every_configuration_file_loads_and_validates() {
                 );
             }
             "diffusion" if rel.ends_with(".jsonl") => {
-                let weights = path.with_file_name(
-                    rel.trim_start_matches("diffusion/")
-                        .replace("metrics", "denoiser")
-                        .replace(".jsonl", ".safetensors"),
-                );
+                let weights = renamed(path, [("metrics", "denoiser"), (".jsonl", ".safetensors")]);
                 assert!(weights.exists(), "{rel}: no weights {}", weights.display());
             }
             "diffusion" if rel.ends_with("README.md") => {}
@@ -160,4 +152,13 @@ fn every_configuration_file_loads_and_validates() {
         checked += 1;
     }
     assert_eq!(checked, files.len());
+}
+
+/// `path` with its file name's parts swapped (`denoiser_x.safetensors` ↔ `metrics_x.jsonl`).
+fn renamed(path: &std::path::Path, swaps: [(&str, &str); 2]) -> std::path::PathBuf {
+    let mut name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    for (from, to) in swaps {
+        name = name.replace(from, to);
+    }
+    path.with_file_name(name)
 }

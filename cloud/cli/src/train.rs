@@ -330,17 +330,12 @@ fn run_training(args: &TrainArgs) -> anyhow::Result<TrainOutcome> {
     let config = *trainer.denoiser().config();
     let episodes = training_episodes(&corpora, &library);
     let mut data = Dataset::build_from(&episodes, config, args.stride, normalization)?;
-    let recorded_train =
-        data.train.iter().filter(|w| episodes.get(w.episode).is_some_and(|e| !e.full_windows_only)).count();
+    let recorded: Vec<_> =
+        data.train.iter().filter(|w| episodes.get(w.episode).is_some_and(|e| !e.full_windows_only)).cloned().collect();
+    let recorded_train = recorded.len();
     if args.recorded_repeat > 1 {
-        let extra: Vec<_> = data
-            .train
-            .iter()
-            .filter(|w| episodes.get(w.episode).is_some_and(|e| !e.full_windows_only))
-            .cloned()
-            .collect();
         for _ in 1..args.recorded_repeat {
-            data.train.extend(extra.iter().cloned());
+            data.train.extend(recorded.iter().cloned());
         }
         source = format!("{source}; recorded training windows repeated {}×", args.recorded_repeat);
     }

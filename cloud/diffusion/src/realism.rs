@@ -147,7 +147,7 @@ pub fn realism(
 ) -> Result<Vec<RealismRow>, SampleError> {
     let cfg = *model.denoiser.config();
     let dt = crate::synth::DT_S;
-    let first_per_episode = |ws: &[Window]| -> Vec<Window> {
+    let chosen_windows = |ws: &[Window]| -> Vec<Window> {
         let mut last: std::collections::HashMap<usize, usize> = std::collections::HashMap::new();
         ws.iter()
             .filter(|w| {
@@ -165,7 +165,7 @@ pub fn realism(
             .cloned()
             .collect()
     };
-    let heldout = first_per_episode(heldout);
+    let heldout = chosen_windows(heldout);
     let samples_of = |ws: &[Window]| {
         let mut s = ControlSamples::default();
         for w in ws {
@@ -187,7 +187,7 @@ pub fn realism(
         interval: None,
     }];
     if let Some(train) = train {
-        let train = first_per_episode(train);
+        let train = chosen_windows(train);
         let samples = samples_of(&train);
         rows.push(RealismRow {
             name: "training data (floor)".into(),

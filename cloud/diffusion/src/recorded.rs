@@ -216,6 +216,53 @@ pub fn on_lanes(
     Some((kind, swap))
 }
 
+/// Why a mined interaction's vehicle could not be kept.
+enum Dropped {
+    /// No piece of its track near the conflict, or inverse kinematics failed on it.
+    NoControls,
+    /// It is on no lanelet.
+    NoRoute,
+}
+
+/// The period episodes of a recording sampled every `recorded_s` get: the resampling period when
+/// it is finer.
+fn episode_period(options: &ImportOptions, recorded_s: f64) -> f64 {
+    options.resample_s.filter(|dt| *dt < recorded_s - 1e-9).unwrap_or(recorded_s)
+}
+
+/// One vehicle of an interaction at `conflict_s`: the gap-free piece of its track nearest the
+/// conflict, resampled if asked, its controls and its route.
+fn recorded_agent(
+    track: &Track,
+    conflict_s: f64,
+    lanes: &LaneletNetwork,
+    options: &ImportOptions,
+) -> Result<RecordedAgent, Dropped> {
+    let mut piece = piece_at(track, conflict_s).ok_or(Dropped::NoControls)?;
+    let dt = episode_period(options, piece.dt_s);
+    if dt < piece.dt_s {
+        piece = piece.resampled(dt).ok_or(Dropped::NoControls)?;
+    }
+    let inv = to_controls(&piece, &options.inverse).map_err(|_| Dropped::NoControls)?;
+    let positions: Vec<Point2> = inv.trajectory.states.iter().map(State::position).collect();
+    let (route, route_from) = if lanes.is_empty() {
+        (positions, "driven path")
+    } else {
+        (lanes.route_of(&positions).ok_or(Dropped::NoRoute)?, "lanes")
+    };
+    Ok(RecordedAgent {
+        id: track.id.clone(),
+        kind: track.kind,
+        dims: track.dims,
+        start_s: piece.samples.first().map_or(0.0, |s| s.t_s),
+        states: inv.trajectory.states,
+        controls: inv.trajectory.controls,
+        route: thin(&route, ROUTE_SPACING_M),
+        route_from: route_from.to_owned(),
+        smoothing_rms_m: inv.smoothing_rms_m,
+    })
+}
+
 /// Imports one recording (its tracks and lane network): the episodes and the file's summary.
 pub fn import_scenario(
     episode: &Episode,
@@ -241,87 +288,47 @@ pub fn import_scenario(
         not_interaction: 0,
     };
     let mut out = Vec::new();
-    for it in interactions {
-        let mut agents = Vec::new();
-        let mut failed = None;
-        for id in [&it.actor, &it.other] {
-            let Some(track) = episode.track(id) else {
-                failed = Some(false);
-                break;
+    for mut it in interactions {
+        let agents: Result<Vec<RecordedAgent>, Dropped> = [&it.actor, &it.other]
+            .into_iter()
+            .map(|id| {
+                let track = episode.track(id).ok_or(Dropped::NoControls)?;
+                recorded_agent(track, it.conflict_time_s, lanes, options)
+            })
+            .collect();
+        let mut agents = match agents {
+            Ok(a) => a,
+            Err(Dropped::NoRoute) => {
+                source.no_route += 1;
+                continue;
+            }
+            Err(Dropped::NoControls) => {
+                source.no_controls += 1;
+                continue;
+            }
+        };
+        if !lanes.is_empty() {
+            let Some((kind, swap)) = on_lanes(&it, &agents, lanes) else {
+                source.not_interaction += 1;
+                continue;
             };
-            let Some(piece) = piece_at(track, it.conflict_time_s) else {
-                failed = Some(false);
-                break;
-            };
-            let piece = match options.resample_s {
-                Some(dt) if dt < piece.dt_s - 1e-9 => match piece.resampled(dt) {
-                    Some(p) => p,
-                    None => {
-                        failed = Some(false);
-                        break;
-                    }
-                },
-                _ => piece,
-            };
-            let Ok(inv) = to_controls(&piece, &options.inverse) else {
-                failed = Some(false);
-                break;
-            };
-            let positions: Vec<Point2> = inv.trajectory.states.iter().map(State::position).collect();
-            let (route, route_from) = if lanes.is_empty() {
-                (Some(positions.clone()), "driven path")
-            } else {
-                (lanes.route_of(&positions), "lanes")
-            };
-            let Some(route) = route else {
-                failed = Some(true);
-                break;
-            };
-            agents.push(RecordedAgent {
-                id: track.id.clone(),
-                kind: track.kind,
-                dims: track.dims,
-                start_s: piece.samples.first().map_or(0.0, |s| s.t_s),
-                states: inv.trajectory.states,
-                controls: inv.trajectory.controls,
-                route: thin(&route, ROUTE_SPACING_M),
-                route_from: route_from.to_owned(),
-                smoothing_rms_m: inv.smoothing_rms_m,
-            });
-        }
-        let mut it = it;
-        if failed.is_none() && !lanes.is_empty() {
-            match on_lanes(&it, &agents, lanes) {
-                Some((kind, swap)) => {
-                    it.kind = kind;
-                    if swap {
-                        std::mem::swap(&mut it.actor, &mut it.other);
-                        agents.reverse();
-                    }
-                }
-                None => {
-                    source.not_interaction += 1;
-                    continue;
-                }
+            it.kind = kind;
+            if swap {
+                std::mem::swap(&mut it.actor, &mut it.other);
+                agents.reverse();
             }
         }
-        match failed {
-            Some(true) => source.no_route += 1,
-            Some(false) => source.no_controls += 1,
-            None => {
-                source.kept += 1;
-                out.push(RecordedEpisode {
-                    id: format!("{}/{}-{}@{:.1}", episode.id, it.actor, it.other, it.conflict_time_s),
-                    recording: episode.id.clone(),
-                    file: file.to_owned(),
-                    dataset: options.dataset.clone(),
-                    licence: options.licence.clone(),
-                    dt_s: options.resample_s.filter(|dt| *dt < episode.dt_s - 1e-9).unwrap_or(episode.dt_s),
-                    mined: it,
-                    agents,
-                });
-            }
-        }
+        source.kept += 1;
+        out.push(RecordedEpisode {
+            id: format!("{}/{}-{}@{:.1}", episode.id, it.actor, it.other, it.conflict_time_s),
+            recording: episode.id.clone(),
+            file: file.to_owned(),
+            dataset: options.dataset.clone(),
+            licence: options.licence.clone(),
+            dt_s: episode_period(options, episode.dt_s),
+            mined: it,
+            agents,
+        });
     }
     (source, out)
 }
@@ -443,7 +450,7 @@ impl RecordedCorpus {
                 periods_s: Vec::new(),
                 kinds: KINDS.iter().map(|k| (*k, 0)).collect(),
                 dropped: 0,
-                pet: Histogram::new(0.0, 6.0, 12).unwrap_or_else(unreachable_histogram),
+                pet: Histogram { lo: 0.0, hi: 6.0, counts: vec![0; 12], underflow: 0, overflow: 0, non_finite: 0 },
             });
             rows.len() - 1
         };
@@ -476,11 +483,6 @@ impl RecordedCorpus {
             datasets: rows,
         }
     }
-}
-
-/// `Histogram::new(0, 6, 12)` cannot fail; this keeps the code free of a panic path.
-fn unreachable_histogram() -> Histogram {
-    Histogram { lo: 0.0, hi: 6.0, counts: vec![0; 12], underflow: 0, overflow: 0, non_finite: 0 }
 }
 
 #[cfg(test)]
