@@ -17,6 +17,5 @@ pub fn left_turn_start(target: Target) -> RegulatorInput {
         zone_kind: ConflictKind::Crossing,
         target,
         reference_speed_mps: 10.0,
-        reference_key_time_s: None,
     }
 }

@@ -25,7 +25,6 @@
 //!     zone_kind: ConflictKind::Crossing,
 //!     target: Target::new(2.0, Style::Rush).unwrap(),
 //!     reference_speed_mps: 10.0,
-//!     reference_key_time_s: None,
 //! });
 //! assert_eq!(decision.status, RegulatorStatus::Regulating);
 //! // Out of the zone at 4 s, two seconds before the VUT comes in at 6 s.
@@ -35,4 +34,5 @@
 
 pub mod fixtures;
 pub mod qp;
+pub mod reference;
 pub mod regulator;

@@ -10,13 +10,18 @@
 //!    the style fixes with one linear inequality at the BV's planned key time (slack reported).
 //!    From its plan come the VUT's entry time (rush) or exit time (yield) `t_V`.
 //! 2. **Leader choice.** PET is `t_V − T` (rush) or `T − t_V` (yield); the adversarial term
-//!    `w_adv (PET − τ)²` plus the realism term `w_real (T − T_ref)²` (the time the reference would
-//!    reach the key point) is minimised in closed form, `T* = (w_adv (t_V ∓ τ) + w_real T_ref) /
-//!    (w_adv + w_real)`. The follower is re-solved with `T*` (a fixed-point step: its response only
-//!    moves when its order constraint becomes active).
+//!    `w_adv (PET − τ)²` plus the realism term `w_real (T − T_ref)²` is minimised in closed form,
+//!    `T* = (w_adv (t_V ∓ τ) + w_real T_ref) / (w_adv + w_real)`. `T_ref` is the prior's own time
+//!    from the BV's current arc length to the key point ([`Regulator::set_reference`]: the
+//!    prior's timing along the path, measured on the prior itself), so the pull needs no clock
+//!    shared with the prior. The follower is re-solved with `T*` (a fixed-point step: its response
+//!    only moves when its order constraint becomes active).
 //! 3. **Leader plan.** A QP-MPC for the BV with the event `s_BV(T*) = key station` (an equality,
 //!    slack-penalized: when it cannot be met the plan comes as close as the limits allow and the
-//!    status says `Degraded`), tracking the reference speed, within the BV's limits.
+//!    status says `Degraded`), within the BV's limits, tracking a speed reference that blends the
+//!    average speed to the key point with the prior's speed profile time-warped to arrive at `T*`
+//!    (weights `w_adv : w_real`). `w_real = 0`, or no reference, is the regulator without the
+//!    realism term.
 //! 4. **Safety.** The follower is solved once more against the BV's *planned* key time plus a
 //!    margin. If even the VUT's best response cannot keep the order (its slack is positive), the BV
 //!    gives way: it plans to stay behind the zone entry until the VUT is predicted to have left
@@ -42,6 +47,7 @@ use v2t_model::validate::{Validate, ValidationError, in_range, positive};
 use v2t_model::{Style, Target};
 
 use crate::qp::{EventKind, LongitudinalQp, QpError, QpInput, QpShape, QpStatus};
+use crate::reference::{ReferenceSample, ReferenceTiming};
 
 /// Longitudinal limits of one vehicle.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -176,8 +182,6 @@ pub struct RegulatorInput {
     pub target: Target,
     /// The BV's reference speed now, m/s.
     pub reference_speed_mps: f64,
-    /// When the BV's reference reaches its key point, s from now (`None`: no realism pull).
-    pub reference_key_time_s: Option<f64>,
 }
 
 /// Share of the BV's lateral-acceleration limit its plans may use in curves (the rest is the
@@ -260,6 +264,20 @@ pub struct Regulator {
     last_key_t_s: Option<f64>,
     /// Absolute time at which the BV was seen leaving the zone.
     bv_exit_t_s: Option<f64>,
+    /// The prior's timing along the BV's path (the realism term's reference).
+    reference: ReferenceTiming,
+}
+
+/// What the realism term pulls toward in one decision: the reference's remaining time to the
+/// BV's key point from where the BV is, and where the reference is in its own time now.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct RealismPull {
+    /// The reference's time to the key point from the BV's current arc length, s.
+    key_time_s: f64,
+    /// The reference's own time at the BV's current arc length, s.
+    now_ref_s: f64,
+    /// Share of the realism term, `w_real / (w_adv + w_real)`.
+    share: f64,
 }
 
 const SLACK_TOL_M: f64 = 0.05;
@@ -273,6 +291,8 @@ const MERGE_SPEED_MARGIN_MPS: f64 = 2.0;
 /// How steeply the speed reference of a rushing cut-in ramps through its average, as a multiple
 /// of the ramp that would end exactly at the arrival speed.
 const MERGE_RAMP_GAIN: f64 = 2.5;
+/// The key time the first decision of an interaction starts its fixed point from, s from now.
+const FIRST_KEY_GUESS_S: f64 = 5.0;
 /// How far behind the zone entry the BV holds when it gives way, m.
 const HOLD_BACK_M: f64 = 0.5;
 
@@ -299,7 +319,38 @@ impl Regulator {
             vut_exit_t_s: None,
             last_key_t_s: None,
             bv_exit_t_s: None,
+            reference: ReferenceTiming::default(),
         })
+    }
+
+    /// Sets the prior's timing along the BV's path (time since its start, arc length, speed), the
+    /// reference of the realism term (`w_real`). Called once per prior, not per decision; a refused
+    /// reference leaves the one before in place. Without one, the regulator decides as with
+    /// `w_real = 0`.
+    pub fn set_reference<I>(&mut self, samples: I) -> Result<(), ValidationError>
+    where
+        I: IntoIterator<Item = ReferenceSample>,
+        I::IntoIter: Clone,
+    {
+        self.reference.set(samples)
+    }
+
+    /// Forgets the reference timing.
+    pub fn clear_reference(&mut self) {
+        self.reference.clear();
+    }
+
+    /// The realism pull toward the reference for a BV at `s_m` whose key point is at `key_s_m`
+    /// (`None` when `w_real = 0`, without a reference, or when the reference never gets there).
+    fn realism_pull(&self, s_m: f64, key_s_m: f64) -> Option<RealismPull> {
+        let w = self.params.w_real;
+        if w <= 0.0 || !self.reference.is_set() {
+            return None;
+        }
+        let now_ref_s = self.reference.time_at_station(s_m)?;
+        let key_ref_s = self.reference.time_at_station(key_s_m)?;
+        let key_time_s = (key_ref_s - now_ref_s).max(0.0);
+        key_time_s.is_finite().then(|| RealismPull { key_time_s, now_ref_s, share: w / (self.params.w_adv + w) })
     }
 
     /// The settings.
@@ -374,10 +425,19 @@ impl Regulator {
     /// Plans the BV to be at `station` exactly at `key_t` (relative); returns the status of the solve.
     ///
     /// With a key time the speed reference is the average speed that gets there on time: tracking
-    /// the prior's speed instead would make the plan hurry to the station within the horizon and
+    /// the prior's speed as it is would make the plan hurry to the station within the horizon and
     /// stop there, pushing the waiting past the horizon (the time inconsistency of the literal
-    /// formulation). Without one it is the prior's reference speed.
-    fn lead(&mut self, inp: &RegulatorInput, key_t: Option<f64>, station: f64) -> QpStatus {
+    /// formulation). With the realism term, that average is blended (by the term's share) with the
+    /// prior's own speed profile from where the BV is, *time-warped* so that it too reaches the
+    /// station exactly at `key_t`: the prior's shape (where it accelerates, where it eases off) at
+    /// the timing the game chose. Without a key time it is the prior's reference speed.
+    fn lead(
+        &mut self,
+        inp: &RegulatorInput,
+        key_t: Option<f64>,
+        station: f64,
+        realism: Option<RealismPull>,
+    ) -> QpStatus {
         let qin = self.qp_input(inp, &self.params.bv, key_t.map(|t| (t, station)));
         let v_max = self.params.bv.max_speed_mps;
         let (dt, v_ref) = (self.params.dt_s, inp.reference_speed_mps.clamp(0.0, v_max));
@@ -399,9 +459,22 @@ impl Regulator {
                     v_avg
                 };
                 let ramp = if v_arrive > v_avg { MERGE_RAMP_GAIN * (v_arrive - v_avg) } else { 0.0 };
+                // The prior's time per plan second: it reaches the station in `key_time_s` of its
+                // own time, the plan in `t`; its speeds scale by the same ratio.
+                let warp = realism.filter(|r| r.key_time_s > 0.0).map(|r| (r, r.key_time_s / t));
+                let reference = &self.reference;
                 for (k, v) in self.leader_equal.v_ref_mut().iter_mut().enumerate() {
-                    let frac = ((k + 1) as f64 * dt / t).min(1.0);
-                    *v = (v_avg + ramp * (2.0 * frac - 1.0)).clamp(0.0, v_max);
+                    let t_k = (k + 1) as f64 * dt;
+                    let frac = (t_k / t).min(1.0);
+                    let adversarial = v_avg + ramp * (2.0 * frac - 1.0);
+                    let blended = match warp {
+                        Some((r, ratio)) => {
+                            let prior = ratio * reference.speed_at_time(r.now_ref_s + t_k * ratio);
+                            (1.0 - r.share) * adversarial + r.share * prior
+                        }
+                        None => adversarial,
+                    };
+                    *v = blended.clamp(0.0, v_max);
                 }
             }
             _ => self.leader_equal.v_ref_mut().iter_mut().for_each(|v| *v = v_ref),
@@ -501,7 +574,7 @@ impl Regulator {
             inp.zone_vut.exit_s_m,
             inp.reference_speed_mps,
         ];
-        if finite.iter().any(|x| !x.is_finite()) || inp.reference_key_time_s.is_some_and(|t| !t.is_finite()) {
+        if finite.iter().any(|x| !x.is_finite()) {
             return self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps);
         }
         if inp.bv.age_s > self.params.max_input_age_s || inp.vut.age_s > self.params.max_input_age_s {
@@ -529,7 +602,7 @@ impl Regulator {
             || (inp.target.style() == Style::Yield && inp.bv.s_m >= inp.zone_bv.enter_s_m)
         {
             let after = self.after_merge(inp);
-            return match self.lead(&after, None, 0.0) {
+            return match self.lead(&after, None, 0.0, None) {
                 QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
                 _ => self.decision_from(&self.leader_equal, RegulatorStatus::Passed, None, None, 0.0),
             };
@@ -541,11 +614,14 @@ impl Regulator {
 
         // 1–2: follower response and the leader's key time (fixed-point step).
         let tau = inp.target.tau_s();
-        let pull = |t_adv: f64, w_adv: f64, w_real: f64| match inp.reference_key_time_s {
-            Some(t_ref) if w_real > 0.0 => (w_adv * t_adv + w_real * t_ref) / (w_adv + w_real),
-            _ => t_adv,
+        let realism = self.realism_pull(inp.bv.s_m, bv_key);
+        // The leader's objective `w_adv (PET − τ)² + w_real (T − T_ref)²` minimised over T in
+        // closed form: the adversarial key time pulled toward the reference's by its share.
+        let pull = |t_adv: f64| match realism {
+            Some(r) => (1.0 - r.share) * t_adv + r.share * r.key_time_s,
+            None => t_adv,
         };
-        let mut key_t = self.last_key_t_s.map_or(inp.reference_key_time_s.unwrap_or(5.0), |t| t - inp.t_s).max(0.0);
+        let mut key_t = self.last_key_t_s.map_or(FIRST_KEY_GUESS_S, |t| t - inp.t_s).max(0.0);
         let mut t_vut: Option<f64> = None;
         // Whether `t_vut` came from a follower solve whose order constraint did not bind (then the
         // safety check need not solve again when its constraint cannot bind either).
@@ -570,7 +646,7 @@ impl Regulator {
                     break;
                 }
                 free_response = tv > key_t + BINDING_TOL_S;
-                let next = pull(tv - tau, self.params.w_adv, self.params.w_real).max(0.0);
+                let next = pull(tv - tau).max(0.0);
                 // The response only moves when the order constraint binds; if the VUT's entry is
                 // after the new key time too, the fixed point is reached.
                 let settled = tv >= next.max(key_t);
@@ -584,7 +660,7 @@ impl Regulator {
             // The VUT is predicted never to reach (rush) or leave (yield) the zone.
             return match inp.target.style() {
                 // Rush with a VUT that stays away: nothing to regulate against; go at the reference.
-                Style::Rush => match self.lead(inp, None, 0.0) {
+                Style::Rush => match self.lead(inp, None, 0.0, None) {
                     QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
                     _ => self.decision_from(&self.leader_equal, RegulatorStatus::Regulating, None, None, 0.0),
                 },
@@ -592,8 +668,7 @@ impl Regulator {
             };
         };
         if inp.target.style() == Style::Yield {
-            key_t =
-                pull(t_v + tau, self.params.w_adv, self.params.w_real).max(t_v + self.params.safety_margin_s).max(0.0);
+            key_t = pull(t_v + tau).max(t_v + self.params.safety_margin_s).max(0.0);
         }
 
         // Rushing into a merge and already inside the zone: clear it, never slow down in it for a
@@ -607,7 +682,7 @@ impl Regulator {
         }
 
         // 3: the leader's plan.
-        if self.lead(inp, Some(key_t), bv_key) == QpStatus::Failed {
+        if self.lead(inp, Some(key_t), bv_key, realism) == QpStatus::Failed {
             return self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps);
         }
         let lslack = self.leader_equal.slack_m();

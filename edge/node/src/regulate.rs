@@ -4,10 +4,11 @@
 use std::time::Duration;
 
 use iceoryx2::service::Service;
+use v2t_game::reference::ReferenceSample;
 use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams, RegulatorStatus, curve_speed_limit};
 use v2t_model::geometry::Point2;
 use v2t_model::path::ReferencePath;
-use v2t_wire::{ActivePrior, BvState, Code, Header, NodeKind, PlanStatus, RegulatedPlan, VutState, services};
+use v2t_wire::{ActivePrior, BvState, Code, Header, NodeKind, PlanStatus, RegulatedPlan, Vector, VutState, services};
 
 use crate::clock::{now_ns, secs_between};
 use crate::config::Loaded;
@@ -81,6 +82,11 @@ impl Regulation {
             return Ok(false);
         }
         let ctx = PriorContext::new(prior)?;
+        // The prior's timing along the BV's path: the realism term's reference (`w_real`). Checked
+        // before it replaces anything, so a refused prior leaves the active one whole.
+        let timing =
+            prior.bv_profile.as_slice().iter().map(|q| ReferenceSample { t_s: q.t_s, s_m: q.s_m, v_mps: q.v_mps });
+        self.regulator.set_reference(timing).map_err(crate::prior::PriorError::Invalid)?;
         self.prior = Some(ctx);
         self.regulator.reset();
         self.bv = Tracked::default();
@@ -139,7 +145,6 @@ impl Regulation {
             zone_kind: ctx.zone_kind,
             target: ctx.target,
             reference_speed_mps: ctx.reference_speed_at(bv_s),
-            reference_key_time_s: None,
         };
         let lat = self.lat_accel_mps2;
         let d = self.regulator.decide_on_path(&input, &|s| curve_speed_limit(&ctx.bv_path, s, lat));

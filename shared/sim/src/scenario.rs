@@ -114,6 +114,61 @@ impl SpeedProfile {
     }
 }
 
+/// Slowest VUT for which a card's reference is re-timed for the target, m/s.
+const MIN_TIMING_SPEED_MPS: f64 = 0.5;
+/// Shortest time to the key point a re-timed reference may have, s.
+const MIN_TIMING_S: f64 = 0.5;
+/// Length of the ramp between the re-timed and the unchanged part of a reference, s.
+const RETIME_RAMP_S: f64 = 0.1;
+/// Steps of the search for where a reference reaches a station, s.
+const RETIME_SEARCH_STEP_S: f64 = 0.05;
+/// Longest a reference is searched for its key point, s.
+const RETIME_SEARCH_MAX_S: f64 = 600.0;
+
+impl SpeedProfile {
+    /// When the profile (from arc length 0 at `t = 0`) first reaches `station_m`, s (searched in
+    /// steps of 0.05 s, then interpolated; `None` within 600 s).
+    pub fn time_at_distance(&self, station_m: f64) -> Option<f64> {
+        if station_m <= 0.0 {
+            return Some(0.0);
+        }
+        let mut t = 0.0;
+        let mut d = 0.0;
+        while t < RETIME_SEARCH_MAX_S {
+            let t1 = t + RETIME_SEARCH_STEP_S;
+            let d1 = self.distance_at(t1);
+            if d1 >= station_m {
+                return Some(if d1 > d { t + (t1 - t) * (station_m - d) / (d1 - d) } else { t1 });
+            }
+            (t, d) = (t1, d1);
+        }
+        None
+    }
+
+    /// This profile re-timed so that it reaches `key_m` at `t_key_s` instead of when it does: the
+    /// part before is stretched (or compressed) in time, its speeds scaled inversely so the
+    /// distance is kept; the part after is unchanged, shifted in time, joined by a 0.1 s ramp.
+    /// `None` when the profile never reaches `key_m` or `t_key_s` is under 0.5 s.
+    pub fn retimed(&self, key_m: f64, t_key_s: f64) -> Option<SpeedProfile> {
+        if !(t_key_s.is_finite() && t_key_s >= MIN_TIMING_S) {
+            return None;
+        }
+        let t_r = self.time_at_distance(key_m)?;
+        if t_r < 1e-6 {
+            return None;
+        }
+        let k = t_key_s / t_r;
+        let mut points: Vec<[f64; 2]> = vec![[0.0, self.speed_at(0.0) / k]];
+        points.extend(self.points.iter().filter(|[t, _]| *t > 0.0 && *t < t_r).map(|[t, v]| [t * k, v / k]));
+        points.push([t_key_s, self.speed_at(t_r) / k]);
+        points.push([t_key_s + RETIME_RAMP_S, self.speed_at(t_r)]);
+        points.extend(
+            self.points.iter().filter(|[t, _]| *t > t_r + 1e-9).map(|[t, v]| [t - t_r + t_key_s + RETIME_RAMP_S, *v]),
+        );
+        Some(SpeedProfile::new(points))
+    }
+}
+
 /// A BV and the reference it is meant to follow.
 #[derive(Debug, Clone)]
 pub struct BvSetup {
@@ -121,6 +176,10 @@ pub struct BvSetup {
     pub agent: Agent,
     /// Reference speed over time.
     pub reference: SpeedProfile,
+    /// Whether `reference` was made for the scenario's target (a prior generated for τ and the
+    /// style), so its timing at the conflict is the one the target asks for. A card's speed
+    /// profile is not: [`Scenario::realism_reference`] re-times it.
+    pub timed_for_target: bool,
 }
 
 /// The VUT and its driver's wishes.
@@ -199,6 +258,7 @@ impl Scenario {
                     initial_speed_mps: bv.initial_speed_mps,
                 },
                 reference: SpeedProfile::new(bv.speed_profile.clone()),
+                timed_for_target: false,
             });
         }
         let conflicts = first_conflicts(&vut, &bvs)?;
@@ -238,6 +298,7 @@ impl Scenario {
         let bvs = vec![BvSetup {
             agent: Agent { id: paths.bv_id, vehicle: bv_vehicle, route: paths.bv_route, initial_speed_mps: bv_speed },
             reference: paths.bv_reference,
+            timed_for_target: true,
         }];
         let conflicts = match paths.conflict {
             Some(zone) => vec![Conflict { bv_index: 0, zone }],
@@ -253,6 +314,30 @@ impl Scenario {
             bvs,
             conflicts,
         })
+    }
+
+    /// The reference the regulator's realism term weighs for BV `bv_index`: its reference when
+    /// that was made for the target; else (a card's speed profile) the same profile re-timed up to
+    /// the BV's key point (zone exit in rush, entry in yield) so that it gets there when the target
+    /// asks if the VUT kept its initial speed, and unchanged after it. `None` when no such timing
+    /// exists (no conflict, a VUT standing, a key time in the past, or a reference that never gets
+    /// to the key point).
+    pub fn realism_reference(&self, bv_index: usize) -> Option<SpeedProfile> {
+        let bv = self.bvs.get(bv_index)?;
+        if bv.timed_for_target {
+            return Some(bv.reference.clone());
+        }
+        let zone = self.conflict_of(bv_index)?.zone;
+        let v_vut = self.vut.agent.initial_speed_mps;
+        if v_vut < MIN_TIMING_SPEED_MPS {
+            return None;
+        }
+        let tau = self.target.tau_s();
+        let (key_s, t_target) = match self.target.style() {
+            v2t_model::Style::Rush => (zone.bv.exit_s_m, zone.vut.enter_s_m / v_vut - tau),
+            v2t_model::Style::Yield => (zone.bv.enter_s_m, zone.vut.exit_s_m / v_vut + tau),
+        };
+        bv.reference.retimed(key_s, t_target)
     }
 
     /// The conflict of BV `bv_index`.
@@ -325,5 +410,38 @@ mod tests {
         let late = SpeedProfile::new(vec![[1.0, 5.0]]);
         assert_eq!(late.speed_at(0.0), 5.0);
         assert!((late.distance_at(2.0) - 10.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_retimed_profile_reaches_the_key_point_when_asked_and_keeps_its_speed_after() {
+        let p = SpeedProfile::new(vec![[0.0, 10.0], [2.0, 6.0], [4.0, 6.0]]);
+        // It reaches 34 m at 5 s; asked for 8 s.
+        assert!((p.time_at_distance(34.0).unwrap() - 5.0).abs() < 1e-6);
+        let r = p.retimed(34.0, 8.0).unwrap();
+        assert!((r.time_at_distance(34.0).unwrap() - 8.0).abs() < 1e-3);
+        assert!((r.speed_at(0.0) - 10.0 * 5.0 / 8.0).abs() < 1e-9, "slower by the same factor");
+        assert!((r.speed_at(20.0) - 6.0).abs() < 1e-12, "after the key point its own speed");
+        // Faster too; nothing sensible before 0.5 s or for a station never reached.
+        assert!((p.retimed(34.0, 2.5).unwrap().time_at_distance(34.0).unwrap() - 2.5).abs() < 1e-3);
+        assert_eq!(p.retimed(34.0, 0.2), None);
+        assert_eq!(SpeedProfile::new(vec![[0.0, 0.0]]).retimed(10.0, 5.0), None);
+    }
+
+    #[test]
+    fn a_cards_reference_is_retimed_for_the_target_and_a_priors_is_not() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+        let mut sc = crate::files::load_scenario(&root.join("config/scenarios/left_turn_basic.toml")).unwrap();
+        let zone = sc.conflicts[0].zone;
+        let v = sc.vut.agent.initial_speed_mps;
+        for (style, key, t) in [
+            (v2t_model::Style::Rush, zone.bv.exit_s_m, zone.vut.enter_s_m / v - 2.0),
+            (v2t_model::Style::Yield, zone.bv.enter_s_m, zone.vut.exit_s_m / v + 2.0),
+        ] {
+            sc.target = Target::new(2.0, style).unwrap();
+            let r = sc.realism_reference(0).unwrap();
+            assert!((r.time_at_distance(key).unwrap() - t).abs() < 0.01, "{style}: {t} s");
+        }
+        sc.bvs[0].timed_for_target = true;
+        assert_eq!(sc.realism_reference(0), Some(sc.bvs[0].reference.clone()));
     }
 }

@@ -128,10 +128,13 @@ pub fn prior_of_card(
     prior.set_target(scenario.target);
     path_points(&bv.agent.route, &mut prior.bv_path)?;
     path_points(&scenario.vut.agent.route, &mut prior.vut_path)?;
+    // What the cloud would send for this target: the card's speed profile re-timed for it (a
+    // prior is timed for its target; a card's profile is not).
+    let reference = scenario.realism_reference(bv_index).unwrap_or_else(|| bv.reference.clone());
     let samples = ((scenario.duration_s * PROFILE_RATE_HZ) as usize + 1).min(prior.bv_profile.capacity());
     for i in 0..samples {
         let t_s = i as f64 / PROFILE_RATE_HZ;
-        let sample = ProfileSample { t_s, s_m: bv.reference.distance_at(t_s), v_mps: bv.reference.speed_at(t_s) };
+        let sample = ProfileSample { t_s, s_m: reference.distance_at(t_s), v_mps: reference.speed_at(t_s) };
         prior.bv_profile.push(sample).map_err(|_| PriorError::Capacity { what: "profile" })?;
     }
     prior.check().map_err(PriorError::Malformed)?;

@@ -1,4 +1,5 @@
 use super::*;
+use crate::reference::ReferenceSample;
 use proptest::prelude::*;
 
 fn zone(enter: f64, exit: f64) -> OccupancyInterval {
@@ -17,7 +18,6 @@ fn input(style: Style, tau: f64) -> RegulatorInput {
         zone_kind: ConflictKind::Crossing,
         target: Target::new(tau, style).unwrap(),
         reference_speed_mps: 10.0,
-        reference_key_time_s: None,
     }
 }
 
@@ -176,4 +176,102 @@ fn a_rushing_cut_in_arrives_fast_enough_for_the_vut_headway() {
     inp.zone_kind = ConflictKind::Crossing;
     r2.decide(&inp);
     assert!(r2.leader_equal.speed()[k] < v_key - 0.5, "{}", r2.leader_equal.speed()[k]);
+}
+
+/// A reference that drives `speed(t)` from arc length 0, sampled every 0.1 s for 30 s.
+fn reference_of(speed: impl Fn(f64) -> f64) -> Vec<ReferenceSample> {
+    let mut s = 0.0;
+    (0..300)
+        .map(|k| {
+            let t = k as f64 * 0.1;
+            let q = ReferenceSample { t_s: t, s_m: s, v_mps: speed(t) };
+            s += 0.5 * (speed(t) + speed(t + 0.1)) * 0.1;
+            q
+        })
+        .collect()
+}
+
+fn realistic(w_real: f64, reference: &[ReferenceSample]) -> Regulator {
+    let mut r = Regulator::new(RegulatorParams { w_real, ..RegulatorParams::default() }).unwrap();
+    r.set_reference(reference.iter().copied()).unwrap();
+    r
+}
+
+#[test]
+fn the_realism_term_pulls_the_key_time_toward_the_prior() {
+    // Rush, τ = 2 s: the game alone wants the BV out (50 m) at 4 s. A prior at a steady 8 m/s is
+    // out at 6.25 s; with w_real = w_adv the key time is the mean of the two, and the BV speeds up
+    // less now than without the pull.
+    let slow = reference_of(|_| 8.0);
+    let alone = regulator().decide(&input(Style::Rush, 2.0));
+    let d = realistic(1.0, &slow).decide(&input(Style::Rush, 2.0));
+    assert_eq!(d.status, RegulatorStatus::Regulating, "{d:?}");
+    let key = d.key_time_s.unwrap();
+    assert!((key - 0.5 * (4.0 + 6.25)).abs() < 0.1, "key time {key}, expected about 5.1 s");
+    assert!(d.accel_mps2 < alone.accel_mps2, "{} vs {}", d.accel_mps2, alone.accel_mps2);
+    // A heavier realism weight comes closer still; the predicted PET moves off τ accordingly.
+    let heavy = realistic(9.0, &slow).decide(&input(Style::Rush, 2.0));
+    assert!(heavy.key_time_s.unwrap() > key && (heavy.key_time_s.unwrap() - 6.25).abs() < 0.35, "{heavy:?}");
+    // Yield, τ = 2 s: the game wants the BV in (40 m) at 9 s; a prior at 4 m/s is in at 10 s.
+    let d = realistic(1.0, &reference_of(|_| 4.0)).decide(&input(Style::Yield, 2.0));
+    let key = d.key_time_s.unwrap();
+    assert!((key - 9.5).abs() < 0.1, "yield key time {key}, expected about 9.5 s");
+    // A prior that would go in at 4 s pulls the BV no closer to the VUT (out at 7 s) than the
+    // safety margin (0.5 s).
+    let d = realistic(1.0, &reference_of(|_| 10.0)).decide(&input(Style::Yield, 2.0));
+    let key = d.key_time_s.unwrap();
+    assert!((key - 7.5).abs() < 0.1, "yield key time {key}, expected the margin's 7.5 s");
+}
+
+#[test]
+fn the_plan_takes_the_shape_of_the_prior() {
+    // Two priors that are both out of the zone at 4 s (the game's own key time, so the pull does
+    // not move it): one steady at 12.5 m/s, one that starts slow (6 m/s) and speeds up late. The
+    // plan around the second starts slower.
+    let steady = reference_of(|_| 12.5);
+    let late = reference_of(|t| if t < 2.0 { 6.0 } else { 19.0 });
+    let s_late = late.iter().find(|q| q.t_s >= 4.0 - 1e-9).unwrap().s_m;
+    assert!((s_late - 50.0).abs() < 2.0, "the late prior is out at about 4 s: {s_late} m");
+    let a_steady = realistic(1.0, &steady).decide(&input(Style::Rush, 2.0));
+    let a_late = realistic(1.0, &late).decide(&input(Style::Rush, 2.0));
+    assert!(a_late.accel_mps2 < a_steady.accel_mps2 - 0.3, "late {a_late:?} vs steady {a_steady:?}");
+    assert!((a_late.key_time_s.unwrap() - a_steady.key_time_s.unwrap()).abs() < 0.15);
+}
+
+#[test]
+fn a_prior_that_never_reaches_the_key_point_leaves_the_game_alone() {
+    // A prior that stops at 30 m, before the zone: no pull (nothing to be realistic about there).
+    let stops = reference_of(|t| if t < 3.0 { 10.0 } else { 0.0 });
+    let alone = regulator().decide(&input(Style::Rush, 2.0));
+    let d = realistic(1.0, &stops).decide(&input(Style::Rush, 2.0));
+    assert_eq!(d, alone);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(80))]
+    /// `w_real = 0` is the regulator without the realism term, whatever the reference: every
+    /// decision of a closed sequence is identical (bit for bit).
+    #[test]
+    fn zero_realism_weight_is_the_regulator_without_it(
+        bv_v in 2.0f64..18.0, vut_s in -30.0f64..40.0, vut_v in 2.0f64..18.0, tau in 1.0f64..5.0,
+        rush in any::<bool>(), v_prior in 2.0f64..18.0, late in 0.5f64..5.0,
+    ) {
+        let prior = reference_of(|t| if t < late { 0.5 * v_prior } else { v_prior });
+        let mut plain = regulator();
+        let mut zero = realistic(0.0, &prior);
+        let mut inp = input(if rush { Style::Rush } else { Style::Yield }, tau);
+        inp.bv.v_mps = bv_v;
+        inp.vut = PathState { s_m: vut_s, v_mps: vut_v, age_s: 0.1 };
+        for k in 0..30 {
+            let a = plain.decide(&inp);
+            let b = zero.decide(&inp);
+            prop_assert_eq!(a, b);
+            // Move both vehicles on, the BV as decided.
+            inp.t_s = k as f64 * 0.1 + 0.1;
+            inp.bv.s_m += inp.bv.v_mps * 0.1;
+            inp.bv.v_mps = a.next_speed_mps;
+            inp.bv_accel_mps2 = a.accel_mps2;
+            inp.vut.s_m += inp.vut.v_mps * 0.1;
+        }
+    }
 }

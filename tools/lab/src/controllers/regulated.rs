@@ -2,6 +2,7 @@
 //! decides the longitudinal motion every control period, pure pursuit keeps the BV on its path.
 
 use v2t_game::qp::QpError;
+use v2t_game::reference::{MAX_REFERENCE_SAMPLES, ReferenceSample};
 use v2t_game::regulator::{Decision, Limits, PathState, Regulator, RegulatorInput, RegulatorParams, curve_speed_limit};
 use v2t_model::Target;
 use v2t_sim::bv::BvController;
@@ -16,12 +17,17 @@ pub struct RegulatedBv {
     target: Target,
     last_accel: f64,
     last: Option<Decision>,
+    /// Whether the BV's reference timing has been handed to the regulator (on the first cycle).
+    reference_set: bool,
 }
+
+/// Period at which the BV's reference speed profile is sampled for the regulator's realism term, s.
+const REFERENCE_PERIOD_S: f64 = 0.1;
 
 impl RegulatedBv {
     /// A regulator with `params` aiming at `target`.
     pub fn new(params: RegulatorParams, target: Target) -> Result<Self, QpError> {
-        Ok(Self { regulator: Regulator::new(params)?, target, last_accel: 0.0, last: None })
+        Ok(Self { regulator: Regulator::new(params)?, target, last_accel: 0.0, last: None, reference_set: false })
     }
 
     /// `settings` with the limits of BV `bv_index` and the VUT of `scenario` (unchanged when the
@@ -64,6 +70,22 @@ impl BvController for RegulatedBv {
             return ActuationRequest { accel_mps2: -2.0, steer_rad: 0.0 };
         };
         let vehicle = &bv.agent.vehicle;
+        if !self.reference_set {
+            // What the realism term pulls toward: the BV's prior, or a card's speed profile
+            // re-timed for the target (`Scenario::realism_reference`). Sampled once; the
+            // regulator keeps it in its own buffers.
+            if let Some(profile) = sc.realism_reference(obs.bv_index) {
+                let period = REFERENCE_PERIOD_S.max(sc.duration_s / (MAX_REFERENCE_SAMPLES - 1) as f64);
+                let n = (sc.duration_s / period).ceil() as usize + 1;
+                let samples = (0..n.min(MAX_REFERENCE_SAMPLES)).map(|k| {
+                    let t = k as f64 * period;
+                    ReferenceSample { t_s: t, s_m: profile.distance_at(t), v_mps: profile.speed_at(t).max(0.0) }
+                });
+                // A reference the regulator refuses leaves it without the realism term: it still regulates.
+                let _ = self.regulator.set_reference(samples);
+            }
+            self.reference_set = true;
+        }
         // Bring both measurements to "now" at constant speed.
         let own_s = obs.own.s_m + obs.own.state.speed_mps * obs.own.age_s;
         let vut_s = obs.vut.s_m + obs.vut.state.speed_mps * obs.vut.age_s;
@@ -77,7 +99,6 @@ impl BvController for RegulatedBv {
             zone_kind: conflict.zone.kind,
             target: self.target,
             reference_speed_mps: bv.reference.speed_at(obs.t_s),
-            reference_key_time_s: None,
         };
         let lat = vehicle.limits.max_lat_accel_mps2;
         let d = self.regulator.decide_on_path(&input, &|s| curve_speed_limit(&bv.agent.route, s, lat));
