@@ -25,6 +25,10 @@ pub struct SimArgs {
     /// Record the run as MCAP (truth, scene, commands, predicted PET) to this file.
     #[arg(long)]
     mcap: Option<PathBuf>,
+    /// Recorded human driving per manoeuvre class: the reference of the realism lines (default:
+    /// the shipped config/realism/human_reference.json when run from the repository).
+    #[arg(long)]
+    human_reference: Option<PathBuf>,
 }
 
 /// Runs the card and prints what happened.
@@ -34,14 +38,29 @@ pub fn run(a: SimArgs) -> anyhow::Result<()> {
         Some(name) => Some(name.parse::<VutModel>().map_err(crate::Usage)?),
         None => None,
     };
+    let human = v2t_files::human_reference_or_shipped(a.human_reference.as_deref())?;
     let outcome = v2t_lab::sim::run_reference(&scenario, model, a.seed)?;
     print!("{}", v2t_lab::sim::report(&outcome));
+    let realism = match &human {
+        Some(h) => {
+            let r = v2t_sim::realism::measure_run(&scenario, &outcome, h).map_err(|e| crate::Usage(e.to_string()))?;
+            print!("{}", v2t_lab::sim::realism_report(&r, h));
+            Some(r)
+        }
+        None => None,
+    };
     if let Some(path) = a.mcap {
         recording::write(&outcome, &path)?;
         println!("wrote {}", path.display());
     }
     if let Some(path) = a.json {
-        write_json(&path, &outcome)?;
+        #[derive(serde::Serialize)]
+        struct Output<'a> {
+            #[serde(flatten)]
+            outcome: &'a v2t_sim::runner::RunOutcome,
+            realism: Option<&'a v2t_sim::realism::RunRealism>,
+        }
+        write_json(&path, &Output { outcome: &outcome, realism: realism.as_ref() })?;
     }
     Ok(())
 }

@@ -7,6 +7,7 @@ use std::path::Path;
 use serde::de::DeserializeOwned;
 use v2t_model::grounded::GroundedScenario;
 use v2t_model::prior::TrajectoryPrior;
+use v2t_model::realism::{HumanReference, ReferenceError};
 use v2t_model::semantics::{ScenarioSemantics, SemanticsError, parse_semantics_json};
 use v2t_model::validate::{Validate, ValidationError};
 
@@ -60,6 +61,33 @@ pub fn read_semantics(path: &Path) -> Result<ScenarioSemantics, InputError> {
 /// Reads a grounded scenario (what `ground --out` writes).
 pub fn read_grounded(path: &Path) -> Result<GroundedScenario, InputError> {
     document(path, "a grounded scenario")
+}
+
+/// Reads a human reference of motion per manoeuvre class (what `corpus reference` writes), checked.
+pub fn read_human_reference(path: &Path) -> Result<HumanReference, InputError> {
+    let bad = |source: DocumentError| InputError::Document { path: path.to_owned(), source };
+    let what = "a human reference";
+    let r: HumanReference = serde_json::from_str(&read_text(path)?)
+        .map_err(|e| bad(DocumentError::Shape { what, message: e.to_string() }))?;
+    r.validate().map_err(|e| {
+        bad(match e {
+            ReferenceError::Format { .. } => DocumentError::Shape { what, message: e.to_string() },
+            ReferenceError::Field { field, reason } => ValidationError::new(field, reason).into(),
+        })
+    })?;
+    Ok(r)
+}
+
+/// The human reference a command measures realism against: the file given (which must read),
+/// or else the shipped one when it is there (run from the repository), or else none.
+pub fn human_reference_or_shipped(given: Option<&Path>) -> Result<Option<HumanReference>, InputError> {
+    match given {
+        Some(path) => read_human_reference(path).map(Some),
+        None => {
+            let shipped = Path::new(crate::shipped::HUMAN_REFERENCE);
+            if shipped.is_file() { read_human_reference(shipped).map(Some) } else { Ok(None) }
+        }
+    }
 }
 
 /// Reads a trajectory prior (what `generate --out` writes).
@@ -148,5 +176,18 @@ mod tests {
         std::fs::write(&bad, "{").unwrap();
         assert!(read_prior_or_grounded(&bad).unwrap_err().to_string().contains("not JSON"));
         assert!(matches!(read_grounded(&dir.path().join("none.json")), Err(InputError::Read { .. })));
+    }
+
+    #[test]
+    fn the_shipped_human_reference_reads_and_a_broken_one_names_the_field() {
+        let path = root().join(crate::shipped::HUMAN_REFERENCE);
+        let r = read_human_reference(&path).unwrap();
+        assert!(!r.classes.is_empty());
+        let dir = tempfile::tempdir().unwrap();
+        let bad = dir.path().join("ref.json");
+        let text = read_text(&path).unwrap().replacen("\"dt_s\": 0.1", "\"dt_s\": 7.0", 1);
+        std::fs::write(&bad, text).unwrap();
+        let e = read_human_reference(&bad).unwrap_err().to_string();
+        assert!(e.contains("ref.json") && e.contains("dt_s"), "{e}");
     }
 }

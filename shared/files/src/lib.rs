@@ -29,7 +29,8 @@ use serde::de::DeserializeOwned;
 use v2t_model::validate::{Validate, ValidationError};
 
 pub use documents::{
-    DocumentError, PriorDocument, prior_document, read_grounded, read_prior, read_prior_or_grounded, read_semantics,
+    DocumentError, PriorDocument, human_reference_or_shipped, prior_document, read_grounded, read_human_reference,
+    read_prior, read_prior_or_grounded, read_semantics,
 };
 
 /// Where the shipped files live, relative to the repository root: the defaults of the commands.
@@ -46,6 +47,8 @@ pub mod shipped {
     pub const VUT_VEHICLE: &str = "config/vehicles/vut_sedan.toml";
     /// The BV's vehicle.
     pub const BV_VEHICLE: &str = "config/vehicles/bv_sedan.toml";
+    /// Human driving per manoeuvre class, what a run's realism is measured against.
+    pub const HUMAN_REFERENCE: &str = "config/realism/human_reference.json";
     /// One BV's onboard runtime.
     pub const EDGE: &str = "config/edge/bv1.toml";
     /// The scenario cards: the unprotected left turn (the BV turns) and the cut-in.

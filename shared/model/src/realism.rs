@@ -53,6 +53,15 @@ impl ManoeuvreClass {
     /// Every class.
     pub const ALL: [Self; 3] = [Self::Straight, Self::LeftTurn, Self::LaneChange];
 
+    /// Name in tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Straight => "straight",
+            Self::LeftTurn => "left turn",
+            Self::LaneChange => "lane change",
+        }
+    }
+
     /// The class of a driven trajectory: a left turn when its heading turns left by more than
     /// 1 rad overall, a lane change when it ends 2–5 m to the side of the line its start heading
     /// points along (having turned less than 0.5 rad), straight otherwise.
@@ -321,7 +330,12 @@ impl HumanReference {
     /// How human `states` (sampled every `dt_s`) are, in their own class ([`ManoeuvreClass::of_states`]);
     /// `None` when the class has no reference or the trajectory has fewer than three states.
     pub fn measure(&self, states: &[State], dt_s: f64) -> Option<MotionRealism> {
-        let class = ManoeuvreClass::of_states(states);
+        self.measure_as(ManoeuvreClass::of_states(states), states, dt_s)
+    }
+
+    /// [`Self::measure`] in a given class (the manoeuvre the vehicle's route asks for, which a run
+    /// cut short by its duration may not complete).
+    pub fn measure_as(&self, class: ManoeuvreClass, states: &[State], dt_s: f64) -> Option<MotionRealism> {
         let r = self.class(class)?;
         let (a, j, y) = motion_samples(states, dt_s);
         if j.is_empty() {

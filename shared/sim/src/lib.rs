@@ -38,6 +38,7 @@ pub mod files;
 pub mod measure;
 pub mod observation;
 pub mod plant;
+pub mod realism;
 #[cfg(feature = "mcap")]
 pub mod recording;
 pub mod runner;

@@ -143,6 +143,9 @@ pub struct ScenarioSummary {
     pub collision: bool,
     /// Smallest footprint distance, m.
     pub min_distance_m: Option<f64>,
+    /// How human the BV's motion was: its class and W₁ figures against recorded human driving
+    /// (`realism` of `run.json`; the class alone when it has no human reference).
+    pub bv_realism: Option<Value>,
     /// Wall time of the scenario, s.
     pub wall_s: f64,
     /// Files written.
@@ -289,6 +292,20 @@ fn run_one(
         },
         if at(r, "/collision").is_null() { "none" } else { "YES" }
     );
+    let bv_realism = run.pointer("/realism/vehicles/1").cloned().filter(|v| !v.is_null());
+    if let Some(v) = &bv_realism {
+        match v.pointer("/realism/w1_accel_mps2").and_then(Value::as_f64) {
+            Some(a) => println!(
+                "  BV realism ({}): W₁ accel {a:.3} m/s², W₁ jerk {:.3} m/s³ against recorded human driving",
+                at(v, "/class").as_str().unwrap_or("?"),
+                at(v, "/realism/w1_jerk_mps3").as_f64().unwrap_or(f64::NAN)
+            ),
+            None => println!(
+                "  BV realism ({}): no human reference for this class",
+                at(v, "/class").as_str().unwrap_or("?")
+            ),
+        }
+    }
     let summary = ScenarioSummary {
         name: sc.name.into(),
         pet_video_s: sc.pet_label_s,
@@ -301,6 +318,7 @@ fn run_one(
         order_ok: at(r, "/conflicts/0/order_matches_style").as_bool(),
         collision: !at(r, "/collision").is_null(),
         min_distance_m: at(r, "/min_distance_m").as_f64(),
+        bv_realism,
         wall_s: t0.elapsed().as_secs_f64(),
         files,
     };

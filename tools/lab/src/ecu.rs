@@ -74,6 +74,21 @@ pub struct EcuOptions {
     pub tau_s: Option<f64>,
     /// Style instead of the card's (a card only).
     pub style: Option<Style>,
+    /// Recorded human driving per manoeuvre class: the run's realism is measured against it.
+    pub human: Option<v2t_model::realism::HumanReference>,
+}
+
+/// What a run behind the CAN frames gave.
+#[derive(Debug)]
+pub struct EcuRun {
+    /// The measured run.
+    pub outcome: RunOutcome,
+    /// The ECU's statistics.
+    pub stats: EcuStats,
+    /// The regulator's decisions, for the recording.
+    pub plans: Vec<PlanRecord>,
+    /// How human each vehicle's motion was (when [`EcuOptions::human`] is given).
+    pub realism: Option<v2t_sim::realism::RunRealism>,
 }
 
 /// Why the simulated ECU could not run.
@@ -231,11 +246,8 @@ impl<S: Service + 'static> Io<S> {
 }
 
 /// Runs the scenario of `opts` against the onboard stack of `cfg` in real time; returns the
-/// measured run and the ECU's statistics. Ends early (with `Ok`) on SIGINT/SIGTERM.
-pub fn run<S: Service + 'static>(
-    cfg: &Loaded,
-    opts: &EcuOptions,
-) -> Result<(RunOutcome, EcuStats, Vec<PlanRecord>), EcuError> {
+/// measured run, the ECU's statistics and the run's realism. Ends early (with `Ok`) on SIGINT/SIGTERM.
+pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<EcuRun, EcuError> {
     let bus = Bus::<S>::new("sim-ecu", &cfg.edge.namespace)?;
     // The regulator's decisions, for the recording.
     let plan_in = bus.subscriber::<RegulatedPlan>(services::PLAN)?;
@@ -284,6 +296,10 @@ pub fn run<S: Service + 'static>(
         }
     };
     let model = opts.vut.unwrap_or(scenario.vut.default_model);
+    let finish = |outcome: RunOutcome, stats: EcuStats, plans: Vec<PlanRecord>| {
+        let realism = opts.human.as_ref().and_then(|h| v2t_sim::realism::measure_run(&scenario, &outcome, h).ok());
+        EcuRun { outcome, stats, plans, realism }
+    };
     let mut driver = model.driver();
     let mut io = Io {
         fixes: bus.publisher(services::LOCALIZATION)?,
@@ -335,7 +351,7 @@ pub fn run<S: Service + 'static>(
         }
         k += 1;
         if !io.bus.wait(Duration::from_nanos(step_ns)) {
-            return Ok((sim.finish(model.as_str(), "v2t-edge"), cmds.stats, plans));
+            return Ok(finish(sim.finish(model.as_str(), "v2t-edge"), cmds.stats, plans));
         }
     }
 
@@ -387,7 +403,7 @@ pub fn run<S: Service + 'static>(
             break;
         }
     }
-    Ok((sim.finish(model.as_str(), "v2t-edge"), cmds.stats, plans))
+    Ok(finish(sim.finish(model.as_str(), "v2t-edge"), cmds.stats, plans))
 }
 
 fn scenario_start_vut(scenario: &v2t_sim::scenario::Scenario) -> v2t_model::kinematics::State {

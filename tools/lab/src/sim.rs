@@ -80,3 +80,28 @@ pub fn report(outcome: &RunOutcome) -> String {
     );
     out
 }
+
+/// The realism lines of a run: per vehicle its manoeuvre class and how far its motion is from the
+/// recorded human driving of that class (`reference` names where that driving came from).
+pub fn realism_report(r: &v2t_sim::realism::RunRealism, reference: &v2t_model::realism::HumanReference) -> String {
+    let mut out = String::new();
+    let source = reference.provenance.split("; made by").next().unwrap_or_default();
+    let _ = writeln!(out, "  realism against {source}:");
+    for v in &r.vehicles {
+        let _ = match &v.realism {
+            Some(m) => writeln!(
+                out,
+                "    {} ({}): W₁ accel {:.3} m/s², W₁ jerk {:.3} m/s³, W₁ yaw rate {:.4} rad/s, jerk RMS {:.2} m/s³, {} speed reversals",
+                v.id,
+                v.class.name(),
+                m.w1_accel_mps2,
+                m.w1_jerk_mps3,
+                m.w1_yaw_rate_radps,
+                m.jerk_rms_mps3,
+                m.speed_reversals
+            ),
+            None => writeln!(out, "    {} ({}): no human reference for this class", v.id, v.class.name()),
+        };
+    }
+    out
+}

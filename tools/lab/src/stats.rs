@@ -7,6 +7,8 @@
 //! the denominators.
 
 use serde::Serialize;
+use v2t_model::realism::{ManoeuvreClass, MotionRealism};
+use v2t_sim::realism::{RunRealism, VehicleRealism};
 use v2t_sim::runner::RunResult;
 
 /// Adds runs up.
@@ -19,6 +21,75 @@ pub struct Tally {
     order_ok: usize,
     unmeasured: usize,
     failed: usize,
+    bv_realism: RealismTally,
+    vut_realism: RealismTally,
+}
+
+/// One vehicle role's realism over runs.
+#[derive(Debug, Clone, Default)]
+struct RealismTally {
+    class: Option<ManoeuvreClass>,
+    runs: usize,
+    measured: Vec<MotionRealism>,
+}
+
+impl RealismTally {
+    fn add(&mut self, v: Option<&VehicleRealism>) {
+        let Some(v) = v else { return };
+        self.runs += 1;
+        // The class of the first run names the row; a run in another class is not averaged in.
+        let class = *self.class.get_or_insert(v.class);
+        if let Some(m) = v.realism.filter(|m| m.class == class) {
+            self.measured.push(m);
+        }
+    }
+
+    fn stats(&self) -> Option<RealismStats> {
+        let class = self.class?;
+        let n = self.measured.len();
+        let mean = |f: &dyn Fn(&MotionRealism) -> f64| self.measured.iter().map(f).sum::<f64>() / n as f64;
+        Some(RealismStats {
+            class,
+            runs: self.runs,
+            measured: n,
+            means: (n > 0).then(|| RealismMeans {
+                w1_accel_mps2: mean(&|m| m.w1_accel_mps2),
+                w1_jerk_mps3: mean(&|m| m.w1_jerk_mps3),
+                w1_yaw_rate_radps: mean(&|m| m.w1_yaw_rate_radps),
+                jerk_rms_mps3: mean(&|m| m.jerk_rms_mps3),
+                speed_reversals: mean(&|m| m.speed_reversals as f64),
+            }),
+        })
+    }
+}
+
+/// How human one vehicle's motion was over the runs of a case, against recorded human driving in
+/// its manoeuvre class ([`v2t_sim::realism`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RealismStats {
+    /// The class (of the first run's trajectory).
+    pub class: ManoeuvreClass,
+    /// Runs whose realism was asked for.
+    pub runs: usize,
+    /// Runs measured (0 when the reference has no human driving of this class).
+    pub measured: usize,
+    /// Means over the measured runs.
+    pub means: Option<RealismMeans>,
+}
+
+/// Means over runs of [`MotionRealism`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RealismMeans {
+    /// W₁ of longitudinal acceleration, m/s².
+    pub w1_accel_mps2: f64,
+    /// W₁ of jerk, m/s³.
+    pub w1_jerk_mps3: f64,
+    /// W₁ of yaw rate, rad/s.
+    pub w1_yaw_rate_radps: f64,
+    /// Jerk RMS, m/s³.
+    pub jerk_rms_mps3: f64,
+    /// Speed reversals per run.
+    pub speed_reversals: f64,
 }
 
 impl Tally {
@@ -32,6 +103,12 @@ impl Tally {
             Some(p) => self.pets.push(p),
             None => self.unmeasured += 1,
         }
+    }
+
+    /// The realism of one run that ran (the first BV's, and the VUT's).
+    pub fn add_realism(&mut self, r: &RunRealism) {
+        self.bv_realism.add(r.bv(0));
+        self.vut_realism.add(r.vut());
     }
 
     /// One run that could not be built or run.
@@ -53,6 +130,8 @@ impl Tally {
             order_ok_frac: if self.runs == 0 { 0.0 } else { self.order_ok as f64 / self.runs as f64 },
             unmeasured: self.unmeasured,
             failed: self.failed,
+            bv_realism: self.bv_realism.stats(),
+            vut_realism: self.vut_realism.stats(),
         }
     }
 }
@@ -77,6 +156,63 @@ pub struct RunStats {
     pub unmeasured: usize,
     /// Runs that could not be built or did not finish.
     pub failed: usize,
+    /// How human the (first) BV's motion was; `None` when realism was not measured.
+    pub bv_realism: Option<RealismStats>,
+    /// How human the VUT's motion was, for reference.
+    pub vut_realism: Option<RealismStats>,
+}
+
+impl RealismStats {
+    /// The realism of several cases of one vehicle role pooled: runs add up, means weighted by the
+    /// runs measured; `None` when no case has realism or their classes differ.
+    pub fn pool<'a>(cases: impl IntoIterator<Item = &'a RealismStats>) -> Option<RealismStats> {
+        let mut out: Option<RealismStats> = None;
+        for c in cases {
+            let Some(acc) = out.as_mut() else {
+                out = Some(*c);
+                continue;
+            };
+            if acc.class != c.class {
+                return None;
+            }
+            let (n0, n1) = (acc.measured as f64, c.measured as f64);
+            acc.means = match (acc.means, c.means) {
+                (Some(a), Some(b)) => {
+                    let w = |x: f64, y: f64| (x * n0 + y * n1) / (n0 + n1);
+                    Some(RealismMeans {
+                        w1_accel_mps2: w(a.w1_accel_mps2, b.w1_accel_mps2),
+                        w1_jerk_mps3: w(a.w1_jerk_mps3, b.w1_jerk_mps3),
+                        w1_yaw_rate_radps: w(a.w1_yaw_rate_radps, b.w1_yaw_rate_radps),
+                        jerk_rms_mps3: w(a.jerk_rms_mps3, b.jerk_rms_mps3),
+                        speed_reversals: w(a.speed_reversals, b.speed_reversals),
+                    })
+                }
+                (a, b) => a.or(b),
+            };
+            acc.runs += c.runs;
+            acc.measured += c.measured;
+        }
+        out
+    }
+
+    /// Markdown cells: class, W₁ of acceleration and of jerk, jerk RMS, speed reversals per run
+    /// (`no human reference` where the class has none).
+    pub fn cells(r: Option<&RealismStats>) -> String {
+        match r {
+            None => "– | – | – | – | –".into(),
+            Some(r) => match r.means {
+                Some(m) => format!(
+                    "{} | {:.3} | {:.3} | {:.2} | {:.1}",
+                    r.class.name(),
+                    m.w1_accel_mps2,
+                    m.w1_jerk_mps3,
+                    m.jerk_rms_mps3,
+                    m.speed_reversals
+                ),
+                None => format!("{} | no human reference | – | – | –", r.class.name()),
+            },
+        }
+    }
 }
 
 impl RunStats {
@@ -137,5 +273,50 @@ mod tests {
         let empty = Tally::default().stats();
         assert_eq!((empty.repeats, empty.mean_pet_min_s, empty.order_ok_frac), (0, None, 0.0));
         assert_eq!(empty.error_rel(2.0), None);
+    }
+
+    fn realism(class: ManoeuvreClass, w1_accel: Option<f64>) -> RunRealism {
+        let m = |w: f64| MotionRealism {
+            class,
+            w1_accel_mps2: w,
+            w1_jerk_mps3: 2.0 * w,
+            w1_yaw_rate_radps: 0.01,
+            jerk_rms_mps3: 1.0,
+            speed_reversals: 1,
+        };
+        let v = |id: &str, c, r| VehicleRealism { id: id.into(), class: c, realism: r };
+        RunRealism {
+            vehicles: vec![
+                v("vut", ManoeuvreClass::Straight, Some(m(0.1))),
+                v("bv1", class, w1_accel.map(|w| MotionRealism { class, ..m(w) })),
+            ],
+        }
+    }
+
+    #[test]
+    fn realism_is_averaged_over_measured_runs_and_pooled_by_runs() {
+        let mut t = Tally::default();
+        t.add_realism(&realism(ManoeuvreClass::LaneChange, Some(0.2)));
+        t.add_realism(&realism(ManoeuvreClass::LaneChange, Some(0.4)));
+        let a = t.stats().bv_realism.unwrap();
+        assert_eq!((a.class, a.runs, a.measured), (ManoeuvreClass::LaneChange, 2, 2));
+        let m = a.means.unwrap();
+        assert!((m.w1_accel_mps2 - 0.3).abs() < 1e-12 && (m.w1_jerk_mps3 - 0.6).abs() < 1e-12);
+        // A second case with one run at 0.9: pooled by runs measured, (0.2 + 0.4 + 0.9) / 3.
+        let mut u = Tally::default();
+        u.add_realism(&realism(ManoeuvreClass::LaneChange, Some(0.9)));
+        let b = u.stats().bv_realism.unwrap();
+        let pooled = RealismStats::pool([&a, &b]).unwrap();
+        assert_eq!((pooled.runs, pooled.measured), (3, 3));
+        assert!((pooled.means.unwrap().w1_accel_mps2 - 0.5).abs() < 1e-12);
+        // A class without a human reference is counted and says so; classes never mix.
+        let mut l = Tally::default();
+        l.add_realism(&realism(ManoeuvreClass::LeftTurn, None));
+        let c = l.stats().bv_realism.unwrap();
+        assert_eq!((c.runs, c.measured, c.means), (1, 0, None));
+        assert!(RealismStats::cells(Some(&c)).contains("no human reference"));
+        assert_eq!(RealismStats::pool([&a, &c]), None);
+        assert_eq!(t.stats().vut_realism.unwrap().class, ManoeuvreClass::Straight);
+        assert_eq!(Tally::default().stats().bv_realism, None, "not measured: no realism at all");
     }
 }

@@ -72,9 +72,14 @@ struct Cli {
     /// Style instead of the card's (rush or yield).
     #[arg(long)]
     style: Option<Style>,
+    /// Recorded human driving per manoeuvre class, the reference of the run's realism (default:
+    /// the shipped config/realism/human_reference.json when run from the repository).
+    #[arg(long)]
+    human_reference: Option<PathBuf>,
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
+    let human = v2t_files::human_reference_or_shipped(cli.human_reference.as_deref()).map_err(EcuError::from)?;
     let overrides = Overrides { namespace: cli.namespace.as_deref(), can_iface: cli.can_iface.as_deref() };
     let cfg = load_for_process(&cli.config, overrides).map_err(EcuError::from)?;
     let source = match (cli.scenario, cli.prior) {
@@ -89,8 +94,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         engage_timeout_s: cli.engage_timeout_s,
         tau_s: cli.tau,
         style: cli.style,
+        human: human.clone(),
     };
-    let (outcome, stats, plans) = v2t_lab::ecu::run::<ipc::Service>(&cfg, &opts)?;
+    let v2t_lab::ecu::EcuRun { outcome, stats, plans, realism } = v2t_lab::ecu::run::<ipc::Service>(&cfg, &opts)?;
     let r = &outcome.result;
     let pet = r.pet_min_s.map_or_else(|| "none".to_owned(), |p| format!("{p:.2} s"));
     println!(
@@ -105,6 +111,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         stats.timeout_steps,
         stats.late_steps
     );
+    if let (Some(r), Some(h)) = (&realism, &human) {
+        print!("{}", v2t_lab::sim::realism_report(r, h));
+    }
     if let Some(path) = cli.mcap {
         v2t_sim::recording::write_with_plans(&outcome, &plans, &path)?;
     }
@@ -112,6 +121,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         let mut doc = serde_json::to_value(&outcome).context("serializing the run")?;
         if let Some(obj) = doc.as_object_mut() {
             obj.insert("ecu".into(), serde_json::to_value(stats).context("serializing the ECU statistics")?);
+            obj.insert("realism".into(), serde_json::to_value(&realism).context("serializing the realism")?);
         }
         let text = serde_json::to_string_pretty(&doc).context("serializing the run")?;
         std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))?;

@@ -20,14 +20,15 @@ pub(super) fn html(summary: &Summary, runs: &[(Value, v2t_model::grounded::Groun
         "<p>Semantics replayed from the shipped hand-written cassettes, grounded on the proving ground, prior: {}; \
          each run closes the loop through the BV's onboard processes (iceoryx2) and the simulated proving ground. \
          Wall time {:.1} s.</p><table><tr><th>scenario</th><th>style</th><th>PET video (s)</th><th>PET<sup>min</sup> track (s)</th>\
-         <th>fidelity error</th><th>order</th><th>collision</th><th>min distance (m)</th></tr>",
+         <th>fidelity error</th><th>order</th><th>collision</th><th>min distance (m)</th>\
+         <th>BV class</th><th>BV W<sub>1</sub> accel (m/s²)</th><th>BV W<sub>1</sub> jerk (m/s³)</th></tr>",
         esc(&summary.prior),
         summary.wall_s
     );
     for s in &summary.scenarios {
         let _ = write!(
             h,
-            "<tr><td style=\"text-align:left\">{}</td><td>{}</td><td>{:.2}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            "<tr><td style=\"text-align:left\">{}</td><td>{}</td><td>{:.2}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>{}</tr>",
             esc(&s.name),
             esc(&s.style),
             s.pet_video_s,
@@ -39,10 +40,11 @@ pub(super) fn html(summary: &Summary, runs: &[(Value, v2t_model::grounded::Groun
                 None => "–",
             },
             if s.collision { "yes" } else { "no" },
-            s.min_distance_m.map_or_else(|| "–".into(), |d| format!("{d:.2}"))
+            s.min_distance_m.map_or_else(|| "–".into(), |d| format!("{d:.2}")),
+            realism_cells(s.bv_realism.as_ref())
         );
     }
-    h.push_str("</table>");
+    h.push_str("</table><p>BV realism: W<sub>1</sub> distances of the BV's longitudinal acceleration and jerk to recorded human driving (NGSIM) of its manoeuvre class; a class without human recordings says so.</p>");
     for (s, (run, grounded)) in summary.scenarios.iter().zip(runs) {
         let _ = write!(
             h,
@@ -179,4 +181,15 @@ fn pet_svg(run: &Value, tau: f64) -> String {
         "<text x=\"{pad}\" y=\"16\" font-size=\"12\">predicted PET (s) over time (0–{t_end:.0} s); axis top {y_max:.1} s</text></svg>"
     );
     s
+}
+
+/// The BV-realism cells of a row: class, W₁ of acceleration and of jerk.
+fn realism_cells(r: Option<&serde_json::Value>) -> String {
+    let Some(r) = r else { return "<td>–</td><td>–</td><td>–</td>".into() };
+    let class = esc(r.pointer("/class").and_then(serde_json::Value::as_str).unwrap_or("–"));
+    let num = |k: &str| r.pointer(k).and_then(serde_json::Value::as_f64);
+    match (num("/realism/w1_accel_mps2"), num("/realism/w1_jerk_mps3")) {
+        (Some(a), Some(j)) => format!("<td>{class}</td><td>{a:.3}</td><td>{j:.3}</td>"),
+        _ => format!("<td>{class}</td><td colspan=\"2\">no human reference</td>"),
+    }
 }
