@@ -99,7 +99,7 @@ fn two_bvs_each_get_their_own_conflict_and_regulator() {
 
     let settings: v2t_game::regulator::RegulatorParams = load_toml(&root.join("regulator/default.toml")).unwrap();
     let target = v2t_model::Target::new(2.0, v2t_model::Style::Yield).unwrap();
-    let c = v2t_lab::steer::steer_case(&settings, &scenario, target, VutModel::IdmNormal, 1);
+    let c = v2t_lab::steer::steer_case(&settings, &scenario, target, VutModel::IdmNormal, 1..=1);
     let s = c.stats;
     assert_eq!((s.collisions, s.zone_overlaps, s.unmeasured), (0, 0, 0), "{c:?}");
     assert_eq!(s.order_ok_frac, 1.0, "both BVs let the VUT through first: {c:?}");

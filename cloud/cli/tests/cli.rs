@@ -185,6 +185,19 @@ fn the_four_methods_run_on_both_recorded_scenarios() {
         assert_eq!(c["style"], "rush");
     }
     assert_eq!(doc["summary"].as_array().unwrap().len(), 8);
+    // Every run's BV is measured against recorded human driving of its manoeuvre class: the cut-in's
+    // lane change has a reference, the left turn has none (and says so).
+    assert!(out.contains("BV W₁ accel") && out.contains("no human reference"), "{out}");
+    for c in cases {
+        let r = &c["bv_realism"];
+        let cut_in = c["scenario"].as_str().unwrap().starts_with("cut_in");
+        assert_eq!(r["class"], if cut_in { "lane_change" } else { "left_turn" }, "{c}");
+        assert_eq!(r["measured"], if cut_in { 1 } else { 0 }, "{c}");
+        if cut_in {
+            assert!(r["means"]["w1_accel_mps2"].as_f64().unwrap() > 0.0, "{c}");
+        }
+        assert_eq!(c["vut_realism"]["class"], "straight", "{c}");
+    }
     let taus: Vec<f64> = cases.iter().map(|c| c["tau_s"].as_f64().unwrap()).collect();
     assert!(taus.contains(&4.7) && taus.contains(&2.9), "the videos' PET labels are the targets: {taus:?}");
 }
@@ -210,13 +223,49 @@ fn steerability_compares_the_four_methods_on_request() {
 }
 
 #[test]
+fn the_realism_tradeoff_sweeps_the_weight_and_draws_the_front() {
+    let dir_scratch = tempdir("tradeoff");
+    let dir = dir_scratch.path();
+    let json = dir.join("tradeoff.json");
+    let args = ["experiment", "tradeoff", "--repeats", "1", "--tau", "3", "--vut", "idm-normal", "--w-real", "0"];
+    let o = video2track(
+        &[&args[..], &["--w-real", "1", "--json", json.to_str().unwrap(), "--svg-dir", dir.to_str().unwrap()]].concat(),
+    );
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(out.contains("seeds 6–6") && out.contains("NGSIM"), "held-out seed and the reference named: {out}");
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let points = doc["points"].as_array().unwrap();
+    assert_eq!(points.len(), 5, "Diffusion-only, then 2 weights × the two regulated methods");
+    assert_eq!(doc["cases"].as_array().unwrap().len(), 2 * 2 * 5, "2 scenarios × 2 styles × 5 points");
+    for p in points {
+        assert_eq!(p["errors"].as_array().unwrap().len(), 1, "one VUT model: {p}");
+        assert_eq!(p["errors"][0]["rows"], 4, "2 scenarios × 2 styles: {p}");
+        assert_eq!(p["collisions"], 0, "{p}");
+    }
+    let svg = std::fs::read_to_string(dir.join("tradeoff_cut_in.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.matches("<polyline").count() == 4, "2 panels × 2 methods");
+    assert!(!dir.join("tradeoff_left_turn.svg").exists(), "no human left turns: no front to draw");
+}
+
+#[test]
 fn experiment_options_an_experiment_would_ignore_are_refused() {
     for (args, needle) in [
-        (&["experiment", "fidelity", "--tau", "3"][..], "--tau applies to `experiment steerability` only"),
+        (
+            &["experiment", "fidelity", "--tau", "3"][..],
+            "--tau applies to `experiment steerability` and `tradeoff` only",
+        ),
+        (
+            &["experiment", "fidelity", "--w-real", "1"][..],
+            "--w-real and --svg-dir apply to `experiment tradeoff` only",
+        ),
+        (&["experiment", "tradeoff", "--w-real", "-1"][..], "--w-real must lie in [0, 1e6], got -1"),
+        (&["experiment", "tradeoff", "--w-real", "NaN"][..], "--w-real must lie in [0, 1e6], got NaN"),
+        (&["experiment", "tradeoff", "--first-seed", "0"][..], "--first-seed must lie in [1, 2^63]"),
         (&["experiment", "adversariality", "--card", "config/scenarios/cut_in_basic.toml"][..], "--card applies"),
         (&["experiment", "steerability", "--tau", "0"][..], "τ must lie in [0.1, 30] s"),
         (&["experiment", "steerability", "--tau", "NaN"][..], "τ must lie in [0.1, 30] s"),
-        (&["experiment", "steerability", "--repeats", "0"][..], "--repeats must be at least 1"),
+        (&["experiment", "steerability", "--repeats", "0"][..], "--repeats must lie in [1, 1000000], got 0"),
         (
             &["experiment", "steerability", "--methods", "--card", "config/scenarios/cut_in_basic.toml"][..],
             "the four methods run on the paper's two scenarios",

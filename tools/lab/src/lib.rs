@@ -9,8 +9,9 @@
 //! - [`controllers`]: the onboard algorithms as BV controllers of the simulated proving ground;
 //! - [`stats`]: the statistics of repeated runs every experiment reports;
 //! - [`sim`]: one run with reference-following BVs (`video2track sim`);
-//! - [`steer`] and [`methods`]: the experiments (`video2track experiment …`), the regulator alone
-//!   on the scenario cards and the paper's four methods on its two scenarios;
+//! - [`steer`], [`methods`] and [`tradeoff`]: the experiments (`video2track experiment …`), the
+//!   regulator alone on the scenario cards, the paper's four methods on its two scenarios, and the
+//!   sweep of the regulator's realism weight;
 //! - [`demo`]: the whole pipeline end to end through the onboard processes (`video2track demo`);
 //! - [`ecu`]: the simulated drive-by-wire ECU behind the real CAN frames (binary `v2t-sim-ecu`);
 //! - [`bench_latency`] and [`bench_game`]: the benches (binary `v2t-bench`).
@@ -33,6 +34,7 @@ pub mod methods;
 pub mod sim;
 pub mod stats;
 pub mod steer;
+pub mod tradeoff;
 pub mod world;
 
 /// `f` of every job, in order, on up to 8 of the available cores (contiguous chunks). A chunk

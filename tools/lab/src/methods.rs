@@ -23,23 +23,27 @@
 //! - `steerability --methods`: rush and yield at every τ (1.5–5 s); per method the steering error
 //!   `|meanPET^min − τ| / τ`.
 
+use std::ops::RangeInclusive;
+
 use serde::Serialize;
 use v2t_diffusion::weights::Model;
 use v2t_game::regulator::RegulatorParams;
 use v2t_map::Inspection;
 use v2t_model::grounded::GroundedScenario;
 use v2t_model::prior::TrajectoryPrior;
+use v2t_model::realism::HumanReference;
 use v2t_model::semantics::ScenarioSemantics;
 use v2t_model::vehicle::VehicleConfig;
 use v2t_model::{Style, Target};
 use v2t_sim::bv::{BvController, ReferenceFollower};
 use v2t_sim::config::SimSettings;
+use v2t_sim::realism::measure_run;
 use v2t_sim::runner::run;
 use v2t_sim::scenario::Scenario;
 use v2t_sim::vut::VutModel;
 
 use crate::controllers::RegulatedBv;
-use crate::stats::{RunStats, Tally};
+use crate::stats::{RealismStats, RunStats, Tally};
 use crate::world::{self, Vehicles, WorldError};
 
 /// The four methods.
@@ -70,11 +74,13 @@ impl Method {
         }
     }
 
-    fn diffusion(self) -> bool {
+    /// Whether the BV follows the diffusion prior (else the constant-speed stand-in).
+    pub fn diffusion(self) -> bool {
         matches!(self, Self::DiffusionOnly | Self::Video2track)
     }
 
-    fn regulated(self) -> bool {
+    /// Whether the regulator drives the BV (else it follows its reference).
+    pub fn regulated(self) -> bool {
         matches!(self, Self::TroublemakerLike | Self::Video2track)
     }
 }
@@ -190,6 +196,9 @@ pub struct Setup<'a> {
     pub vut_vehicle: VehicleConfig,
     /// The BV's vehicle.
     pub bv_vehicle: VehicleConfig,
+    /// Recorded human driving per manoeuvre class: every run's realism is measured against it
+    /// (`None`: not measured).
+    pub human: Option<&'a HumanReference>,
 }
 
 /// The simulated world of a prior for the first conflict's BV ([`world::accept`], then
@@ -238,12 +247,31 @@ pub fn priors(
     Ok((grounded, stand_in, best))
 }
 
-/// `repeats` seeded runs of one method on `scenario`.
-pub fn run_case(setup: &Setup<'_>, scenario: &Scenario, method: Method, model: VutModel, repeats: usize) -> MethodCase {
+/// The seeded runs of one method on `scenario`, one per seed, with the regulator settings of
+/// `setup`.
+pub fn run_case(
+    setup: &Setup<'_>,
+    scenario: &Scenario,
+    method: Method,
+    model: VutModel,
+    seeds: RangeInclusive<u64>,
+) -> MethodCase {
+    run_case_with(setup, &setup.regulator, scenario, method, model, seeds)
+}
+
+/// [`run_case`] with other regulator settings.
+pub fn run_case_with(
+    setup: &Setup<'_>,
+    regulator: &RegulatorParams,
+    scenario: &Scenario,
+    method: Method,
+    model: VutModel,
+    seeds: RangeInclusive<u64>,
+) -> MethodCase {
     let mut tally = Tally::default();
-    for seed in 1..=repeats as u64 {
+    for seed in seeds {
         let controller: Box<dyn BvController> = if method.regulated() {
-            let params = RegulatedBv::params_for(&setup.regulator, scenario, 0);
+            let params = RegulatedBv::params_for(regulator, scenario, 0);
             match RegulatedBv::new(params, scenario.target) {
                 Ok(r) => Box::new(r),
                 Err(_) => {
@@ -256,7 +284,12 @@ pub fn run_case(setup: &Setup<'_>, scenario: &Scenario, method: Method, model: V
         };
         let mut bvs = vec![controller];
         match run(scenario, &mut bvs, model.driver().as_mut(), seed) {
-            Ok(out) => tally.add(&out.result),
+            Ok(out) => {
+                tally.add(&out.result);
+                if let Some(realism) = setup.human.and_then(|h| measure_run(scenario, &out, h).ok()) {
+                    tally.add_realism(&realism);
+                }
+            }
             Err(_) => tally.add_failed(),
         }
     }
@@ -277,7 +310,7 @@ pub fn run_all(
     scenarios: &[PaperScenario],
     comparison: &Comparison,
     models: &[VutModel],
-    repeats: usize,
+    seeds: RangeInclusive<u64>,
 ) -> Result<Vec<MethodCase>, MethodsError> {
     let mut jobs = Vec::new();
     for rec in scenarios {
@@ -298,7 +331,7 @@ pub fn run_all(
             }
         }
     }
-    let cases = crate::parallel_map(&jobs, |(sc, me, m)| run_case(setup, sc, *me, *m, repeats));
+    let cases = crate::parallel_map(&jobs, |(sc, me, m)| run_case(setup, sc, *me, *m, seeds.clone()));
     Ok(cases)
 }
 
@@ -323,6 +356,8 @@ pub struct MethodSummary {
     pub order_ok_frac: f64,
     /// Runs.
     pub runs: usize,
+    /// How human the BV's motion was, over every run of the row (all VUT models).
+    pub bv_realism: Option<RealismStats>,
 }
 
 /// The summary rows of `cases`.
@@ -348,6 +383,7 @@ pub fn summarize(cases: &[MethodCase]) -> Vec<MethodSummary> {
             order_ok_frac: group.iter().map(|d| d.stats.order_ok_frac * d.stats.repeats as f64).sum::<f64>()
                 / runs.max(1) as f64,
             runs,
+            bv_realism: RealismStats::pool(group.iter().filter_map(|d| d.stats.bv_realism.as_ref())),
         });
     }
     out
@@ -414,11 +450,11 @@ pub fn steering_markdown(errors: &[SteeringError]) -> String {
 }
 
 /// A markdown table of the summary, with the fidelity error against `label` (per scenario name
-/// prefix) when given.
+/// prefix) when given, and the BV's realism (W₁ to recorded human driving of its manoeuvre class).
 pub fn markdown(rows: &[MethodSummary], labels: &[(String, f64)]) -> String {
     let f = |v: Option<f64>| v.map_or("–".to_owned(), |x| format!("{x:.2} s"));
     let mut out = String::from(
-        "| scenario | method | meanPET^min | PET^min_track | fidelity error | collisions | order as asked | runs |\n|---|---|---|---|---|---|---|---|\n",
+        "| scenario | method | meanPET^min | PET^min_track | fidelity error | collisions | order as asked | runs | BV class | BV W₁ accel (m/s²) | BV W₁ jerk (m/s³) | BV jerk RMS (m/s³) | BV speed reversals |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         let label = labels.iter().find(|(n, _)| r.scenario.starts_with(n.as_str())).map(|(_, l)| *l);
@@ -427,7 +463,7 @@ pub fn markdown(rows: &[MethodSummary], labels: &[(String, f64)]) -> String {
             _ => "–".into(),
         };
         out.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} | {:.0} % | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {:.0} % | {} | {} |\n",
             r.scenario,
             r.method.name(),
             f(r.mean_pet_min_s),
@@ -435,7 +471,8 @@ pub fn markdown(rows: &[MethodSummary], labels: &[(String, f64)]) -> String {
             fidelity,
             r.collisions,
             100.0 * r.order_ok_frac,
-            r.runs
+            r.runs,
+            RealismStats::cells(r.bv_realism.as_ref())
         ));
     }
     out

@@ -52,19 +52,19 @@ pub struct SteerReport {
     pub max_error_rel: f64,
 }
 
-/// One case: `repeats` runs with seeds `1..=repeats`, every BV regulated by `settings` (with the
+/// One case: one run per seed, every BV regulated by `settings` (with the
 /// scenario's vehicle limits) towards `target`.
 pub fn steer_case(
     settings: &RegulatorParams,
     scenario: &Scenario,
     target: Target,
     model: VutModel,
-    repeats: usize,
+    seeds: std::ops::RangeInclusive<u64>,
 ) -> SteerCase {
     let mut tally = Tally::default();
     let mut sc = scenario.clone();
     sc.target = target;
-    for seed in 1..=repeats as u64 {
+    for seed in seeds {
         let bvs: Result<Vec<Box<dyn BvController>>, _> = (0..sc.bvs.len())
             .map(|i| {
                 RegulatedBv::new(RegulatedBv::params_for(settings, &sc, i), target)
@@ -97,7 +97,7 @@ pub fn steerability(
     scenarios: &[Scenario],
     targets: &[Target],
     models: &[VutModel],
-    repeats: usize,
+    seeds: std::ops::RangeInclusive<u64>,
 ) -> SteerReport {
     let mut jobs = Vec::new();
     for sc in scenarios {
@@ -107,7 +107,7 @@ pub fn steerability(
             }
         }
     }
-    let mut cases = crate::parallel_map(&jobs, |(sc, target, m)| steer_case(settings, sc, *target, *m, repeats));
+    let mut cases = crate::parallel_map(&jobs, |(sc, target, m)| steer_case(settings, sc, *target, *m, seeds.clone()));
     cases.sort_by(|a, b| {
         (&a.scenario, a.style as u8, a.tau_s.to_bits(), &a.vut).cmp(&(
             &b.scenario,
