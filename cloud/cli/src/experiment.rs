@@ -46,7 +46,7 @@ pub struct ExperimentArgs {
     #[arg(long)]
     first_seed: Option<u64>,
     /// tradeoff: only these realism weights (default: 0 0.1 0.3 1 3 10; repeat the option).
-    #[arg(long = "w-real")]
+    #[arg(long = "w-real", allow_negative_numbers = true)]
     w_real: Vec<f64>,
     /// tradeoff: write the fronts as SVG plots into this directory (one per scenario whose BV has
     /// a human reference).
@@ -97,7 +97,7 @@ impl ExperimentArgs {
         if self.repeats.is_some_and(|r| r == 0 || r > 1_000_000) {
             return Some(format!("--repeats must lie in [1, 1000000], got {}", self.repeats.unwrap_or(0)));
         }
-        if !self.tau.is_empty() && !(steerability || tradeoff) {
+        if !(self.tau.is_empty() || steerability || tradeoff) {
             let name = self.which.to_possible_value().map_or_else(String::new, |v| v.get_name().to_owned());
             return Some(format!(
                 "--tau applies to `experiment steerability` and `tradeoff` only; `experiment {name}` sets its own targets"
@@ -225,7 +225,7 @@ fn four_methods(a: ExperimentArgs) -> anyhow::Result<()> {
         Experiment::Adversariality | Experiment::Steerability | Experiment::Tradeoff => Vec::new(),
         _ => scenarios.iter().map(|r| (r.name.clone(), r.semantics.pet_label_s)).collect(),
     };
-    println!("{}", provenance(&model, &human, &seeds));
+    println!("{}\n", provenance(&model, &human, &seeds));
     print!("{}", methods::markdown(&summary, &labels));
     let steering = methods::steering_errors(&summary);
     if a.which == Experiment::Steerability {

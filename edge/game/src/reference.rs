@@ -131,22 +131,29 @@ impl ReferenceTiming {
         }
         // First sample at or beyond s_m (exists: s_m ≤ s1); the one before it is below s_m.
         let k = self.s.partition_point(|&s| s < s_m);
-        let (ta, sa, tb, sb) = (self.t[k - 1], self.s[k - 1], self.t[k], self.s[k]);
+        let (ta, sa) = (*self.t.get(k.checked_sub(1)?)?, *self.s.get(k - 1)?);
+        let (tb, sb) = (*self.t.get(k)?, *self.s.get(k)?);
         Some(if sb > sa { ta + (tb - ta) * (s_m - sa) / (sb - sa) } else { tb })
     }
 
-    /// The reference speed at `t_s` since its start, m/s (linear between samples; the ends hold).
+    /// The reference speed at `t_s` since its start, m/s (linear between samples; the ends hold;
+    /// 0 without a reference).
     pub fn speed_at_time(&self, t_s: f64) -> f64 {
-        let (Some(&t0), Some(&t1)) = (self.t.first(), self.t.last()) else { return 0.0 };
+        self.interpolate_speed(t_s).unwrap_or(0.0)
+    }
+
+    fn interpolate_speed(&self, t_s: f64) -> Option<f64> {
+        let (&t0, &v0, &t1, &v1) = (self.t.first()?, self.v.first()?, self.t.last()?, self.v.last()?);
         if t_s <= t0 {
-            return self.v[0];
+            return Some(v0);
         }
         if t_s >= t1 {
-            return self.v[self.v.len() - 1];
+            return Some(v1);
         }
         let k = self.t.partition_point(|&t| t <= t_s);
-        let (ta, va, tb, vb) = (self.t[k - 1], self.v[k - 1], self.t[k], self.v[k]);
-        va + (vb - va) * (t_s - ta) / (tb - ta)
+        let (ta, va) = (*self.t.get(k.checked_sub(1)?)?, *self.v.get(k - 1)?);
+        let (tb, vb) = (*self.t.get(k)?, *self.v.get(k)?);
+        Some(va + (vb - va) * (t_s - ta) / (tb - ta))
     }
 }
 

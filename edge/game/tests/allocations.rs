@@ -1,6 +1,6 @@
 //! Heap allocations per decision after warm-up. The regulator's own code allocates nothing per
 //! cycle; what remains comes from inside Clarabel's `solve`, which this test measures on a bare
-//! QP and then bounds the regulator by (at most four solves per decision).
+//! QP and then bounds the regulator by (at most five solves per decision).
 
 #![allow(unsafe_code, clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)] // test code
 
@@ -8,6 +8,7 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
 use v2t_game::qp::{EventKind, LongitudinalQp, QpInput, QpShape};
+use v2t_game::reference::ReferenceSample;
 use v2t_game::regulator::{Regulator, RegulatorParams};
 use v2t_model::{Style, Target};
 
@@ -75,24 +76,45 @@ fn allocations_per_decision_come_only_from_the_solver() {
             per_solve = per_solve.max(n);
         }
     }
-    // The regulator over an approach, after warm-up.
-    let mut reg = Regulator::new(RegulatorParams::default()).unwrap();
-    let mut inp = v2t_game::fixtures::left_turn_start(Target::new(2.0, Style::Rush).unwrap());
+    // The regulator over an approach, after warm-up: without the realism term, and with it
+    // around a prior (10 m/s, then easing to 7 m/s), whose reference is set once before.
+    let prior: Vec<ReferenceSample> = {
+        let mut s = 0.0;
+        (0..300)
+            .map(|k| {
+                let t = k as f64 * 0.1;
+                let v = if t < 2.0 { 10.0 } else { 7.0 };
+                let q = ReferenceSample { t_s: t, s_m: s, v_mps: v };
+                s += v * 0.1;
+                q
+            })
+            .collect()
+    };
     let mut worst = 0;
-    for k in 0..120 {
-        let (d, n) = count(|| reg.decide(&inp));
-        if k >= 5 {
-            worst = worst.max(n);
+    for w_real in [0.0, 1.0] {
+        let mut reg = Regulator::new(RegulatorParams { w_real, ..RegulatorParams::default() }).unwrap();
+        reg.set_reference(prior.iter().copied()).unwrap();
+        for style in [Style::Rush, Style::Yield] {
+            reg.reset();
+            let mut inp = v2t_game::fixtures::left_turn_start(Target::new(2.0, style).unwrap());
+            for k in 0..120 {
+                let (d, n) = count(|| reg.decide(&inp));
+                if k >= 5 {
+                    worst = worst.max(n);
+                }
+                inp.t_s += 0.1;
+                inp.bv.v_mps = (inp.bv.v_mps + d.accel_mps2 * 0.1).max(0.0);
+                inp.bv.s_m += inp.bv.v_mps * 0.1;
+                inp.bv_accel_mps2 = d.accel_mps2;
+                inp.vut.s_m += inp.vut.v_mps * 0.1;
+            }
         }
-        inp.t_s += 0.1;
-        inp.bv.v_mps = (inp.bv.v_mps + d.accel_mps2 * 0.1).max(0.0);
-        inp.bv.s_m += inp.bv.v_mps * 0.1;
-        inp.bv_accel_mps2 = d.accel_mps2;
-        inp.vut.s_m += inp.vut.v_mps * 0.1;
     }
     println!("allocations: bare solve ≤ {per_solve}, decision ≤ {worst}");
+    // The longest decision solves five QPs: the follower twice (the fixed point), the leader, the
+    // safety check and, when that fails, the hold-back plan (a realism pull can lead there).
     assert!(
-        worst <= 4 * per_solve,
-        "a decision allocated {worst} times, more than its ≤ 4 solves ({per_solve} each) explain"
+        worst <= 5 * per_solve,
+        "a decision allocated {worst} times, more than its ≤ 5 solves ({per_solve} each) explain"
     );
 }

@@ -1,6 +1,7 @@
 //! Decision latency and allocations of the regulator (`v2t-bench game`).
 //!
-//! For N = 30 and N = 50, on one thread:
+//! With the shipped regulator settings (`config/regulator/default.toml`, the realism weight
+//! included, around a prior), for N = 30 and N = 50, on one thread:
 //! - *sim*: every decision of the regulated BV in the simulated proving ground — both bundled
 //!   cards, rush and yield, τ ∈ {1.5, 3, 5} s, every VUT model, one seed each;
 //! - *approaches*: a left-turn approach in both styles replayed kinematically (the BV moving as its
@@ -18,6 +19,7 @@ use std::time::Instant;
 
 use v2t_files::parse_toml;
 use v2t_game::fixtures as common;
+use v2t_game::reference::ReferenceSample;
 use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams};
 use v2t_model::vehicle::VehicleConfig;
 use v2t_model::{Style, Target};
@@ -142,9 +144,19 @@ fn sim_latencies(settings: RegulatorParams) -> Result<Vec<f64>, Box<dyn std::err
 /// Runs the benchmark; `allocations` reads the global allocator's running count of allocations.
 pub fn run_bench(allocations: fn() -> u64) -> Result<Vec<BenchFigures>, Box<dyn std::error::Error>> {
     let mut report = Vec::new();
+    // The shipped settings (the realism weight included), at each horizon.
+    let shipped: RegulatorParams = parse_toml(include_str!("../../../config/regulator/default.toml"), "regulator")?;
     for horizon in [30usize, 50] {
-        let params = RegulatorParams { horizon, ..RegulatorParams::default() };
+        let params = RegulatorParams { horizon, ..shipped };
         let mut reg = Regulator::new(params)?;
+        // The left turn's prior for the realism term: the BV at its start speed, easing off before
+        // the zone and back (set once, as a BV does when a prior arrives).
+        reg.set_reference((0..400).map(|k| {
+            let t = k as f64 * 0.1;
+            let v = if (2.0..4.0).contains(&t) { 8.0 } else { 10.0 };
+            let s = 10.0 * t - 2.0 * (t.clamp(2.0, 4.0) - 2.0);
+            ReferenceSample { t_s: t, s_m: s, v_mps: v }
+        }))?;
         let mut lat_us = Vec::new();
         let mut approach_us: Vec<f64> = Vec::new();
         let mut statuses: BTreeMap<String, u64> = BTreeMap::new();

@@ -64,6 +64,8 @@ pub struct TradeoffPoint {
     pub runs: usize,
     /// The BV's realism per scenario (pooled over styles, τ and VUT models).
     pub realism: Vec<(String, Option<RealismStats>)>,
+    /// Per scenario, the worst VUT model's mean steering error over that scenario's rows.
+    pub worst_by_scenario: Vec<(String, f64)>,
 }
 
 /// The whole sweep.
@@ -145,33 +147,40 @@ fn point(cases: &[TradeoffCase], w: Option<f64>, method: Method, scenarios: &[Pa
     let mut vuts: Vec<&str> = of.iter().map(|c| c.vut.as_str()).collect();
     vuts.sort_unstable();
     vuts.dedup();
-    let errors: Vec<ModelError> = vuts
-        .iter()
-        .map(|&vut| {
-            let errs: Vec<f64> =
-                of.iter().filter(|c| c.vut == vut).map(|c| c.stats.error_rel(c.tau_s).unwrap_or(1.0)).collect();
-            ModelError {
-                vut: vut.to_owned(),
-                rows: errs.len(),
-                mean_error_rel: errs.iter().sum::<f64>() / errs.len().max(1) as f64,
-                max_error_rel: errs.iter().copied().fold(0.0, f64::max),
-            }
-        })
-        .collect();
+    let errors_of = |cases: &[&MethodCase]| -> Vec<ModelError> {
+        vuts.iter()
+            .map(|&vut| {
+                let errs: Vec<f64> =
+                    cases.iter().filter(|c| c.vut == vut).map(|c| c.stats.error_rel(c.tau_s).unwrap_or(1.0)).collect();
+                ModelError {
+                    vut: vut.to_owned(),
+                    rows: errs.len(),
+                    mean_error_rel: errs.iter().sum::<f64>() / errs.len().max(1) as f64,
+                    max_error_rel: errs.iter().copied().fold(0.0, f64::max),
+                }
+            })
+            .collect()
+    };
+    let worst = |errors: &[ModelError]| errors.iter().map(|e| e.mean_error_rel).fold(0.0, f64::max);
+    let errors = errors_of(&of);
+    let of_scenario = |rec: &PaperScenario| -> Vec<&MethodCase> {
+        let prefix = format!("{} (", rec.name);
+        of.iter().copied().filter(|c| c.scenario.starts_with(&prefix)).collect()
+    };
+    let worst_by_scenario =
+        scenarios.iter().map(|rec| (rec.name.clone(), worst(&errors_of(&of_scenario(rec))))).collect();
     let realism = scenarios
         .iter()
         .map(|rec| {
-            let prefix = format!("{} (", rec.name);
-            let pooled = RealismStats::pool(
-                of.iter().filter(|c| c.scenario.starts_with(&prefix)).filter_map(|c| c.stats.bv_realism.as_ref()),
-            );
+            let pooled = RealismStats::pool(of_scenario(rec).iter().filter_map(|c| c.stats.bv_realism.as_ref()));
             (rec.name.clone(), pooled)
         })
         .collect();
     TradeoffPoint {
         w_real: w,
         method,
-        worst_mean_error_rel: errors.iter().map(|e| e.mean_error_rel).fold(0.0, f64::max),
+        worst_mean_error_rel: worst(&errors),
+        worst_by_scenario,
         collisions: of.iter().map(|c| c.stats.collisions).sum(),
         runs: of.iter().map(|c| c.stats.repeats).sum(),
         errors,
@@ -228,30 +237,33 @@ pub fn markdown(r: &TradeoffReport) -> String {
 }
 
 /// The front of one scenario as an SVG: the BV's W₁ of acceleration (left) and of jerk (right)
-/// against the worst VUT model's mean steering error, one line per regulated method through its
-/// weights, Diffusion-only as a single point. `None` when the scenario's BV has no measured realism.
+/// against the worst VUT model's mean steering error in that scenario, one line per regulated
+/// method through its weights, Diffusion-only as a single point. `None` when the scenario's BV has no measured realism.
 pub fn svg(r: &TradeoffReport, scenario: &str) -> Option<String> {
     let realism = |p: &TradeoffPoint| -> Option<RealismMeans> {
         p.realism.iter().find(|(n, _)| n == scenario).and_then(|(_, s)| s.as_ref()).and_then(|s| s.means)
+    };
+    let error = |p: &TradeoffPoint| {
+        100.0 * p.worst_by_scenario.iter().find(|(n, _)| n == scenario).map_or(p.worst_mean_error_rel, |(_, e)| *e)
     };
     let pts: Vec<(&TradeoffPoint, RealismMeans)> = r.points.iter().filter_map(|p| Some((p, realism(p)?))).collect();
     if pts.is_empty() {
         return None;
     }
     let (w, h, pad) = (440.0, 320.0, 56.0);
-    let x_max = pts.iter().map(|(p, _)| 100.0 * p.worst_mean_error_rel).fold(1.0, f64::max) * 1.1;
+    let x_max = pts.iter().map(|(p, _)| error(p)).fold(1.0, f64::max) * 1.1;
     let mut out = format!(
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\" font-family=\"sans-serif\" font-size=\"12\">\n",
         2.0 * w,
         h + 40.0
     );
     out.push_str(&format!(
-        "<text x=\"10\" y=\"18\" font-size=\"13\">{}: the BV's realism against the worst VUT model's steering error, per w_real (simulated proving ground; seeds {}–{})</text>\n",
+        "<text x=\"10\" y=\"18\" font-size=\"13\">{}: the BV's realism (W₁ to recorded human driving) against the steering error, per w_real (simulated proving ground; seeds {}–{})</text>\n",
         escape(scenario),
         r.seeds[0],
         r.seeds[1]
     ));
-    let panels: [(&str, fn(&RealismMeans) -> f64); 2] =
+    let panels: [(&str, Quantity); 2] =
         [("W₁ acceleration (m/s²)", |m| m.w1_accel_mps2), ("W₁ jerk (m/s³)", |m| m.w1_jerk_mps3)];
     for (i, (label, value)) in panels.iter().enumerate() {
         let x0 = i as f64 * w;
@@ -275,7 +287,7 @@ pub fn svg(r: &TradeoffReport, scenario: &str) -> Option<String> {
             ));
         }
         out.push_str(&format!(
-            "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">worst VUT model's mean steering error (%)</text>\n<text x=\"{:.1}\" y=\"{:.1}\" transform=\"rotate(-90 {:.1} {:.1})\" text-anchor=\"middle\">{label}</text>\n",
+            "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">worst VUT model's mean steering error in this scenario (%)</text>\n<text x=\"{:.1}\" y=\"{:.1}\" transform=\"rotate(-90 {:.1} {:.1})\" text-anchor=\"middle\">{label}</text>\n",
             x0 + w / 2.0,
             h + 30.0,
             x0 + 14.0,
@@ -287,7 +299,7 @@ pub fn svg(r: &TradeoffReport, scenario: &str) -> Option<String> {
             let line: Vec<(f64, f64, Option<f64>)> = pts
                 .iter()
                 .filter(|(p, _)| p.method == method)
-                .map(|(p, m)| (sx(100.0 * p.worst_mean_error_rel), sy(value(m)), p.w_real))
+                .map(|(p, m)| (sx(error(p)), sy(value(m)), p.w_real))
                 .collect();
             let path: Vec<String> = line.iter().map(|(x, y, _)| format!("{x:.1},{y:.1}")).collect();
             out.push_str(&format!(
@@ -304,7 +316,7 @@ pub fn svg(r: &TradeoffReport, scenario: &str) -> Option<String> {
             }
         }
         for (p, m) in pts.iter().filter(|(p, _)| p.method == Method::DiffusionOnly) {
-            let (x, y) = (sx(100.0 * p.worst_mean_error_rel), sy(value(m)));
+            let (x, y) = (sx(error(p)), sy(value(m)));
             out.push_str(&format!(
                 "<rect x=\"{:.1}\" y=\"{:.1}\" width=\"7\" height=\"7\" fill=\"#2ca02c\"/>\n",
                 x - 3.5,
@@ -313,7 +325,7 @@ pub fn svg(r: &TradeoffReport, scenario: &str) -> Option<String> {
         }
         let legend = [("#d62728", "TroubleMaker-like"), ("#1f77b4", "Video2Track"), ("#2ca02c", "Diffusion-only")];
         for (k, (colour, name)) in legend.iter().enumerate() {
-            let y = 44.0 + 14.0 * k as f64;
+            let y = h - pad - 12.0 + 14.0 * (k as f64 - 2.0);
             out.push_str(&format!(
                 "<rect x=\"{:.1}\" y=\"{:.1}\" width=\"10\" height=\"10\" fill=\"{colour}\"/><text x=\"{:.1}\" y=\"{:.1}\">{name}</text>\n",
                 x0 + w - 0.5 * pad - 130.0,
@@ -326,6 +338,9 @@ pub fn svg(r: &TradeoffReport, scenario: &str) -> Option<String> {
     out.push_str("</svg>\n");
     Some(out)
 }
+
+/// One realism quantity of a plot panel.
+type Quantity = fn(&RealismMeans) -> f64;
 
 fn escape(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")

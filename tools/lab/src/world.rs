@@ -171,9 +171,14 @@ mod tests {
         let (a, b) = (world.conflicts[0].zone, sc.conflicts[0].zone);
         assert_eq!((a.kind, a.bv, a.vut), (b.kind, b.bv, b.vut));
         assert_eq!(world.target, sc.target);
-        for t in [0.0, 2.0, 5.0] {
-            assert!((world.bvs[0].reference.speed_at(t) - bv.reference.speed_at(t)).abs() < 0.2, "t = {t}");
+        // The prior carries the card's speed profile re-timed for the card's target (what the
+        // cloud would send for it): slower up to the key point here, the card's own speed after.
+        let timed = sc.realism_reference(0).unwrap();
+        for t in [0.0, 2.0, 5.0, 20.0] {
+            assert!((world.bvs[0].reference.speed_at(t) - timed.speed_at(t)).abs() < 0.2, "t = {t}");
         }
+        assert!(timed.speed_at(0.0) < bv.reference.speed_at(0.0) - 1.0);
+        assert!((world.bvs[0].reference.speed_at(20.0) - bv.reference.speed_at(20.0)).abs() < 0.2);
         assert!(matches!(prior_of_card(&sc, 3, 1, 1), Err(WorldError::NoBv(3))));
     }
 }
