@@ -154,26 +154,53 @@ fn provenance(
     )
 }
 
+/// What the four-method experiments load from the shipped files.
+struct World {
+    inspection: v2t_map::Inspection,
+    model: v2t_diffusion::weights::Model,
+    human: v2t_model::realism::HumanReference,
+    regulator: RegulatorParams,
+    sim: v2t_sim::config::SimSettings,
+    vut_vehicle: v2t_model::vehicle::VehicleConfig,
+    bv_vehicle: v2t_model::vehicle::VehicleConfig,
+}
+
+impl World {
+    fn load(a: &ExperimentArgs) -> anyhow::Result<Self> {
+        Ok(Self {
+            inspection: v2t_map::inspect(Path::new(shipped::MAP), None)?,
+            model: v2t_diffusion::weights::load(Path::new(shipped::WEIGHTS))?,
+            human: v2t_files::read_human_reference(&a.human_reference)?,
+            regulator: load_toml(&a.regulator)?,
+            sim: load_toml(Path::new(shipped::SIM))?,
+            vut_vehicle: load_toml(Path::new(shipped::VUT_VEHICLE))?,
+            bv_vehicle: load_toml(Path::new(shipped::BV_VEHICLE))?,
+        })
+    }
+
+    fn setup(&self) -> Setup<'_> {
+        Setup {
+            inspection: &self.inspection,
+            model: &self.model,
+            regulator: self.regulator,
+            sim: self.sim.clone(),
+            vut_vehicle: self.vut_vehicle.clone(),
+            bv_vehicle: self.bv_vehicle.clone(),
+            human: Some(&self.human),
+        }
+    }
+}
+
 /// The sweep of the realism weight.
 fn tradeoff(a: ExperimentArgs) -> anyhow::Result<()> {
     let models = crate::vut_models(&a.vut)?;
-    let inspection = v2t_map::inspect(Path::new(shipped::MAP), None)?;
-    let model = v2t_diffusion::weights::load(Path::new(shipped::WEIGHTS))?;
-    let human = v2t_files::read_human_reference(&a.human_reference)?;
-    let setup = Setup {
-        inspection: &inspection,
-        model: &model,
-        regulator: load_toml(&a.regulator)?,
-        sim: load_toml(Path::new(shipped::SIM))?,
-        vut_vehicle: load_toml(Path::new(shipped::VUT_VEHICLE))?,
-        bv_vehicle: load_toml(Path::new(shipped::BV_VEHICLE))?,
-        human: Some(&human),
-    };
+    let world = World::load(&a)?;
+    let (model, human, setup) = (&world.model, &world.human, world.setup());
     let scenarios = paper_scenarios()?;
     let taus = if a.tau.is_empty() { tradeoff::TAUS_S.to_vec() } else { a.tau.clone() };
     let weights = if a.w_real.is_empty() { tradeoff::WEIGHTS.to_vec() } else { a.w_real.clone() };
     let seeds = seeds(&a);
-    let provenance = provenance(&model, &human, &seeds);
+    let provenance = provenance(model, human, &seeds);
     let report = tradeoff::sweep(&setup, &scenarios, &taus, &weights, &models, seeds, provenance)?;
     println!("{}", report.provenance);
     print!("{}", tradeoff::markdown(&report));
@@ -197,18 +224,8 @@ fn tradeoff(a: ExperimentArgs) -> anyhow::Result<()> {
 /// The four methods on the paper's two scenarios.
 fn four_methods(a: ExperimentArgs) -> anyhow::Result<()> {
     let models = crate::vut_models(&a.vut)?;
-    let inspection = v2t_map::inspect(Path::new(shipped::MAP), None)?;
-    let model = v2t_diffusion::weights::load(Path::new(shipped::WEIGHTS))?;
-    let human = v2t_files::read_human_reference(&a.human_reference)?;
-    let setup = Setup {
-        inspection: &inspection,
-        model: &model,
-        regulator: load_toml(&a.regulator)?,
-        sim: load_toml(Path::new(shipped::SIM))?,
-        vut_vehicle: load_toml(Path::new(shipped::VUT_VEHICLE))?,
-        bv_vehicle: load_toml(Path::new(shipped::BV_VEHICLE))?,
-        human: Some(&human),
-    };
+    let world = World::load(&a)?;
+    let (model, human, setup) = (&world.model, &world.human, world.setup());
     let scenarios = paper_scenarios()?;
     let taus = if a.tau.is_empty() { steer::STEER_TAUS_S.to_vec() } else { a.tau.clone() };
     let comparison = match a.which {
@@ -225,7 +242,7 @@ fn four_methods(a: ExperimentArgs) -> anyhow::Result<()> {
         Experiment::Adversariality | Experiment::Steerability | Experiment::Tradeoff => Vec::new(),
         _ => scenarios.iter().map(|r| (r.name.clone(), r.semantics.pet_label_s)).collect(),
     };
-    println!("{}\n", provenance(&model, &human, &seeds));
+    println!("{}\n", provenance(model, human, &seeds));
     print!("{}", methods::markdown(&summary, &labels));
     let steering = methods::steering_errors(&summary);
     if a.which == Experiment::Steerability {

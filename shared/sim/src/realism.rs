@@ -126,12 +126,18 @@ mod tests {
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
     }
 
-    #[test]
-    fn a_cut_in_run_is_measured_per_vehicle_in_its_class() {
-        let sc = crate::files::load_scenario(&root().join("config/scenarios/cut_in_basic.toml")).unwrap();
+    /// A shipped card run once with a reference-following BV, and the shipped human reference.
+    fn run_card(card: &str) -> (Scenario, RunOutcome, HumanReference) {
+        let sc = crate::files::load_scenario(&root().join("config/scenarios").join(card)).unwrap();
         let reference = v2t_files::read_human_reference(&root().join(v2t_files::shipped::HUMAN_REFERENCE)).unwrap();
         let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(ReferenceFollower::default())];
         let out = crate::runner::run(&sc, &mut bvs, VutModel::IdmNormal.driver().as_mut(), 1).unwrap();
+        (sc, out, reference)
+    }
+
+    #[test]
+    fn a_cut_in_run_is_measured_per_vehicle_in_its_class() {
+        let (sc, out, reference) = run_card("cut_in_basic.toml");
         let r = measure_run(&sc, &out, &reference).unwrap();
         assert_eq!(r.vehicles.len(), 2);
         let (vut, bv) = (r.vut().unwrap(), r.bv(0).unwrap());
@@ -148,10 +154,7 @@ mod tests {
 
     #[test]
     fn a_left_turn_has_no_human_reference_and_says_so() {
-        let sc = crate::files::load_scenario(&root().join("config/scenarios/left_turn_basic.toml")).unwrap();
-        let reference = v2t_files::read_human_reference(&root().join(v2t_files::shipped::HUMAN_REFERENCE)).unwrap();
-        let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(ReferenceFollower::default())];
-        let out = crate::runner::run(&sc, &mut bvs, VutModel::IdmNormal.driver().as_mut(), 1).unwrap();
+        let (sc, out, reference) = run_card("left_turn_basic.toml");
         let r = measure_run(&sc, &out, &reference).unwrap();
         let bv = r.bv(0).unwrap();
         assert_eq!(bv.class, ManoeuvreClass::LeftTurn);

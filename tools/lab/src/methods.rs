@@ -8,9 +8,14 @@
 //!
 //! - **Predefined**: the BV follows the constant-speed trajectory along its grounded route whose
 //!   timing gives τ if the VUT keeps its speed (no adaptation);
-//! - **TroubleMaker-like**: the Stackelberg regulator along that constant-speed reference;
+//! - **TroubleMaker-like**: the Stackelberg regulator along that constant-speed reference, its
+//!   realism term (`w_real`) pulling toward the reference's timing and speed shape;
 //! - **Diffusion-only**: the BV follows the guided diffusion prior (best of 8 variants);
-//! - **Video2Track**: the regulator along the diffusion prior.
+//! - **Video2Track**: the same regulator along the diffusion prior, its realism term pulling
+//!   toward the prior.
+//!
+//! Every run's BV (and VUT) is measured against recorded human driving of its manoeuvre class when
+//! [`Setup::human`] is given (the realism columns).
 //!
 //! The VUT starts where the prior puts it and drives its route with the chosen driver model. The
 //! conflict measured is the prior's (the zone nearest the grounded conflict point).
