@@ -37,8 +37,9 @@ pub mod steer;
 pub mod tradeoff;
 pub mod world;
 
-/// `f` of every job, in order, on up to 8 of the available cores (contiguous chunks). A chunk
-/// whose thread panicked contributes nothing.
+/// `f` of every job, in order, on up to 8 of the available cores (contiguous chunks). A panic in
+/// `f` is raised again here, after every thread has ended: a chunk that went missing would shift
+/// every later result against its job.
 pub fn parallel_map<T: Sync, R: Send>(jobs: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).clamp(1, 8);
     let chunk = jobs.len().div_ceil(threads).max(1);
@@ -46,6 +47,31 @@ pub fn parallel_map<T: Sync, R: Send>(jobs: &[T], f: impl Fn(&T) -> R + Sync) ->
     std::thread::scope(|s| {
         let handles: Vec<_> =
             jobs.chunks(chunk).map(|part| s.spawn(move || part.iter().map(f).collect::<Vec<R>>())).collect();
-        handles.into_iter().flat_map(|h| h.join().unwrap_or_default()).collect()
+        let mut out = Vec::with_capacity(jobs.len());
+        let mut panicked = None;
+        for h in handles {
+            match h.join() {
+                Ok(part) => out.extend(part),
+                Err(e) => panicked = panicked.or(Some(e)),
+            }
+        }
+        if let Some(e) = panicked {
+            std::panic::resume_unwind(e);
+        }
+        out
     })
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::panic)]
+    use super::parallel_map;
+
+    #[test]
+    fn results_stay_with_their_jobs_and_a_panic_is_not_swallowed() {
+        let jobs: Vec<u32> = (0..37).collect();
+        assert_eq!(parallel_map(&jobs, |j| j * 2), jobs.iter().map(|j| j * 2).collect::<Vec<_>>());
+        let caught = std::panic::catch_unwind(|| parallel_map(&jobs, |&j| if j == 3 { panic!("job 3") } else { j }));
+        assert!(caught.is_err(), "a panicking job must not leave a shifted result behind");
+    }
 }
