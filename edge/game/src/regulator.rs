@@ -335,11 +335,6 @@ impl Regulator {
         self.reference.set(samples)
     }
 
-    /// Forgets the reference timing.
-    pub fn clear_reference(&mut self) {
-        self.reference.clear();
-    }
-
     /// The realism pull toward the reference for a BV at `s_m` whose key point is at `key_s_m`
     /// (`None` when `w_real = 0`, without a reference, or when the reference never gets there).
     fn realism_pull(&self, s_m: f64, key_s_m: f64) -> Option<RealismPull> {

@@ -145,6 +145,18 @@ impl SpeedProfile {
         None
     }
 
+    /// The profile sampled every `period_s` from 0 to `duration_s` (the end included when it
+    /// falls on a sample, to rounding), at most `max` samples: `(t_s, distance_m, speed_mps)` — what a prior's
+    /// timing along its path carries.
+    pub fn samples(&self, duration_s: f64, period_s: f64, max: usize) -> impl Iterator<Item = [f64; 3]> + Clone + '_ {
+        let n =
+            if period_s > 0.0 && duration_s >= 0.0 { (duration_s / period_s + 1e-9).floor() as usize + 1 } else { 1 };
+        (0..n.min(max)).map(move |k| {
+            let t = k as f64 * period_s;
+            [t, self.distance_at(t), self.speed_at(t)]
+        })
+    }
+
     /// This profile re-timed so that it reaches `key_m` at `t_key_s` instead of when it does: the
     /// part before is stretched (or compressed) in time, its speeds scaled inversely so the
     /// distance is kept; the part after is unchanged, shifted in time, joined by a 0.1 s ramp.

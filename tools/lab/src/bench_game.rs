@@ -128,11 +128,11 @@ fn sim_latencies(settings: RegulatorParams) -> Result<Vec<f64>, Box<dyn std::err
     for base in &scenarios {
         for target in crate::steer::both_styles(&[1.5, 3.0, 5.0]) {
             for model in VutModel::ALL {
-                let Ok(inner) = RegulatedBv::new(RegulatedBv::params_for(&settings, base, 0), target) else {
-                    continue;
-                };
                 let mut sc = base.clone();
                 sc.target = target;
+                let Ok(inner) = RegulatedBv::new(RegulatedBv::params_for(&settings, &sc, 0), &sc, 0) else {
+                    continue;
+                };
                 let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(Timed { inner, sink: Rc::clone(&sink) })];
                 let _ = run(&sc, &mut bvs, model.driver().as_mut(), 1);
             }

@@ -277,7 +277,7 @@ pub fn run_case_with(
     for seed in seeds {
         let controller: Box<dyn BvController> = if method.regulated() {
             let params = RegulatedBv::params_for(regulator, scenario, 0);
-            match RegulatedBv::new(params, scenario.target) {
+            match RegulatedBv::new(params, scenario, 0) {
                 Ok(r) => Box::new(r),
                 Err(_) => {
                     tally.add_failed();

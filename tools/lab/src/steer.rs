@@ -67,7 +67,7 @@ pub fn steer_case(
     for seed in seeds {
         let bvs: Result<Vec<Box<dyn BvController>>, _> = (0..sc.bvs.len())
             .map(|i| {
-                RegulatedBv::new(RegulatedBv::params_for(settings, &sc, i), target)
+                RegulatedBv::new(RegulatedBv::params_for(settings, &sc, i), &sc, i)
                     .map(|r| Box::new(r) as Box<dyn BvController>)
             })
             .collect();

@@ -131,10 +131,9 @@ pub fn prior_of_card(
     // What the cloud would send for this target: the card's speed profile re-timed for it (a
     // prior is timed for its target; a card's profile is not).
     let reference = scenario.realism_reference(bv_index).unwrap_or_else(|| bv.reference.clone());
-    let samples = ((scenario.duration_s * PROFILE_RATE_HZ) as usize + 1).min(prior.bv_profile.capacity());
-    for i in 0..samples {
-        let t_s = i as f64 / PROFILE_RATE_HZ;
-        let sample = ProfileSample { t_s, s_m: reference.distance_at(t_s), v_mps: reference.speed_at(t_s) };
+    for [t_s, s_m, v_mps] in reference.samples(scenario.duration_s, 1.0 / PROFILE_RATE_HZ, prior.bv_profile.capacity())
+    {
+        let sample = ProfileSample { t_s, s_m, v_mps };
         prior.bv_profile.push(sample).map_err(|_| PriorError::Capacity { what: "profile" })?;
     }
     prior.check().map_err(PriorError::Malformed)?;

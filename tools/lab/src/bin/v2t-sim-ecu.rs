@@ -94,7 +94,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         engage_timeout_s: cli.engage_timeout_s,
         tau_s: cli.tau,
         style: cli.style,
-        human: human.clone(),
+        human,
     };
     let v2t_lab::ecu::EcuRun { outcome, stats, plans, realism } = v2t_lab::ecu::run::<ipc::Service>(&cfg, &opts)?;
     let r = &outcome.result;
@@ -111,7 +111,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         stats.timeout_steps,
         stats.late_steps
     );
-    if let (Some(r), Some(h)) = (&realism, &human) {
+    if let (Some(r), Some(h)) = (&realism, &opts.human) {
         print!("{}", v2t_lab::sim::realism_report(r, h));
     }
     if let Some(path) = cli.mcap {

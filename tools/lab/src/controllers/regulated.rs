@@ -17,17 +17,30 @@ pub struct RegulatedBv {
     target: Target,
     last_accel: f64,
     last: Option<Decision>,
-    /// Whether the BV's reference timing has been handed to the regulator (on the first cycle).
-    reference_set: bool,
 }
 
 /// Period at which the BV's reference speed profile is sampled for the regulator's realism term, s.
 const REFERENCE_PERIOD_S: f64 = 0.1;
 
 impl RegulatedBv {
-    /// A regulator with `params` aiming at `target`.
-    pub fn new(params: RegulatorParams, target: Target) -> Result<Self, QpError> {
-        Ok(Self { regulator: Regulator::new(params)?, target, last_accel: 0.0, last: None, reference_set: false })
+    /// A regulator with `params` for BV `bv_index` of `scenario`, aiming at the scenario's target,
+    /// its realism term around the BV's prior or a card's speed profile re-timed for the target
+    /// ([`v2t_sim::scenario::Scenario::realism_reference`]; sampled here, once).
+    pub fn new(
+        params: RegulatorParams,
+        scenario: &v2t_sim::scenario::Scenario,
+        bv_index: usize,
+    ) -> Result<Self, QpError> {
+        let mut regulator = Regulator::new(params)?;
+        if let Some(profile) = scenario.realism_reference(bv_index) {
+            let period = REFERENCE_PERIOD_S.max(scenario.duration_s / (MAX_REFERENCE_SAMPLES - 1) as f64);
+            let samples = profile
+                .samples(scenario.duration_s, period, MAX_REFERENCE_SAMPLES)
+                .map(|[t_s, s_m, v]| ReferenceSample { t_s, s_m, v_mps: v.max(0.0) });
+            // A reference the regulator refuses leaves it without the realism term: it still regulates.
+            let _ = regulator.set_reference(samples);
+        }
+        Ok(Self { regulator, target: scenario.target, last_accel: 0.0, last: None })
     }
 
     /// `settings` with the limits of BV `bv_index` and the VUT of `scenario` (unchanged when the
@@ -70,22 +83,6 @@ impl BvController for RegulatedBv {
             return ActuationRequest { accel_mps2: -2.0, steer_rad: 0.0 };
         };
         let vehicle = &bv.agent.vehicle;
-        if !self.reference_set {
-            // What the realism term pulls toward: the BV's prior, or a card's speed profile
-            // re-timed for the target (`Scenario::realism_reference`). Sampled once; the
-            // regulator keeps it in its own buffers.
-            if let Some(profile) = sc.realism_reference(obs.bv_index) {
-                let period = REFERENCE_PERIOD_S.max(sc.duration_s / (MAX_REFERENCE_SAMPLES - 1) as f64);
-                let n = (sc.duration_s / period).ceil() as usize + 1;
-                let samples = (0..n.min(MAX_REFERENCE_SAMPLES)).map(|k| {
-                    let t = k as f64 * period;
-                    ReferenceSample { t_s: t, s_m: profile.distance_at(t), v_mps: profile.speed_at(t).max(0.0) }
-                });
-                // A reference the regulator refuses leaves it without the realism term: it still regulates.
-                let _ = self.regulator.set_reference(samples);
-            }
-            self.reference_set = true;
-        }
         // Bring both measurements to "now" at constant speed.
         let own_s = obs.own.s_m + obs.own.state.speed_mps * obs.own.age_s;
         let vut_s = obs.vut.s_m + obs.vut.state.speed_mps * obs.vut.age_s;
