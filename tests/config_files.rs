@@ -162,3 +162,66 @@ fn renamed(path: &std::path::Path, swaps: [(&str, &str); 2]) -> std::path::PathB
     }
     path.with_file_name(name)
 }
+
+/// Every shipped scenario card is placed on the proving ground's map: its routes run along lane
+/// centre lines (within 0.1 m, in the lane's driving direction) except for at most one stretch of
+/// at most 50 m between two lanes (a lane change), and never leave the drivable area. A world that
+/// drives the VUT on the map's lanes (SUMO) depends on it.
+#[test]
+fn every_shipped_card_drives_on_the_proving_grounds_lanes() {
+    let root = repo_root();
+    let map = v2t_map::Map::load(&root.join("config/maps/proving_ground.xodr")).unwrap();
+    let area = v2t_map::drivable::DrivableArea::from_map(&map);
+    let lanes: Vec<&v2t_map::graph::LaneInfo> = map.graph.lanes.iter().filter(|l| l.drivable).collect();
+    // Distance from `p` to the nearest lane centre line whose direction there agrees with `heading`.
+    let off_lane = |p: v2t_model::geometry::Point2, heading: f64| -> f64 {
+        let mut best = f64::INFINITY;
+        for lane in &lanes {
+            for w in lane.samples.windows(2) {
+                let (a, b) = (w[0].p, w[1].p);
+                let ab = b.sub(a);
+                let len2 = ab.dot(ab);
+                let f = if len2 > 0.0 { (p.sub(a).dot(ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
+                let q = a.add(ab.scale(f));
+                let d = p.sub(q).norm();
+                if d < best && v2t_model::geometry::wrap_angle(w[0].heading - heading).abs() < 0.3 {
+                    best = d;
+                }
+            }
+        }
+        best
+    };
+    for card in v2t_files::shipped::CARDS {
+        let sc = load_scenario(&root.join(card)).unwrap();
+        let agents = std::iter::once(&sc.vut.agent).chain(sc.bvs.iter().map(|b| &b.agent));
+        for agent in agents {
+            let route = &agent.route;
+            let n = (route.length() / 0.5).ceil() as usize;
+            let mut stretches: Vec<(f64, f64)> = Vec::new();
+            let mut worst_on_lane = 0.0_f64;
+            for k in 0..=n {
+                let s = (k as f64 * 0.5).min(route.length());
+                let p = route.point_at(s);
+                assert!(area.contains(p, 0.0), "{card}: {} leaves the drivable area at s = {s} m ({p:?})", agent.id);
+                let d = off_lane(p, route.heading_at(s));
+                if d > 0.1 {
+                    match stretches.last_mut() {
+                        Some((_, end)) if s - *end <= 0.51 => *end = s,
+                        _ => stretches.push((s, s)),
+                    }
+                } else {
+                    worst_on_lane = worst_on_lane.max(d);
+                }
+            }
+            assert!(
+                stretches.len() <= 1 && stretches.iter().all(|(a, b)| b - a <= 50.0),
+                "{card}: {} is off the lane centre lines over {stretches:?} (m of its route)",
+                agent.id
+            );
+            eprintln!(
+                "{card}: {}: on the lane centres within {worst_on_lane:.3} m, between lanes over {stretches:?}",
+                agent.id
+            );
+        }
+    }
+}

@@ -51,8 +51,13 @@ pub mod shipped {
     pub const HUMAN_REFERENCE: &str = "config/realism/human_reference.json";
     /// One BV's onboard runtime.
     pub const EDGE: &str = "config/edge/bv1.toml";
-    /// The scenario cards: the unprotected left turn (the BV turns) and the cut-in.
-    pub const CARDS: [&str; 2] = ["config/scenarios/left_turn_basic.toml", "config/scenarios/cut_in_basic.toml"];
+    /// The scenario cards: the unprotected left turn with the BV turning, the same junction with the
+    /// VUT turning, and the cut-in.
+    pub const CARDS: [&str; 3] = [
+        "config/scenarios/left_turn_basic.toml",
+        "config/scenarios/left_turn_vut.toml",
+        "config/scenarios/cut_in_basic.toml",
+    ];
 }
 
 /// A configuration text that did not parse or did not validate.

@@ -34,6 +34,7 @@
 pub mod bv;
 pub mod config;
 pub mod control;
+pub mod external;
 pub mod files;
 pub mod measure;
 pub mod observation;

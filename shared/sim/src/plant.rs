@@ -80,6 +80,15 @@ impl Plant {
         self.pending.push_back((t_s + self.config.actuator.delay_s, req));
     }
 
+    /// Puts the vehicle where another simulator says it is (a VUT driven by SUMO): its state, the
+    /// acceleration it realises and its road-wheel angle. Pending requests are dropped.
+    pub fn set_external(&mut self, state: State, accel_mps2: f64, steer_rad: f64) {
+        self.state = state;
+        self.accel_mps2 = accel_mps2;
+        self.steer_rad = steer_rad;
+        self.pending.clear();
+    }
+
     /// Advances the plant from `t_s` by `dt_s`.
     pub fn step(&mut self, t_s: f64, dt_s: f64) {
         while let Some((due, req)) = self.pending.front().copied() {

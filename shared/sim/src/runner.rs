@@ -14,6 +14,7 @@ use v2t_model::metrics::{ConflictKind, Passage, PetOutcome, predicted_pet_series
 use v2t_model::path::ReferencePath;
 
 use crate::bv::BvController;
+use crate::external::{ExternalVut, ExternalVutError, Segment};
 use crate::measure::{AgentTruth, ConflictSetup, MeasureSetup, TruthLog, measure};
 use crate::observation::{BvObservation, Perceived, VutObservation};
 use crate::plant::{ActuationRequest, Plant};
@@ -150,6 +151,9 @@ pub enum RunError {
         /// Controllers given.
         controllers: usize,
     },
+    /// The simulator that drives the VUT failed.
+    #[error(transparent)]
+    External(#[from] ExternalVutError),
 }
 
 /// Tracks a vehicle's arc length along its route between steps.
@@ -181,6 +185,33 @@ pub fn run(
     Ok(sim.finish(driver.name(), &bv_name))
 }
 
+/// Runs `scenario` with one controller per BV and the VUT driven by another simulator (see
+/// [`crate::external`]), deterministic for a `seed` when that simulator is.
+pub fn run_external(
+    scenario: &Scenario,
+    bv_controllers: &mut [Box<dyn BvController>],
+    vut: &mut dyn ExternalVut,
+    seed: u64,
+) -> Result<RunOutcome, RunError> {
+    if bv_controllers.len() != scenario.bvs.len() {
+        return Err(RunError::ControllerCount { bvs: scenario.bvs.len(), controllers: bv_controllers.len() });
+    }
+    let bv_name = bv_controllers.iter().map(|c| c.name()).collect::<Vec<_>>().join("+");
+    let mut sim = Simulation::new(scenario, seed);
+    while !sim.is_done() {
+        sim.step_external(vut, &mut |b, obs| bv_controllers.get_mut(b).map(|c| c.control(obs)))?;
+    }
+    Ok(sim.finish(vut.name(), &bv_name))
+}
+
+/// Who moves the VUT in a step.
+enum VutSide<'a> {
+    /// One of the builtin driver models, through the VUT's plant.
+    Driver(&'a mut dyn VutDriver),
+    /// Another simulator; the VUT's plant only carries its state.
+    External(&'a mut dyn ExternalVut),
+}
+
 /// The closed loop one plant step at a time, for callers that drive a BV from outside (the
 /// simulated drive-by-wire ECU of the onboard runtime feeds it the requests that arrive over CAN).
 #[derive(Debug)]
@@ -204,6 +235,8 @@ pub struct Simulation<'s> {
     /// Until every BV has been perceived once, the VUT driver is not asked (its actuators hold).
     bv_seen: Vec<bool>,
     vut_at_bv: Option<Perceived>,
+    /// The VUT between two answers of an external simulator.
+    external: Option<Segment>,
     k: usize,
     done: bool,
     seed: u64,
@@ -254,6 +287,7 @@ impl<'s> Simulation<'s> {
             perceived_bvs: vec![Perceived { state: State::default(), s_m: 0.0, l_m: 0.0, age_s: 0.0 }; nb],
             bv_seen: vec![false; nb],
             vut_at_bv: None,
+            external: None,
             k: 0,
             done: false,
             seed,
@@ -311,14 +345,36 @@ impl<'s> Simulation<'s> {
         driver: &mut dyn VutDriver,
         bv_control: &mut dyn FnMut(usize, &BvObservation<'_>) -> Option<ActuationRequest>,
     ) {
+        // A builtin driver cannot fail.
+        let _ = self.step_with(VutSide::Driver(driver), bv_control);
+    }
+
+    /// One plant step with the VUT driven by another simulator (asked once per control period,
+    /// after the BV controllers; see [`crate::external`]). Its error ends the run.
+    pub fn step_external(
+        &mut self,
+        vut: &mut dyn ExternalVut,
+        bv_control: &mut dyn FnMut(usize, &BvObservation<'_>) -> Option<ActuationRequest>,
+    ) -> Result<(), ExternalVutError> {
+        self.step_with(VutSide::External(vut), bv_control)
+    }
+
+    fn step_with(
+        &mut self,
+        mut vut: VutSide<'_>,
+        bv_control: &mut dyn FnMut(usize, &BvObservation<'_>) -> Option<ActuationRequest>,
+    ) -> Result<(), ExternalVutError> {
         if self.done {
-            return;
+            return Ok(());
         }
         let t = self.t_s();
         let dt = self.scenario.settings.plant_dt_s;
         self.record_truth(t, dt);
         if self.k.is_multiple_of(self.control_every) {
-            self.control(t, driver, bv_control);
+            if let Err(e) = self.control(t, &mut vut, bv_control) {
+                self.done = true;
+                return Err(e);
+            }
         }
         if self.k.is_multiple_of(self.record_every) {
             self.record(t);
@@ -326,12 +382,20 @@ impl<'s> Simulation<'s> {
         self.completed = self.agents.iter().zip(&self.s_true).all(|(a, s)| *s >= a.route.length() - 0.5);
         if self.collision.is_some() || self.completed || self.k >= self.n_steps {
             self.done = true;
-            return;
+            return Ok(());
         }
-        for plant in &mut self.plants {
-            plant.step(t, dt);
+        for (i, plant) in self.plants.iter_mut().enumerate() {
+            match (i, &vut, self.external) {
+                (0, VutSide::External(_), Some(seg)) => {
+                    let geo = &plant.config().geometry;
+                    let (state, accel, steer) = seg.at(t + dt, geo.wheelbase_m, plant.config().limits.max_steer_rad);
+                    plant.set_external(state, accel, steer);
+                }
+                _ => plant.step(t, dt),
+            }
         }
         self.k += 1;
+        Ok(())
     }
 
     fn record_truth(&mut self, t: f64, dt: f64) {
@@ -375,9 +439,9 @@ impl<'s> Simulation<'s> {
     fn control(
         &mut self,
         t: f64,
-        driver: &mut dyn VutDriver,
+        vut: &mut VutSide<'_>,
         bv_control: &mut dyn FnMut(usize, &BvObservation<'_>) -> Option<ActuationRequest>,
-    ) {
+    ) -> Result<(), ExternalVutError> {
         let settings = &self.scenario.settings;
         let n = self.agents.len();
         let dt = settings.plant_dt_s;
@@ -410,7 +474,9 @@ impl<'s> Simulation<'s> {
         }
         let control_dt = control_every as f64 * dt;
         let scenario = self.scenario;
-        if let (Some(Some(vut_own)), true) = (own.first(), self.bv_seen.iter().all(|s| *s)) {
+        if let (VutSide::Driver(driver), Some(Some(vut_own)), true) =
+            (&mut *vut, own.first(), self.bv_seen.iter().all(|s| *s))
+        {
             let obs = VutObservation { t_s: t, dt_s: control_dt, own: *vut_own, bvs: &self.perceived_bvs, scenario };
             if let Some(r) = self.requests.first_mut() {
                 *r = driver.control(&obs);
@@ -426,6 +492,20 @@ impl<'s> Simulation<'s> {
         for (plant, req) in self.plants.iter_mut().zip(&self.requests) {
             plant.request(t, *req);
         }
+        if let VutSide::External(ext) = vut {
+            // The other simulator sees every BV where it truly is now, and answers with the VUT one
+            // control period on.
+            let bvs: Vec<State> = self.plants.iter().skip(1).map(Plant::state).collect();
+            let from = self.plants.first().map(Plant::state).unwrap_or_default();
+            let to = ext.advance(t, control_dt, &bvs)?;
+            if let Some(r) = self.requests.first_mut() {
+                // What the trace shows as the VUT's "request": the acceleration it is about to realise.
+                r.accel_mps2 = (to.speed_mps - from.speed_mps) / control_dt;
+                r.steer_rad = 0.0;
+            }
+            self.external = Some(Segment { t0_s: t, from, t1_s: t + control_dt, to });
+        }
+        Ok(())
     }
 
     fn record(&mut self, t: f64) {
@@ -547,6 +627,59 @@ mod tests {
         assert_eq!(r.min_distance_m, 0.0);
         assert!(r.duration_s < scenario.duration_s);
         assert!(!r.completed);
+    }
+
+    /// A VUT of "another simulator" that drives +x at constant speed from the origin, and fails
+    /// from `fail_at_s` on.
+    struct Straight {
+        speed: f64,
+        fail_at_s: f64,
+        seen_bvs: Vec<State>,
+    }
+
+    impl ExternalVut for Straight {
+        fn name(&self) -> &str {
+            "test:straight"
+        }
+        fn advance(&mut self, t_s: f64, period_s: f64, bvs: &[State]) -> Result<State, ExternalVutError> {
+            if t_s >= self.fail_at_s {
+                return Err(ExternalVutError::new("test", t_s, "the VUT left the simulation"));
+            }
+            self.seen_bvs.extend_from_slice(bvs);
+            let t = t_s + period_s;
+            Ok(State { px: self.speed * t, py: 0.0, theta_rad: 0.0, speed_mps: self.speed })
+        }
+    }
+
+    #[test]
+    fn an_external_vut_is_measured_like_a_builtin_one() {
+        let bv_speed = 6.0;
+        let mut scenario = crossing(bv_speed);
+        scenario.settings.noise_enabled = false;
+        let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(ReferenceFollower::default())];
+        let mut ext = Straight { speed: VUT_SPEED, fail_at_s: f64::INFINITY, seen_bvs: Vec::new() };
+        let out = run_external(&scenario, &mut bvs, &mut ext, 1).unwrap();
+        let mut builtin_bvs: Vec<Box<dyn BvController>> = vec![Box::new(ReferenceFollower::default())];
+        let builtin = run(&scenario, &mut builtin_bvs, &mut Blind, 1).unwrap();
+        // The blind builtin VUT holds its speed on the same line: the same PET, at the plant rate.
+        let (a, b) = (out.result.pet_min_s.unwrap(), builtin.result.pet_min_s.unwrap());
+        assert!((a - b).abs() < 0.02, "external {a} vs builtin {b}");
+        assert_eq!(out.result.vut_model, "test:straight");
+        // The other simulator was told where the BV truly was, once per control period.
+        let first = ext.seen_bvs.first().unwrap();
+        assert!((first.px - 50.0).abs() < 1e-9 && (first.py + 40.0).abs() < 1e-9, "{first:?}");
+        assert_eq!(ext.seen_bvs.len(), out.trace.len());
+        // Between answers the VUT is interpolated, never integrated: it stays on y = 0.
+        assert!(out.truth.agents[0].states.iter().all(|s| s.py == 0.0 && (s.speed_mps - VUT_SPEED).abs() < 1e-12));
+    }
+
+    #[test]
+    fn a_failing_external_simulator_ends_the_run_with_its_error() {
+        let scenario = crossing(6.0);
+        let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(ReferenceFollower::default())];
+        let mut ext = Straight { speed: VUT_SPEED, fail_at_s: 1.0, seen_bvs: Vec::new() };
+        let err = run_external(&scenario, &mut bvs, &mut ext, 1).unwrap_err();
+        assert!(matches!(&err, RunError::External(e) if e.message.contains("left") && e.t_s == "1.00 s"), "{err}");
     }
 
     #[test]
