@@ -20,7 +20,7 @@ fn every_vut_model_gets_through_every_scenario_without_collision() {
     for scenario in scenarios() {
         for model in VutModel::ALL {
             for seed in 1..=3 {
-                let out = run_reference(&scenario, Some(model), seed).unwrap();
+                let out = run_reference(&scenario, &v2t_lab::vut::Vut::Builtin(model), seed).unwrap();
                 let r = &out.result;
                 let tag = format!("{} / {} / seed {seed}", scenario.name, model);
                 assert!(r.collision.is_none(), "{tag}: collision {:?}", r.collision);
@@ -42,10 +42,10 @@ fn every_vut_model_gets_through_every_scenario_without_collision() {
 #[test]
 fn runs_are_reproducible_from_their_seed() {
     for scenario in scenarios() {
-        let a = run_reference(&scenario, Some(VutModel::Reactive), 42).unwrap();
-        let b = run_reference(&scenario, Some(VutModel::Reactive), 42).unwrap();
+        let a = run_reference(&scenario, &v2t_lab::vut::Vut::Builtin(VutModel::Reactive), 42).unwrap();
+        let b = run_reference(&scenario, &v2t_lab::vut::Vut::Builtin(VutModel::Reactive), 42).unwrap();
         assert_eq!(a, b, "{}: same seed, different runs", scenario.name);
-        let c = run_reference(&scenario, Some(VutModel::Reactive), 43).unwrap();
+        let c = run_reference(&scenario, &v2t_lab::vut::Vut::Builtin(VutModel::Reactive), 43).unwrap();
         assert_ne!(a.trace, c.trace, "{}: the seed does not reach the noise", scenario.name);
     }
 }
@@ -57,7 +57,7 @@ fn vut_models_behave_differently() {
         let speeds: Vec<Vec<f64>> = VutModel::ALL
             .iter()
             .map(|m| {
-                let out = run_reference(&scenario, Some(*m), 7).unwrap();
+                let out = run_reference(&scenario, &v2t_lab::vut::Vut::Builtin(*m), 7).unwrap();
                 out.trace.iter().map(|s| s.agents[0].state.speed_mps).collect()
             })
             .collect();
@@ -99,7 +99,13 @@ fn two_bvs_each_get_their_own_conflict_and_regulator() {
 
     let settings: v2t_game::regulator::RegulatorParams = load_toml(&root.join("regulator/default.toml")).unwrap();
     let target = v2t_model::Target::new(2.0, v2t_model::Style::Yield).unwrap();
-    let c = v2t_lab::steer::steer_case(&settings, &scenario, target, VutModel::IdmNormal, 1..=1);
+    let c = v2t_lab::steer::steer_case(
+        &settings,
+        &scenario,
+        target,
+        &v2t_lab::vut::Vut::Builtin(VutModel::IdmNormal),
+        1..=1,
+    );
     let s = c.stats;
     assert_eq!((s.collisions, s.zone_overlaps, s.unmeasured), (0, 0, 0), "{c:?}");
     assert_eq!(s.order_ok_frac, 1.0, "both BVs let the VUT through first: {c:?}");

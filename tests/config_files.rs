@@ -145,6 +145,15 @@ fn every_configuration_file_loads_and_validates() {
                 assert!(r.classes.iter().all(|c| c.vehicles >= v2t_model::realism::MIN_VEHICLES), "{rel}");
             }
             "realism" if rel.ends_with("README.md") => {}
+            // SUMO's drivers of the VUT: each validates, and the README's table lists it.
+            "vut" if rel.ends_with(".toml") => {
+                let driver = v2t_lab::sumo::SumoDriver::load(path).unwrap_or_else(|e| panic!("{e}"));
+                let readme = std::fs::read_to_string(path.with_file_name("README.md")).unwrap();
+                let file = path.file_name().unwrap().to_string_lossy();
+                assert!(readme.contains(&format!("`{file}`")), "{rel}: config/vut/sumo/README.md does not list it");
+                assert!(driver.name.starts_with("sumo-"), "{rel}");
+            }
+            "vut" if rel.ends_with("README.md") => {}
             // The VLM prompt and the recorded exchanges: a cassette replays to its semantics.json.
             "vlm" => v2t_vlm::check_config_file(path).unwrap_or_else(|e| panic!("config/{rel}: {e}")),
             _ => panic!("config/{rel}: no validator knows this file; add one to tests/config_files.rs"),

@@ -1,4 +1,5 @@
-//! `video2track demo` end to end: both paper scenarios from their recorded VLM exchanges through
+//! `video2track demo` end to end: the three scenarios (cut-in, left turn with the BV turning, left
+//! turn with the VUT turning) from their hand-written VLM exchanges through
 //! grounding, the prior, the onboard processes and the simulated proving ground, to the report,
 //! the summary, the OpenSCENARIO files and MCAP recordings that replay to the same metrics.
 
@@ -8,7 +9,7 @@ use v2t_tests::harness::{bin, tempdir};
 use v2t_tests::repo_root;
 
 #[test]
-fn the_demo_runs_both_scenarios_and_writes_what_it_promises() {
+fn the_demo_runs_every_scenario_and_writes_what_it_promises() {
     let out_scratch = tempdir("demo");
     let out = out_scratch.path();
     let o = std::process::Command::new(bin("video2track"))
@@ -21,7 +22,8 @@ fn the_demo_runs_both_scenarios_and_writes_what_it_promises() {
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     let scenarios = summary["scenarios"].as_array().unwrap();
-    assert_eq!(scenarios.len(), 2);
+    let names: Vec<&str> = scenarios.iter().map(|s| s["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["cut_in", "left_turn", "left_turn_vut"]);
     for s in scenarios {
         let name = s["name"].as_str().unwrap();
         assert_eq!(s["collision"], false, "{name}");
@@ -49,5 +51,5 @@ fn the_demo_runs_both_scenarios_and_writes_what_it_promises() {
         assert!(replay.contains("/plans: ") && replay.contains("every metric identical"), "{name}: {replay}");
     }
     let report = std::fs::read_to_string(out.join("report.html")).unwrap();
-    assert!(report.contains("<svg") && report.contains("cut_in") && report.contains("left_turn"));
+    assert!(report.contains("<svg") && report.contains("cut_in") && report.contains("left_turn_vut"));
 }

@@ -17,6 +17,7 @@ use v2t_tests::repo_root;
 fn the_regulated_bv_lands_on_the_target_pet() {
     let left = load_scenario(&repo_root().join("config/scenarios/left_turn_basic.toml")).unwrap();
     let cut = load_scenario(&repo_root().join("config/scenarios/cut_in_basic.toml")).unwrap();
+    let vut_left = load_scenario(&repo_root().join("config/scenarios/left_turn_vut.toml")).unwrap();
     let settings: RegulatorParams = load_toml(&repo_root().join("config/regulator/default.toml")).unwrap();
     let cases = [
         (&left, Style::Rush, 4.0, VutModel::Sampling),
@@ -25,9 +26,17 @@ fn the_regulated_bv_lands_on_the_target_pet() {
         (&left, Style::Yield, 3.0, VutModel::Reactive),
         (&cut, Style::Rush, 4.0, VutModel::Reactive),
         (&cut, Style::Yield, 2.0, VutModel::Sampling),
+        (&vut_left, Style::Rush, 4.0, VutModel::IdmNormal),
+        (&vut_left, Style::Yield, 2.0, VutModel::Reactive),
     ];
     for (scenario, style, tau, model) in cases {
-        let c = steer_case(&settings, scenario, v2t_model::Target::new(tau, style).unwrap(), model, 1..=2);
+        let c = steer_case(
+            &settings,
+            scenario,
+            v2t_model::Target::new(tau, style).unwrap(),
+            &v2t_lab::vut::Vut::Builtin(model),
+            1..=2,
+        );
         let tag = format!("{} {style} τ={tau} {model}", scenario.name);
         assert_eq!(c.stats.collisions, 0, "{tag}");
         assert_eq!(c.stats.zone_overlaps, 0, "{tag}");

@@ -1,6 +1,6 @@
 //! `video2track experiment`: the paper's research questions in the simulated proving ground
 //! ([`v2t_lab::steer`] for the regulator alone on the scenario cards, [`v2t_lab::methods`] for the
-//! four methods on the paper's two scenarios).
+//! four methods on the paper's scenarios).
 
 use std::path::{Path, PathBuf};
 
@@ -55,10 +55,17 @@ pub struct ExperimentArgs {
     /// Recorded human driving per manoeuvre class, the reference of the realism columns.
     #[arg(long, default_value = shipped::HUMAN_REFERENCE)]
     human_reference: PathBuf,
-    /// steerability without --methods: scenario cards (default: the bundled left turn and cut-in).
+    /// steerability without --methods: scenario cards (default: the bundled cards — the left turn
+    /// with the BV turning, the left turn with the VUT turning, the cut-in).
     #[arg(long = "card")]
     cards: Vec<PathBuf>,
-    /// Only these VUT models (default: all).
+    #[command(flatten)]
+    world: crate::world::WorldArgs,
+    /// steerability on the cards: skip the open-loop grid that measures which targets any BV can
+    /// reach against each VUT (250 runs per scenario and VUT, on the first seed).
+    #[arg(long)]
+    no_reach: bool,
+    /// Only these builtin VUT models (default: all).
     #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(VutModel::names()))]
     vut: Vec<String>,
     /// steerability: only these targets τ, s (default: 1.5 2 3 4 5; repeat the option for more).
@@ -67,7 +74,7 @@ pub struct ExperimentArgs {
     /// Regulator settings (TOML).
     #[arg(long, default_value = shipped::REGULATOR)]
     regulator: PathBuf,
-    /// steerability: compare the four methods on the paper's two scenarios (grounded for each τ
+    /// steerability: compare the four methods on the paper's scenarios (grounded for each τ
     /// and style) instead of the regulator alone on the scenario cards.
     #[arg(long)]
     methods: bool,
@@ -80,11 +87,24 @@ impl ExperimentArgs {
         if !self.cards.is_empty() && (self.methods || !steerability) {
             return Some(
                 "--card applies to `experiment steerability` (the regulator on scenario cards); the four \
-                 methods run on the paper's two scenarios"
+                 methods run on the paper's scenarios"
                     .to_owned(),
             );
         }
         let tradeoff = self.which == Experiment::Tradeoff;
+        if (self.world.world != "builtin" || !self.world.sumo_drivers.is_empty()) && (self.methods || !steerability) {
+            return Some(
+                "--world sumo and --sumo-driver apply to `experiment steerability` on the scenario cards; the four \
+                 methods and the realism sweep run in the builtin world only"
+                    .to_owned(),
+            );
+        }
+        if self.world.world == "sumo" && !self.vut.is_empty() {
+            return Some("--vut names builtin driver models; with --world sumo use --sumo-driver".to_owned());
+        }
+        if self.no_reach && (self.methods || !steerability) {
+            return Some("--no-reach applies to `experiment steerability` on the scenario cards".to_owned());
+        }
         if (!self.w_real.is_empty() || self.svg_dir.is_some()) && !tradeoff {
             return Some("--w-real and --svg-dir apply to `experiment tradeoff` only".to_owned());
         }
@@ -128,7 +148,8 @@ fn seeds(a: &ExperimentArgs) -> std::ops::RangeInclusive<u64> {
     first..=first + repeats as u64 - 1
 }
 
-/// The paper's two scenarios, their semantics replayed from the shipped hand-written cassettes.
+/// The paper's scenarios (the cut-in, the left turn with the BV turning and with the VUT turning),
+/// their semantics replayed from the shipped hand-written cassettes.
 fn paper_scenarios() -> anyhow::Result<Vec<PaperScenario>> {
     let mut scenarios = Vec::new();
     for sc in v2t_lab::demo::SCENARIOS {
@@ -144,7 +165,7 @@ fn provenance(
     seeds: &std::ops::RangeInclusive<u64>,
 ) -> String {
     format!(
-        "simulated proving ground; VUT driver models written by this project; the paper's two scenarios, \
+        "simulated proving ground; VUT driver models written by this project; the paper's scenarios, \
          semantics replayed from hand-written cassettes (no model's answer); Diffusion-only and Video2Track on the {}; \
          BV realism against {}; seeds {}–{}",
         v2t_lab::demo::prior_kind(Path::new(shipped::WEIGHTS), model),
@@ -221,7 +242,7 @@ fn tradeoff(a: ExperimentArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The four methods on the paper's two scenarios.
+/// The four methods on the paper's scenarios.
 fn four_methods(a: ExperimentArgs) -> anyhow::Result<()> {
     let models = crate::vut_models(&a.vut)?;
     let world = World::load(&a)?;
@@ -259,15 +280,28 @@ fn regulator_on_cards(a: ExperimentArgs) -> anyhow::Result<()> {
     let settings: RegulatorParams = load_toml(&a.regulator)?;
     let cards = if a.cards.is_empty() { shipped::CARDS.iter().map(PathBuf::from).collect() } else { a.cards.clone() };
     let scenarios = cards.iter().map(|c| v2t_sim::files::load_scenario(c)).collect::<Result<Vec<_>, _>>()?;
-    let models = crate::vut_models(&a.vut)?;
     let taus = if a.tau.is_empty() { steer::STEER_TAUS_S.to_vec() } else { a.tau.clone() };
-    let report = steer::steerability(&settings, &scenarios, &steer::both_styles(&taus), &models, seeds(&a));
+    let sumo = a.world.sumo(true)?;
+    let vuts: Vec<v2t_lab::vut::Vut<'_>> = match &sumo {
+        Some(s) => s.drivers.iter().map(|driver| v2t_lab::vut::Vut::Sumo { world: &s.world, driver }).collect(),
+        None => crate::vut_models(&a.vut)?.into_iter().map(v2t_lab::vut::Vut::Builtin).collect(),
+    };
     let seeds = seeds(&a);
+    let reach_seed = (!a.no_reach).then_some(*seeds.start());
+    let report =
+        steer::steerability(&settings, &scenarios, &steer::both_styles(&taus), &vuts, seeds.clone(), reach_seed);
+    let world = a.world.world()?;
+    let sumo_version = sumo.as_ref().map_or_else(String::new, |s| format!(" ({})", s.world.version()));
     println!(
-        "simulated proving ground; VUT driver models written by this project; scenario cards \
-         written by this project; seeds {}–{}",
+        "{}{sumo_version}; scenario cards written by this project; seeds {}–{}{}",
+        world.provenance(),
         seeds.start(),
-        seeds.end()
+        seeds.end(),
+        if world == v2t_lab::vut::World::Sumo {
+            "; the regulator's settings as tuned in the builtin world (nothing tuned on SUMO)"
+        } else {
+            ""
+        }
     );
     print!("{}", steer::steer_markdown(&report));
     if let Some(path) = a.json {

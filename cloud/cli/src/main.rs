@@ -21,6 +21,7 @@ mod link;
 mod map;
 mod sim;
 mod train;
+mod world;
 
 /// Video2Track: real interaction videos → steerable adversarial tests on a closed track.
 #[derive(Debug, Parser)]

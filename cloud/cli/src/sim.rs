@@ -16,9 +16,11 @@ pub struct SimArgs {
     /// Random seed of sensor noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// VUT driver model (default: the card's).
+    /// VUT driver model of the builtin world (default: the card's).
     #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(VutModel::names()))]
     vut: Option<String>,
+    #[command(flatten)]
+    world: crate::world::WorldArgs,
     /// Write the results and the full trace as JSON to this file.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -39,8 +41,21 @@ pub fn run(a: SimArgs) -> anyhow::Result<()> {
         None => None,
     };
     let human = v2t_files::human_reference_or_shipped(a.human_reference.as_deref())?;
-    let outcome = v2t_lab::sim::run_reference(&scenario, model, a.seed)?;
-    print!("{}", v2t_lab::sim::report(&outcome));
+    let sumo = a.world.sumo(false)?;
+    if sumo.is_some() && model.is_some() {
+        return Err(
+            crate::Usage("--vut names a builtin driver model; with --world sumo use --sumo-driver".to_owned()).into()
+        );
+    }
+    let vut = match &sumo {
+        Some(s) => match s.drivers.as_slice() {
+            [driver] => v2t_lab::vut::Vut::Sumo { world: &s.world, driver },
+            _ => return Err(crate::Usage("sim runs one SUMO driver: give --sumo-driver once".to_owned()).into()),
+        },
+        None => v2t_lab::vut::Vut::Builtin(model.unwrap_or(scenario.vut.default_model)),
+    };
+    let outcome = v2t_lab::sim::run_reference(&scenario, &vut, a.seed)?;
+    print!("{}", v2t_lab::sim::report(&outcome, vut.world()));
     let realism = match &human {
         Some(h) => {
             let r = v2t_sim::realism::measure_run(&scenario, &outcome, h).map_err(|e| crate::Usage(e.to_string()))?;

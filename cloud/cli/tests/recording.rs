@@ -43,7 +43,8 @@ fn recorded_runs_replay_to_the_same_metrics_and_altered_ones_do_not() {
     // The replay measures the recorded truth, it does not echo the recorded result: a run whose
     // truth is shifted (the VUT 2 m further along its route at every step) replays differently.
     let scenario = v2t_sim::files::load_scenario(&repo().join("config/scenarios/left_turn_basic.toml")).unwrap();
-    let mut run = v2t_lab::sim::run_reference(&scenario, None, 1).unwrap();
+    let mut run =
+        v2t_lab::sim::run_reference(&scenario, &v2t_lab::vut::Vut::Builtin(scenario.vut.default_model), 1).unwrap();
     for s in &mut run.truth.agents[0].s_m {
         *s += 2.0;
     }

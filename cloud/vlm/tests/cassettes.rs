@@ -1,5 +1,6 @@
-//! The shipped, hand-written cassettes for the paper's two scenarios replay offline to the example
-//! semantics, byte for byte.
+//! The shipped, hand-written cassettes for the paper's scenarios (the cut-in, the left turn with the
+//! BV turning, the left turn with the VUT turning) replay offline to the example semantics, byte for
+//! byte.
 //!
 //! `V2T_BLESS_CASSETTES=1 cargo test -p v2t-vlm --test cassettes` rebuilds their requests after a
 //! prompt or request change (hand-written cassettes only; recorded ones must be recorded again).
@@ -14,9 +15,10 @@ use v2t_model::semantics::parse_semantics_json;
 use v2t_vlm::cassette::{Cassette, SEMANTICS_FILE, semantics_text};
 use v2t_vlm::{Mode, VlmConfig, abstract_video, bless_cassette};
 
-const CASES: [(&str, &str, &str, f64); 2] = [
+const CASES: [(&str, &str, &str, f64); 3] = [
     ("cut_in", "cut_in_4.70.mp4", "semantics_cut_in.json", 4.70),
     ("left_turn", "left_turn_2.90.mp4", "semantics_left_turn.json", 2.90),
+    ("left_turn_vut", "left_turn_vut_2.40.mp4", "semantics_left_turn_vut.json", 2.40),
 ];
 
 #[test]

@@ -370,11 +370,11 @@ impl<'s> Simulation<'s> {
         let t = self.t_s();
         let dt = self.scenario.settings.plant_dt_s;
         self.record_truth(t, dt);
-        if self.k.is_multiple_of(self.control_every) {
-            if let Err(e) = self.control(t, &mut vut, bv_control) {
-                self.done = true;
-                return Err(e);
-            }
+        if self.k.is_multiple_of(self.control_every)
+            && let Err(e) = self.control(t, &mut vut, bv_control)
+        {
+            self.done = true;
+            return Err(e);
         }
         if self.k.is_multiple_of(self.record_every) {
             self.record(t);

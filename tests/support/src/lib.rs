@@ -131,6 +131,48 @@ fn verdict(test: &str, lacking: &[Tool], allow: bool, log: Option<&Path>) -> boo
     false
 }
 
+/// `true` when `found`. Otherwise, like [`tools_or_not_run`] for what is not a Debian package
+/// (SUMO, found by its own crate): with [`ALLOW_MISSING`] set, prints
+/// `NOT RUN <target>::<test>: needs <what> (<install>)`, appends that line to [`NOT_RUN_LOG`] when
+/// set, and returns `false`, so the test returns at once; without it, fails the test with
+/// `install`.
+///
+/// ```no_run
+/// # let sumo_found = true;
+/// if !v2t_test_support::found_or_not_run(sumo_found, "SUMO", "run `scripts/install-sumo`") {
+///     return;
+/// }
+/// ```
+pub fn found_or_not_run(found: bool, what: &str, install: &str) -> bool {
+    if found {
+        return true;
+    }
+    if !std::env::var(ALLOW_MISSING).is_ok_and(|v| v == "1") {
+        panic!(
+            "{what} is not installed: {install}; `scripts/test --no-install` runs the suite without \
+             it and lists the tests that need it as not run"
+        );
+    }
+    let test = std::thread::current().name().unwrap_or("<unnamed test>").to_owned();
+    let exe = std::env::current_exe().ok();
+    let stem = exe.as_deref().and_then(Path::file_stem).and_then(|s| s.to_str()).unwrap_or("test");
+    let target = stem.rsplit_once('-').map_or(stem, |(name, _hash)| name);
+    let line = format!("NOT RUN {target}::{test}: needs {what} ({install})");
+    eprintln!("{line}");
+    if let Some(log) = std::env::var_os(NOT_RUN_LOG).map(PathBuf::from) {
+        // One write per line with O_APPEND: lines of parallel test processes do not interleave.
+        let written = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(&log)
+            .and_then(|mut f| f.write_all(format!("{line}\n").as_bytes()));
+        if let Err(e) = written {
+            panic!("could not record a test that did not run in {}: {e}", log.display());
+        }
+    }
+    false
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,6 +1,7 @@
 //! Which PETs can a rushing BV reach at all against each VUT model? Every BV here drives an
-//! open-loop speed profile — acceleration `a1` for `t1` seconds, then `a2` until it has left the
-//! conflict zone, then its reference speed — over a grid of profiles, on the bundled left turn (or
+//! open-loop speed profile ([`v2t_lab::reach::OpenLoop`]: acceleration `a1` for `t1` seconds, then
+//! `a2` until it has left the conflict zone, then its reference speed) over a finer grid than the
+//! one `experiment steerability` runs, on the bundled left turn (or
 //! the card given), with the card's sensor noise and delays. For each VUT model it prints the
 //! smallest and largest PET measured among runs where the BV passed first without collision or
 //! zone overlap, and how many profiles land within ±10 % of each target τ. A second table counts
@@ -18,54 +19,12 @@
 
 use std::path::Path;
 
+use v2t_lab::reach::{OpenLoop, Profile};
 use v2t_model::Style;
 use v2t_sim::bv::BvController;
-use v2t_sim::control::pure_pursuit;
 use v2t_sim::files::load_scenario;
-use v2t_sim::observation::BvObservation;
-use v2t_sim::plant::ActuationRequest;
 use v2t_sim::runner::run;
 use v2t_sim::vut::VutModel;
-
-/// An open-loop speed profile.
-#[derive(Debug, Clone, Copy)]
-struct Profile {
-    a1: f64,
-    t1: f64,
-    a2: f64,
-}
-
-#[derive(Debug)]
-struct OpenLoop {
-    p: Profile,
-}
-
-impl BvController for OpenLoop {
-    fn name(&self) -> &str {
-        "open-loop"
-    }
-
-    fn control(&mut self, obs: &BvObservation<'_>) -> ActuationRequest {
-        let sc = obs.scenario;
-        let bv = &sc.bvs[obs.bv_index];
-        let zone = sc.conflict_of(obs.bv_index).unwrap().zone.bv;
-        let v = obs.own.state.speed_mps;
-        let lim = &bv.agent.vehicle.limits;
-        let wanted = if obs.own.s_m >= zone.exit_s_m {
-            0.5 * (bv.reference.speed_at(obs.t_s) - v)
-        } else if obs.t_s < self.p.t1 {
-            self.p.a1
-        } else {
-            self.p.a2
-        };
-        // Neither below standstill nor above the top speed within one period.
-        let accel = wanted.clamp(-v / obs.dt_s, (lim.max_speed_mps - v) / obs.dt_s);
-        ActuationRequest {
-            accel_mps2: accel.clamp(-lim.max_decel_mps2, lim.max_accel_mps2),
-            steer_rad: pure_pursuit(&bv.agent.route, &obs.own.state, obs.own.s_m, &bv.agent.vehicle),
-        }
-    }
-}
 
 fn main() {
     let card = std::env::args().nth(1).unwrap_or_else(|| "config/scenarios/left_turn_basic.toml".to_owned());
@@ -77,7 +36,7 @@ fn main() {
     for a1 in accels {
         for k in 0..=12 {
             for a2 in accels {
-                profiles.push(Profile { a1, t1: 0.5 * f64::from(k), a2 });
+                profiles.push(Profile { a1_mps2: a1, t1_s: 0.5 * f64::from(k), a2_mps2: a2 });
             }
         }
     }
@@ -92,7 +51,7 @@ fn main() {
     for model in VutModel::ALL {
         let mut row = Vec::with_capacity(profiles.len());
         for p in &profiles {
-            let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(OpenLoop { p: *p })];
+            let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(OpenLoop { profile: *p })];
             let mut driver = model.driver();
             let pet = run(&scenario, &mut bvs, driver.as_mut(), 1).ok().and_then(|out| {
                 let r = out.result;

@@ -1,5 +1,5 @@
 //! `video2track demo`: the whole pipeline on what ships with the repository. For each of the
-//! paper's two scenarios: the hand-written VLM exchange replayed into semantics → grounded on the
+//! paper's scenarios: the hand-written VLM exchange replayed into semantics → grounded on the
 //! proving ground → a trajectory prior → the BV's onboard runtime as separate processes
 //! (`v2t-edge launch`) closing the loop with the simulated proving ground (`v2t-sim-ecu --prior`)
 //! over iceoryx2 → the run's metrics, OpenSCENARIO file, MCAP recording and an HTML report.
@@ -41,8 +41,10 @@ impl DemoScenario {
     }
 }
 
-/// The paper's cut-in (PET 4.70 s) and unprotected left turn (PET 2.90 s).
-pub const SCENARIOS: [DemoScenario; 2] = [
+/// The paper's cut-in (PET 4.70 s), its unprotected left turn with the BV turning (PET 2.90 s), and
+/// the left turn with the VUT turning across an oncoming BV that yields (PET label 2.40 s, made up
+/// for the hand-written example: there is no such video).
+pub const SCENARIOS: [DemoScenario; 3] = [
     DemoScenario {
         name: "cut_in",
         cassette: "config/vlm/cassettes/cut_in",
@@ -54,6 +56,12 @@ pub const SCENARIOS: [DemoScenario; 2] = [
         cassette: "config/vlm/cassettes/left_turn",
         video: "left_turn_2.90.mp4",
         pet_label_s: 2.90,
+    },
+    DemoScenario {
+        name: "left_turn_vut",
+        cassette: "config/vlm/cassettes/left_turn_vut",
+        video: "left_turn_vut_2.40.mp4",
+        pet_label_s: 2.40,
     },
 ];
 

@@ -76,6 +76,9 @@ pub struct EcuOptions {
     pub style: Option<Style>,
     /// Recorded human driving per manoeuvre class: the run's realism is measured against it.
     pub human: Option<v2t_model::realism::HumanReference>,
+    /// SUMO drives the VUT instead of [`EcuOptions::vut`]: the map (OpenDRIVE) it converts and the
+    /// driver ([`crate::sumo`]).
+    pub sumo: Option<(PathBuf, crate::sumo::SumoDriver)>,
 }
 
 /// What a run behind the CAN frames gave.
@@ -118,6 +121,12 @@ pub enum EcuError {
     /// The gateway never engaged.
     #[error("the gateway did not engage within {0} s")]
     NotEngaged(f64),
+    /// SUMO could not start or does not fit the scenario.
+    #[error(transparent)]
+    Sumo(#[from] crate::sumo::SumoWorldError),
+    /// SUMO failed during the run.
+    #[error(transparent)]
+    External(#[from] v2t_sim::external::ExternalVutError),
 }
 
 impl EcuError {
@@ -296,6 +305,18 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<EcuR
         }
     };
     let model = opts.vut.unwrap_or(scenario.vut.default_model);
+    let sumo_world = match &opts.sumo {
+        Some((map, driver)) => Some((crate::sumo::SumoWorld::new(map)?, driver)),
+        None => None,
+    };
+    let mut session = match &sumo_world {
+        Some((w, driver)) => Some(w.session(driver, &scenario, opts.seed)?),
+        None => None,
+    };
+    let vut_name = match &opts.sumo {
+        Some((_, driver)) => driver.name.clone(),
+        None => model.as_str().to_owned(),
+    };
     let finish = |outcome: RunOutcome, stats: EcuStats, plans: Vec<PlanRecord>| {
         let realism = opts.human.as_ref().and_then(|h| v2t_sim::realism::measure_run(&scenario, &outcome, h).ok());
         EcuRun { outcome, stats, plans, realism }
@@ -351,7 +372,7 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<EcuR
         }
         k += 1;
         if !io.bus.wait(Duration::from_nanos(step_ns)) {
-            return Ok(finish(sim.finish(model.as_str(), "v2t-edge"), cmds.stats, plans));
+            return Ok(finish(sim.finish(&vut_name, "v2t-edge"), cmds.stats, plans));
         }
     }
 
@@ -379,7 +400,10 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<EcuR
         let now = now_ns();
         let (_, held_steer) = sim.bv_actuators(0).unwrap_or((0.0, 0.0));
         sim.set_bv_request(0, cmds.request(now, held_steer));
-        sim.step(driver.as_mut(), &mut |_, _| None);
+        match session.as_mut() {
+            Some(sumo) => sim.step_external(sumo, &mut |_, _| None)?,
+            None => sim.step(driver.as_mut(), &mut |_, _| None),
+        }
         if i.is_multiple_of(FIX_EVERY)
             && let Some((fix, age)) = sim.publish_bv_localization(0)
         {
@@ -403,7 +427,7 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<EcuR
             break;
         }
     }
-    Ok(finish(sim.finish(model.as_str(), "v2t-edge"), cmds.stats, plans))
+    Ok(finish(sim.finish(&vut_name, "v2t-edge"), cmds.stats, plans))
 }
 
 fn scenario_start_vut(scenario: &v2t_sim::scenario::Scenario) -> v2t_model::kinematics::State {

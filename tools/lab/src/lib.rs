@@ -10,7 +10,7 @@
 //! - [`stats`]: the statistics of repeated runs every experiment reports;
 //! - [`sim`]: one run with reference-following BVs (`video2track sim`);
 //! - [`steer`], [`methods`] and [`tradeoff`]: the experiments (`video2track experiment …`), the
-//!   regulator alone on the scenario cards, the paper's four methods on its two scenarios, and the
+//!   regulator alone on the scenario cards, the paper's four methods on its scenarios, and the
 //!   sweep of the regulator's realism weight;
 //! - [`demo`]: the whole pipeline end to end through the onboard processes (`video2track demo`);
 //! - [`ecu`]: the simulated drive-by-wire ECU behind the real CAN frames (binary `v2t-sim-ecu`);
@@ -31,10 +31,13 @@ pub mod controllers;
 pub mod demo;
 pub mod ecu;
 pub mod methods;
+pub mod reach;
 pub mod sim;
 pub mod stats;
 pub mod steer;
+pub mod sumo;
 pub mod tradeoff;
+pub mod vut;
 pub mod world;
 
 /// `f` of every job, in order, on up to 8 of the available cores (contiguous chunks). A panic in

@@ -1,7 +1,8 @@
 //! `video2track experiment adversariality|fidelity|style`: the paper's four methods (Section 4.1.2)
-//! on the paper's two scenarios (a cut-in and an unprotected left turn, their semantics replayed
-//! from the shipped hand-written cassettes, not from a model's answer) in the simulated proving
-//! ground (sensor noise, delays, actuator lag), every VUT model, seeded runs.
+//! on the paper's scenarios (a cut-in and the unprotected left turn with the BV or the VUT
+//! turning, their semantics replayed from the shipped hand-written cassettes, not from a model's
+//! answer) in the simulated proving ground (sensor noise, delays, actuator lag), every VUT model,
+//! seeded runs.
 //!
 //! For each scenario the replayed semantics are grounded on the proving ground with the
 //! experiment's target τ and style, then:

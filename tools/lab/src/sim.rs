@@ -5,17 +5,16 @@ use std::fmt::Write as _;
 
 use v2t_model::metrics::{ConflictKind, PetOutcome};
 use v2t_sim::bv::{BvController, ReferenceFollower};
-use v2t_sim::runner::{FirstThrough, RunError, RunOutcome, run};
+use v2t_sim::runner::{FirstThrough, RunError, RunOutcome};
 use v2t_sim::scenario::Scenario;
-use v2t_sim::vut::VutModel;
 
-/// Runs `scenario` with reference-following BVs and the given (or the card's) VUT model.
-pub fn run_reference(scenario: &Scenario, vut: Option<VutModel>, seed: u64) -> Result<RunOutcome, RunError> {
-    let model = vut.unwrap_or(scenario.vut.default_model);
-    let mut driver = model.driver();
+use crate::vut::{Vut, World};
+
+/// Runs `scenario` with reference-following BVs against `vut`.
+pub fn run_reference(scenario: &Scenario, vut: &Vut<'_>, seed: u64) -> Result<RunOutcome, RunError> {
     let mut bvs: Vec<Box<dyn BvController>> =
         scenario.bvs.iter().map(|_| Box::new(ReferenceFollower::default()) as Box<dyn BvController>).collect();
-    run(scenario, &mut bvs, driver.as_mut(), seed)
+    vut.run(scenario, &mut bvs, seed)
 }
 
 fn who(f: Option<FirstThrough>) -> &'static str {
@@ -26,13 +25,17 @@ fn who(f: Option<FirstThrough>) -> &'static str {
     }
 }
 
-/// A short human-readable report of a run.
-pub fn report(outcome: &RunOutcome) -> String {
+/// A short human-readable report of a run in `world`.
+pub fn report(outcome: &RunOutcome, world: World) -> String {
     let r = &outcome.result;
     let mut out = String::new();
+    let place = match world {
+        World::Builtin => "simulated proving ground",
+        World::Sumo => "simulated proving ground, VUT driven by SUMO",
+    };
     let _ = writeln!(
         out,
-        "scenario {}  |  VUT {}  |  BV {}  |  seed {}  |  style {} (target PET {:.2} s)  |  simulated proving ground",
+        "scenario {}  |  VUT {}  |  BV {}  |  seed {}  |  style {} (target PET {:.2} s)  |  {place}",
         r.scenario, r.vut_model, r.bv_controller, r.seed, r.style, r.tau_s
     );
     for c in &r.conflicts {

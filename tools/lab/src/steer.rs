@@ -1,19 +1,21 @@
 //! `video2track experiment steerability`: the regulator alone on scenario cards.
 //!
-//! For every scenario, style, target τ and VUT model, `repeats` seeded noisy runs with the
-//! regulated BV; per case the statistics of [`crate::stats`] and the steering error
-//! `|meanPET^min − τ| / τ`.
+//! For every scenario, style, target τ and VUT (a builtin driver model, or a SUMO driver in the
+//! SUMO world), `repeats` seeded noisy runs with the regulated BV; per case the statistics of
+//! [`crate::stats`], the steering error `|meanPET^min − τ| / τ`, and — when asked — whether any BV
+//! can reach τ against that VUT at all ([`crate::reach`]), so that a miss the VUT imposes is told
+//! apart from a miss of the regulator.
 
 use serde::Serialize;
 use v2t_game::regulator::RegulatorParams;
 use v2t_model::{Style, Target};
 use v2t_sim::bv::BvController;
-use v2t_sim::runner::run;
 use v2t_sim::scenario::Scenario;
-use v2t_sim::vut::VutModel;
 
 use crate::controllers::RegulatedBv;
+use crate::reach::{Reach, reach};
 use crate::stats::{RunStats, Tally};
+use crate::vut::{Vut, World};
 
 /// Targets τ of the steerability experiment, s.
 pub const STEER_TAUS_S: [f64; 5] = [1.5, 2.0, 3.0, 4.0, 5.0];
@@ -30,8 +32,10 @@ pub struct SteerCase {
     pub scenario: String,
     /// Style.
     pub style: Style,
-    /// VUT model.
+    /// The VUT's driver.
     pub vut: String,
+    /// The VUT's world.
+    pub world: World,
     /// Target PET, s.
     pub tau_s: f64,
     /// What the runs measured.
@@ -39,6 +43,10 @@ pub struct SteerCase {
     pub stats: RunStats,
     /// `|meanPET^min − τ| / τ`.
     pub error_rel: Option<f64>,
+    /// Whether some BV lands within ±10 % of τ in the asked order against this VUT: an open-loop
+    /// profile of [`crate::reach`]'s grid did, or these regulated runs did on average (safely, in
+    /// the asked order: they are a BV too). `None` when the grid was not run.
+    pub reachable: Option<bool>,
 }
 
 /// The whole experiment.
@@ -50,6 +58,30 @@ pub struct SteerReport {
     pub mean_error_rel: f64,
     /// Largest per-case steering error.
     pub max_error_rel: f64,
+    /// What the open-loop grid reached per scenario and VUT, when measured.
+    pub reach: Vec<Reach>,
+    /// Over the cases whose target is reachable (when reach was measured): mean and largest error.
+    pub reachable_errors: Option<(f64, f64)>,
+}
+
+impl SteerCase {
+    /// The regulated runs themselves landed within ±10 % of τ on average, every run in the asked
+    /// order, without a collision or zone overlap.
+    pub fn landed_safely(&self) -> bool {
+        let s = &self.stats;
+        self.error_rel.is_some_and(|e| e <= 0.10)
+            && s.collisions == 0
+            && s.zone_overlaps == 0
+            && s.unmeasured == 0
+            && s.order_ok_frac >= 1.0
+    }
+}
+
+/// Mean and largest of per-case errors (a case without a measured PET counts as 1).
+fn mean_max<'a>(cases: impl Iterator<Item = &'a SteerCase>) -> (f64, f64) {
+    let errs: Vec<f64> = cases.map(|c| c.error_rel.unwrap_or(1.0)).collect();
+    let mean = if errs.is_empty() { 0.0 } else { errs.iter().sum::<f64>() / errs.len() as f64 };
+    (mean, errs.iter().copied().fold(0.0, f64::max))
 }
 
 /// One case: one run per seed, every BV regulated by `settings` (with the
@@ -58,7 +90,7 @@ pub fn steer_case(
     settings: &RegulatorParams,
     scenario: &Scenario,
     target: Target,
-    model: VutModel,
+    vut: &Vut<'_>,
     seeds: std::ops::RangeInclusive<u64>,
 ) -> SteerCase {
     let mut tally = Tally::default();
@@ -75,7 +107,7 @@ pub fn steer_case(
             tally.add_failed();
             continue;
         };
-        match run(&sc, &mut bvs, model.driver().as_mut(), seed) {
+        match vut.run(&sc, &mut bvs, seed) {
             Ok(out) => tally.add(&out.result),
             Err(_) => tally.add_failed(),
         }
@@ -84,30 +116,49 @@ pub fn steer_case(
     SteerCase {
         scenario: scenario.name.clone(),
         style: target.style(),
-        vut: model.to_string(),
+        vut: vut.name(),
+        world: vut.world(),
         tau_s: target.tau_s(),
         error_rel: stats.error_rel(target.tau_s()),
         stats,
+        reachable: None,
     }
 }
 
-/// Runs every case (scenario × target × VUT model) on the available cores.
+/// Runs every case (scenario × target × VUT) on the available cores. With `reach_seed`, first runs
+/// the open-loop grid of [`crate::reach`] for every scenario and VUT on that seed and marks each
+/// case reachable or not.
 pub fn steerability(
     settings: &RegulatorParams,
     scenarios: &[Scenario],
     targets: &[Target],
-    models: &[VutModel],
+    vuts: &[Vut<'_>],
     seeds: std::ops::RangeInclusive<u64>,
+    reach_seed: Option<u64>,
 ) -> SteerReport {
+    let mut reaches = Vec::new();
+    if let Some(seed) = reach_seed {
+        let pairs: Vec<(&Scenario, &Vut<'_>)> =
+            scenarios.iter().flat_map(|sc| vuts.iter().map(move |v| (sc, v))).collect();
+        reaches = crate::parallel_map(&pairs, |(sc, v)| reach(sc, v, seed));
+    }
     let mut jobs = Vec::new();
     for sc in scenarios {
         for &target in targets {
-            for &m in models {
-                jobs.push((sc, target, m));
+            for v in vuts {
+                jobs.push((sc, target, v));
             }
         }
     }
-    let mut cases = crate::parallel_map(&jobs, |(sc, target, m)| steer_case(settings, sc, *target, *m, seeds.clone()));
+    let mut cases = crate::parallel_map(&jobs, |(sc, target, v)| steer_case(settings, sc, *target, v, seeds.clone()));
+    for c in &mut cases {
+        let target = Target::new(c.tau_s, c.style).ok();
+        c.reachable = reaches
+            .iter()
+            .find(|r| r.scenario == c.scenario && r.vut == c.vut)
+            .zip(target)
+            .map(|(r, t)| r.reachable(t) || c.landed_safely());
+    }
     cases.sort_by(|a, b| {
         (&a.scenario, a.style as u8, a.tau_s.to_bits(), &a.vut).cmp(&(
             &b.scenario,
@@ -116,23 +167,25 @@ pub fn steerability(
             &b.vut,
         ))
     });
-    let errs: Vec<f64> = cases.iter().map(|c| c.error_rel.unwrap_or(1.0)).collect();
-    SteerReport {
-        mean_error_rel: if errs.is_empty() { 0.0 } else { errs.iter().sum::<f64>() / errs.len() as f64 },
-        max_error_rel: errs.iter().copied().fold(0.0, f64::max),
-        cases,
-    }
+    let (mean_error_rel, max_error_rel) = mean_max(cases.iter());
+    let reachable_errors = reach_seed.map(|_| mean_max(cases.iter().filter(|c| c.reachable == Some(true))));
+    SteerReport { mean_error_rel, max_error_rel, reach: reaches, reachable_errors, cases }
 }
 
 /// A markdown table of the report.
 pub fn steer_markdown(r: &SteerReport) -> String {
     let mut out = String::from(
-        "| scenario | style | VUT | τ (s) | mean PET_min (s) | PET^min_track (s) | error | collisions | overlaps | order ok | no PET |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| scenario | style | VUT | τ (s) | mean PET_min (s) | PET^min_track (s) | error | collisions | overlaps | order ok | no PET | τ reachable |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let f = |x: Option<f64>| x.map_or_else(|| "—".to_owned(), |v| format!("{v:.2}"));
     for c in &r.cases {
+        let reachable = match c.reachable {
+            Some(true) => "yes",
+            Some(false) => "**no**: no BV reached it against this VUT",
+            None => "not measured",
+        };
         out.push_str(&format!(
-            "| {} | {} | {} | {:.1} | {} | {} | {} | {} | {} | {:.2} | {} |\n",
+            "| {} | {} | {} | {:.1} | {} | {} | {} | {} | {} | {:.2} | {} | {reachable} |\n",
             c.scenario,
             c.style,
             c.vut,
@@ -157,5 +210,33 @@ pub fn steer_markdown(r: &SteerReport) -> String {
         total(|c| c.stats.zone_overlaps),
         total(|c| c.stats.unmeasured)
     ));
+    if let Some((mean, max)) = r.reachable_errors {
+        let n = r.cases.iter().filter(|c| c.reachable == Some(true)).count();
+        out.push_str(&format!(
+            "over the {n} cases whose τ some BV reached: mean error {:.1} %, max error {:.1} %; {} cases not reachable\n",
+            100.0 * mean,
+            100.0 * max,
+            r.cases.len() - n
+        ));
+    }
+    if !r.reach.is_empty() {
+        out.push_str("\nWhat open-loop BVs reached (a grid of ");
+        out.push_str(&r.reach.first().map_or(0, |x| x.profiles).to_string());
+        out.push_str(" speed profiles, one seed; PET range of the safe runs in each order; a τ counts as reached when a profile lands within ±10 % of it, or the regulated runs did):\n\n| scenario | VUT | rush PETs (s) | yield PETs (s) | collisions | failed |\n|---|---|---|---|---|---|\n");
+        let range = |x: Option<(f64, f64)>| x.map_or_else(|| "none".to_owned(), |(a, b)| format!("{a:.2}–{b:.2}"));
+        for x in &r.reach {
+            out.push_str(&format!(
+                "| {} | {} | {} ({} runs) | {} ({} runs) | {} | {} |\n",
+                x.scenario,
+                x.vut,
+                range(x.range(Style::Rush)),
+                x.rush_pets_s.len(),
+                range(x.range(Style::Yield)),
+                x.yield_pets_s.len(),
+                x.collisions,
+                x.failed
+            ));
+        }
+    }
     out
 }

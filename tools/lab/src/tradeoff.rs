@@ -1,6 +1,6 @@
 //! `video2track experiment tradeoff`: what the realism weight `w_real` of the regulator buys and
 //! costs. For each weight, the two regulated methods (TroubleMaker-like: the regulator around the
-//! constant-speed stand-in; Video2Track: around the diffusion prior) on the paper's two scenarios,
+//! constant-speed stand-in; Video2Track: around the diffusion prior) on the paper's scenarios,
 //! rush and yield at every τ, against every VUT model; Diffusion-only (the prior followed, no
 //! regulator) once, as the end the realism term pulls toward.
 //!

@@ -54,6 +54,16 @@ struct Cli {
     /// VUT driver model (default: the card's; IDM normal for a prior).
     #[arg(long)]
     vut: Option<VutModel>,
+    /// Which world drives the VUT: builtin (this project's driver models) or sumo (Eclipse SUMO on
+    /// the network converted from --map; needs scripts/install-sumo).
+    #[arg(long, default_value = "builtin", value_parser = clap::builder::PossibleValuesParser::new(["builtin", "sumo"]))]
+    world: String,
+    /// With --world sumo: the SUMO driver (default: config/vut/sumo/krauss.toml).
+    #[arg(long)]
+    sumo_driver: Option<PathBuf>,
+    /// With --world sumo: the map SUMO drives on (OpenDRIVE).
+    #[arg(long, default_value = v2t_files::shipped::MAP)]
+    map: PathBuf,
     /// Noise seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -87,7 +97,31 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         (None, Some(path)) => EcuSource::Prior { path, agent: cli.agent, sim_settings: cli.sim_settings },
         (None, None) => EcuSource::Uplink { sim_settings: cli.sim_settings, wait_s: cli.prior_wait_s },
     };
+    let sumo = match (cli.world.as_str(), cli.sumo_driver) {
+        ("sumo", driver) => {
+            if cli.vut.is_some() {
+                return Err(EcuError::Input(v2t_files::InputError::Config(v2t_files::ConfigError::Parse {
+                    origin: "--vut".to_owned(),
+                    message: "names a builtin driver model; with --world sumo use --sumo-driver".to_owned(),
+                }))
+                .into());
+            }
+            let path = driver.unwrap_or_else(|| PathBuf::from("config/vut/sumo/krauss.toml"));
+            Some((cli.map, v2t_lab::sumo::SumoDriver::load(&path).map_err(EcuError::from)?))
+        }
+        (_, Some(_)) => {
+            return Err(EcuError::Input(v2t_files::InputError::Config(v2t_files::ConfigError::Parse {
+                origin: "--sumo-driver".to_owned(),
+                message: "applies with --world sumo".to_owned(),
+            }))
+            .into());
+        }
+        _ => None,
+    };
+    let world_label =
+        if sumo.is_some() { "simulated proving ground, VUT driven by SUMO" } else { "simulated proving ground" };
     let opts = EcuOptions {
+        sumo,
         source,
         vut: cli.vut,
         seed: cli.seed,
@@ -100,8 +134,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     let r = &outcome.result;
     let pet = r.pet_min_s.map_or_else(|| "none".to_owned(), |p| format!("{p:.2} s"));
     println!(
-        "{}: PET_min {pet} (τ {:.2} s, {}), completed {}, collision {}, frames ok {} rejected {}, ECU timeout steps {}, late steps {} (simulated proving ground)",
+        "{}: VUT {}, PET_min {pet} (τ {:.2} s, {}), completed {}, collision {}, frames ok {} rejected {}, ECU timeout steps {}, late steps {} ({world_label})",
         r.scenario,
+        r.vut_model,
         r.tau_s,
         r.style,
         r.completed,

@@ -1,0 +1,63 @@
+//! `--world builtin|sumo` and `--sumo-driver`: which simulator drives the VUT (`sim`, `experiment
+//! steerability`).
+
+use std::path::{Path, PathBuf};
+
+use v2t_files::shipped;
+use v2t_lab::sumo::{SumoDriver, SumoWorld};
+use v2t_lab::vut::World;
+
+use crate::Usage;
+
+/// The folder of the shipped SUMO drivers.
+pub(crate) const SUMO_DRIVERS: &str = "config/vut/sumo";
+
+/// The options that choose the VUT's world.
+#[derive(Debug, Clone, clap::Args)]
+pub(crate) struct WorldArgs {
+    /// Which world drives the VUT: `builtin` (this project's driver models) or `sumo` (Eclipse
+    /// SUMO's drivers on the network converted from the same map; needs SUMO: scripts/install-sumo).
+    #[arg(long, default_value = "builtin", value_parser = clap::builder::PossibleValuesParser::new(["builtin", "sumo"]))]
+    pub(crate) world: String,
+    /// With --world sumo: SUMO driver files (default: `sim` config/vut/sumo/krauss.toml, SUMO's
+    /// defaults; `experiment` every file in config/vut/sumo/; repeat the option for more).
+    #[arg(long = "sumo-driver")]
+    pub(crate) sumo_drivers: Vec<PathBuf>,
+}
+
+/// A started SUMO world and its drivers.
+pub(crate) struct Sumo {
+    pub(crate) world: SumoWorld,
+    pub(crate) drivers: Vec<SumoDriver>,
+}
+
+impl WorldArgs {
+    /// The world asked for.
+    pub(crate) fn world(&self) -> anyhow::Result<World> {
+        self.world.parse::<World>().map_err(|e| Usage(e).into())
+    }
+
+    /// With `--world sumo`: the drivers (validated first: bad input before SUMO starts) and the
+    /// world on the shipped map; `None` for the builtin world. `--sumo-driver` without `--world
+    /// sumo` is a usage error.
+    pub(crate) fn sumo(&self, default_all: bool) -> anyhow::Result<Option<Sumo>> {
+        if self.world()? != World::Sumo {
+            if !self.sumo_drivers.is_empty() {
+                return Err(Usage("--sumo-driver applies with --world sumo".to_owned()).into());
+            }
+            return Ok(None);
+        }
+        let drivers = if self.sumo_drivers.is_empty() && default_all {
+            SumoDriver::load_dir(Path::new(SUMO_DRIVERS))?
+        } else if self.sumo_drivers.is_empty() {
+            vec![SumoDriver::load(&Path::new(SUMO_DRIVERS).join("krauss.toml"))?]
+        } else {
+            self.sumo_drivers.iter().map(|p| SumoDriver::load(p)).collect::<Result<Vec<_>, _>>()?
+        };
+        if drivers.is_empty() {
+            return Err(Usage(format!("no SUMO driver files (*.toml) in {SUMO_DRIVERS}")).into());
+        }
+        let world = SumoWorld::new(Path::new(shipped::MAP))?;
+        Ok(Some(Sumo { world, drivers }))
+    }
+}
