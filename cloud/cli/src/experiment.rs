@@ -65,6 +65,10 @@ pub struct ExperimentArgs {
     /// reach against each VUT (250 runs per scenario and VUT, on the first seed).
     #[arg(long)]
     no_reach: bool,
+    /// The four methods and tradeoff: only these of the paper's scenarios (cut_in, left_turn,
+    /// left_turn_vut; default: all; repeat the option).
+    #[arg(long = "scenario", value_parser = clap::builder::PossibleValuesParser::new(v2t_lab::demo::SCENARIOS.map(|s| s.name)))]
+    scenarios: Vec<String>,
     /// Only these builtin VUT models (default: all).
     #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(VutModel::names()))]
     vut: Vec<String>,
@@ -101,6 +105,13 @@ impl ExperimentArgs {
         }
         if self.world.world == "sumo" && !self.vut.is_empty() {
             return Some("--vut names builtin driver models; with --world sumo use --sumo-driver".to_owned());
+        }
+        if !self.scenarios.is_empty() && steerability && !self.methods {
+            return Some(
+                "--scenario picks among the paper's scenarios of the four methods and tradeoff; the regulator on \
+                 the cards takes --card"
+                    .to_owned(),
+            );
         }
         if self.no_reach && (self.methods || !steerability) {
             return Some("--no-reach applies to `experiment steerability` on the scenario cards".to_owned());
@@ -150,9 +161,9 @@ fn seeds(a: &ExperimentArgs) -> std::ops::RangeInclusive<u64> {
 
 /// The paper's scenarios (the cut-in, the left turn with the BV turning and with the VUT turning),
 /// their semantics replayed from the shipped hand-written cassettes.
-fn paper_scenarios() -> anyhow::Result<Vec<PaperScenario>> {
+fn paper_scenarios(only: &[String]) -> anyhow::Result<Vec<PaperScenario>> {
     let mut scenarios = Vec::new();
-    for sc in v2t_lab::demo::SCENARIOS {
+    for sc in v2t_lab::demo::SCENARIOS.iter().filter(|s| only.is_empty() || only.iter().any(|n| n == s.name)) {
         scenarios.push(PaperScenario { name: sc.name.to_owned(), semantics: sc.replayed_semantics()? });
     }
     Ok(scenarios)
@@ -217,7 +228,7 @@ fn tradeoff(a: ExperimentArgs) -> anyhow::Result<()> {
     let models = crate::vut_models(&a.vut)?;
     let world = World::load(&a)?;
     let (model, human, setup) = (&world.model, &world.human, world.setup());
-    let scenarios = paper_scenarios()?;
+    let scenarios = paper_scenarios(&a.scenarios)?;
     let taus = if a.tau.is_empty() { tradeoff::TAUS_S.to_vec() } else { a.tau.clone() };
     let weights = if a.w_real.is_empty() { tradeoff::WEIGHTS.to_vec() } else { a.w_real.clone() };
     let seeds = seeds(&a);
@@ -247,7 +258,7 @@ fn four_methods(a: ExperimentArgs) -> anyhow::Result<()> {
     let models = crate::vut_models(&a.vut)?;
     let world = World::load(&a)?;
     let (model, human, setup) = (&world.model, &world.human, world.setup());
-    let scenarios = paper_scenarios()?;
+    let scenarios = paper_scenarios(&a.scenarios)?;
     let taus = if a.tau.is_empty() { steer::STEER_TAUS_S.to_vec() } else { a.tau.clone() };
     let comparison = match a.which {
         Experiment::Adversariality => Comparison::Adversariality,

@@ -174,15 +174,7 @@ pub fn run(
     driver: &mut dyn VutDriver,
     seed: u64,
 ) -> Result<RunOutcome, RunError> {
-    if bv_controllers.len() != scenario.bvs.len() {
-        return Err(RunError::ControllerCount { bvs: scenario.bvs.len(), controllers: bv_controllers.len() });
-    }
-    let bv_name = bv_controllers.iter().map(|c| c.name()).collect::<Vec<_>>().join("+");
-    let mut sim = Simulation::new(scenario, seed);
-    while !sim.is_done() {
-        sim.step(driver, &mut |b, obs| bv_controllers.get_mut(b).map(|c| c.control(obs)));
-    }
-    Ok(sim.finish(driver.name(), &bv_name))
+    run_with(scenario, bv_controllers, VutSide::Driver(driver), seed)
 }
 
 /// Runs `scenario` with one controller per BV and the VUT driven by another simulator (see
@@ -193,15 +185,28 @@ pub fn run_external(
     vut: &mut dyn ExternalVut,
     seed: u64,
 ) -> Result<RunOutcome, RunError> {
+    run_with(scenario, bv_controllers, VutSide::External(vut), seed)
+}
+
+fn run_with(
+    scenario: &Scenario,
+    bv_controllers: &mut [Box<dyn BvController>],
+    mut vut: VutSide<'_>,
+    seed: u64,
+) -> Result<RunOutcome, RunError> {
     if bv_controllers.len() != scenario.bvs.len() {
         return Err(RunError::ControllerCount { bvs: scenario.bvs.len(), controllers: bv_controllers.len() });
     }
     let bv_name = bv_controllers.iter().map(|c| c.name()).collect::<Vec<_>>().join("+");
     let mut sim = Simulation::new(scenario, seed);
     while !sim.is_done() {
-        sim.step_external(vut, &mut |b, obs| bv_controllers.get_mut(b).map(|c| c.control(obs)))?;
+        sim.step_with(vut.reborrow(), &mut |b, obs| bv_controllers.get_mut(b).map(|c| c.control(obs)))?;
     }
-    Ok(sim.finish(vut.name(), &bv_name))
+    let name = match &vut {
+        VutSide::Driver(d) => d.name(),
+        VutSide::External(e) => e.name(),
+    };
+    Ok(sim.finish(name, &bv_name))
 }
 
 /// Who moves the VUT in a step.
@@ -210,6 +215,15 @@ enum VutSide<'a> {
     Driver(&'a mut dyn VutDriver),
     /// Another simulator; the VUT's plant only carries its state.
     External(&'a mut dyn ExternalVut),
+}
+
+impl VutSide<'_> {
+    fn reborrow(&mut self) -> VutSide<'_> {
+        match self {
+            Self::Driver(d) => VutSide::Driver(&mut **d),
+            Self::External(e) => VutSide::External(&mut **e),
+        }
+    }
 }
 
 /// The closed loop one plant step at a time, for callers that drive a BV from outside (the
