@@ -10,10 +10,10 @@ use common::{repo, tempdir, text, video2track};
 use std::path::{Path, PathBuf};
 
 #[test]
-fn sim_runs_both_cards_with_every_vut_model_and_writes_json() {
+fn sim_runs_every_card_with_every_vut_model_and_writes_json() {
     let dir_scratch = tempdir("sim");
     let dir = dir_scratch.path();
-    for card in ["left_turn_basic", "cut_in_basic"] {
+    for card in ["left_turn_basic", "left_turn_vut", "cut_in_basic"] {
         for vut in ["idm-cautious", "idm-normal", "idm-aggressive", "reactive", "sampling"] {
             let json = dir.join(format!("{card}-{vut}.json"));
             let o = video2track(&[
@@ -112,7 +112,7 @@ fn missing_file_and_unknown_model_are_input_errors() {
 fn paths_that_never_meet_are_refused() {
     let (_dir, card) = broken_card(
         "apart",
-        |t| t.replace("start_x_m = -1.75, start_y_m = 39.36", "start_x_m = -300.0, start_y_m = 39.36"),
+        |t| t.replace("start_x_m = -1.75, start_y_m = 47.85", "start_x_m = -300.0, start_y_m = 47.85"),
         str::to_owned,
     );
     expect_input_error(&card, &["never comes into conflict"]);
@@ -156,7 +156,7 @@ fn help_lists_only_real_commands() {
 }
 
 #[test]
-fn the_four_methods_run_on_both_recorded_scenarios() {
+fn the_four_methods_run_on_every_paper_scenario() {
     let dir_scratch = tempdir("fidelity");
     let dir = dir_scratch.path();
     let json = dir.join("fidelity.json");
@@ -173,30 +173,36 @@ fn the_four_methods_run_on_both_recorded_scenarios() {
     let (out, err) = text(&o);
     assert!(o.status.success(), "{err}");
     for method in ["Predefined", "TroubleMaker-like", "Diffusion-only", "Video2Track"] {
-        assert_eq!(out.matches(&format!("| {method} |")).count(), 2, "{out}");
+        assert_eq!(out.matches(&format!("| {method} |")).count(), 3, "{out}");
     }
     let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let cases = doc["cases"].as_array().unwrap();
-    assert_eq!(cases.len(), 8, "2 scenarios × 4 methods × 1 VUT model");
+    assert_eq!(cases.len(), 12, "3 scenarios × 4 methods × 1 VUT model");
     for c in cases {
         assert_eq!(c["collisions"], 0, "{c}");
         assert_eq!(c["repeats"], 1);
         assert!(c["mean_pet_min_s"].as_f64().unwrap() > 0.5, "{c}");
-        assert_eq!(c["style"], "rush");
     }
-    assert_eq!(doc["summary"].as_array().unwrap().len(), 8);
-    // Every run's BV is measured against recorded human driving of its manoeuvre class: the cut-in's
-    // lane change has a reference, the left turn has none (and says so).
+    assert_eq!(doc["summary"].as_array().unwrap().len(), 12);
+    // Every run's vehicles are measured against recorded human driving of their manoeuvre class:
+    // lane changes and straight driving have a reference, left turns have none (and say so).
     assert!(out.contains("BV W₁ accel") && out.contains("no human reference"), "{out}");
     for c in cases {
         let r = &c["bv_realism"];
-        let cut_in = c["scenario"].as_str().unwrap().starts_with("cut_in");
-        assert_eq!(r["class"], if cut_in { "lane_change" } else { "left_turn" }, "{c}");
-        assert_eq!(r["measured"], if cut_in { 1 } else { 0 }, "{c}");
-        if cut_in {
+        let scenario = c["scenario"].as_str().unwrap();
+        let (bv, vut) = if scenario.starts_with("cut_in") {
+            ("lane_change", "straight")
+        } else if scenario.starts_with("left_turn_vut") {
+            ("straight", "left_turn")
+        } else {
+            ("left_turn", "straight")
+        };
+        assert_eq!(r["class"], bv, "{c}");
+        assert_eq!(r["measured"], if bv == "left_turn" { 0 } else { 1 }, "{c}");
+        if bv != "left_turn" {
             assert!(r["means"]["w1_accel_mps2"].as_f64().unwrap() > 0.0, "{c}");
         }
-        assert_eq!(c["vut_realism"]["class"], "straight", "{c}");
+        assert_eq!(c["vut_realism"]["class"], vut, "{c}");
     }
     let taus: Vec<f64> = cases.iter().map(|c| c["tau_s"].as_f64().unwrap()).collect();
     assert!(taus.contains(&4.7) && taus.contains(&2.9), "the videos' PET labels are the targets: {taus:?}");
@@ -213,11 +219,11 @@ fn steerability_compares_the_four_methods_on_request() {
     assert!(o.status.success(), "{err}");
     assert!(out.contains("mean steering error"), "{out}");
     let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    assert_eq!(doc["cases"].as_array().unwrap().len(), 16, "2 scenarios × 2 styles × 4 methods");
+    assert_eq!(doc["cases"].as_array().unwrap().len(), 24, "3 scenarios × 2 styles × 4 methods");
     let steering = doc["steering"].as_array().unwrap();
     assert_eq!(steering.len(), 4);
     for s in steering {
-        assert_eq!(s["rows"], 4, "{s}");
+        assert_eq!(s["rows"], 6, "{s}");
         assert!(s["mean_error_rel"].as_f64().unwrap().is_finite());
     }
 }
@@ -237,14 +243,18 @@ fn the_realism_tradeoff_sweeps_the_weight_and_draws_the_front() {
     let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let points = doc["points"].as_array().unwrap();
     assert_eq!(points.len(), 5, "Diffusion-only, then 2 weights × the two regulated methods");
-    assert_eq!(doc["cases"].as_array().unwrap().len(), 2 * 2 * 5, "2 scenarios × 2 styles × 5 points");
+    assert_eq!(doc["cases"].as_array().unwrap().len(), 3 * 2 * 5, "3 scenarios × 2 styles × 5 points");
     for p in points {
         assert_eq!(p["errors"].as_array().unwrap().len(), 1, "one VUT model: {p}");
-        assert_eq!(p["errors"][0]["rows"], 4, "2 scenarios × 2 styles: {p}");
+        assert_eq!(p["errors"][0]["rows"], 6, "3 scenarios × 2 styles: {p}");
         assert_eq!(p["collisions"], 0, "{p}");
     }
-    let svg = std::fs::read_to_string(dir.join("tradeoff_cut_in.svg")).unwrap();
-    assert!(svg.starts_with("<svg") && svg.matches("<polyline").count() == 4, "2 panels × 2 methods");
+    // The cut-in's BV changes lanes, the VUT-turning left turn's goes straight: both have recorded
+    // human driving to be measured against; the BV turning left has none.
+    for name in ["cut_in", "left_turn_vut"] {
+        let svg = std::fs::read_to_string(dir.join(format!("tradeoff_{name}.svg"))).unwrap();
+        assert!(svg.starts_with("<svg") && svg.matches("<polyline").count() == 4, "{name}: 2 panels × 2 methods");
+    }
     assert!(!dir.join("tradeoff_left_turn.svg").exists(), "no human left turns: no front to draw");
 }
 
@@ -268,7 +278,25 @@ fn experiment_options_an_experiment_would_ignore_are_refused() {
         (&["experiment", "steerability", "--repeats", "0"][..], "--repeats must lie in [1, 1000000], got 0"),
         (
             &["experiment", "steerability", "--methods", "--card", "config/scenarios/cut_in_basic.toml"][..],
-            "the four methods run on the paper's two scenarios",
+            "the four methods run on the paper's scenarios",
+        ),
+        (
+            &["experiment", "adversariality", "--world", "sumo"][..],
+            "apply to `experiment steerability` on the scenario cards",
+        ),
+        (
+            &["experiment", "steerability", "--world", "sumo", "--vut", "idm-normal"][..],
+            "with --world sumo use --sumo-driver",
+        ),
+        (&["experiment", "steerability", "--scenario", "cut_in"][..], "--scenario picks among the paper's scenarios"),
+        (&["experiment", "fidelity", "--no-reach"][..], "--no-reach applies to `experiment steerability`"),
+        (
+            &["experiment", "steerability", "--sumo-driver", "config/vut/sumo/idm.toml"][..],
+            "--sumo-driver applies with --world sumo",
+        ),
+        (
+            &["sim", "config/scenarios/left_turn_vut.toml", "--sumo-driver", "config/vut/sumo/idm.toml"][..],
+            "--sumo-driver applies with --world sumo",
         ),
     ] {
         let o = video2track(args);
@@ -315,10 +343,18 @@ fn steerability_writes_the_documented_json() {
         "collisions",
         "zone_overlaps",
         "order_ok_frac",
+        "world",
+        "reachable",
     ] {
         assert!(cases[0].get(key).is_some(), "missing {key}");
     }
     assert!(v["mean_error_rel"].is_number() && v["max_error_rel"].is_number());
+    // The open-loop grid ran against the VUT on the card and marked each case.
+    let reach = v["reach"].as_array().unwrap();
+    assert_eq!(reach.len(), 1);
+    assert_eq!((reach[0]["profiles"].as_u64(), reach[0]["vut"].as_str()), (Some(250), Some("sampling")));
+    assert!(cases.iter().all(|c| c["reachable"].is_boolean() && c["world"] == "builtin"), "{cases:?}");
+    assert!(v["reachable_errors"].is_array() && out.contains("τ reachable"), "{out}");
 }
 
 #[test]
@@ -405,4 +441,51 @@ fn ground_refuses_bad_semantics_and_explains_a_misfit() {
         out.contains("ranking:") && err.contains("no fragment of the library fits") && err.contains("J100"),
         "{err}"
     );
+}
+
+#[test]
+fn a_bad_sumo_driver_file_is_refused_before_sumo_starts() {
+    let dir_scratch = tempdir("sumo-driver");
+    let path = dir_scratch.path().join("driver.toml");
+    std::fs::write(&path, "name = \"sumo-x\"\ndescription = \"x\"\n[vtype]\nlength = 9.0\n").unwrap();
+    let o = video2track(&[
+        "sim",
+        "config/scenarios/left_turn_vut.toml",
+        "--world",
+        "sumo",
+        "--sumo-driver",
+        path.to_str().unwrap(),
+    ]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("driver.toml") && err.contains("vtype.length") && err.contains("vehicle file"), "{err}");
+}
+
+#[test]
+fn sim_runs_a_card_with_sumo_driving_the_vut() {
+    let found = v2t_sumo::SumoBinaries::find().is_ok();
+    if !v2t_test_support::found_or_not_run(found, "SUMO (sumo, netconvert)", v2t_sumo::INSTALL_HINT) {
+        return;
+    }
+    let dir_scratch = tempdir("sim-sumo");
+    let json = dir_scratch.path().join("run.json");
+    let o = video2track(&[
+        "sim",
+        "config/scenarios/left_turn_vut.toml",
+        "--world",
+        "sumo",
+        "--sumo-driver",
+        "config/vut/sumo/impatient.toml",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        out.contains("VUT sumo-impatient") && out.contains("VUT driven by SUMO") && out.contains("first through"),
+        "{out}"
+    );
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(v["result"]["vut_model"], "sumo-impatient");
+    assert!(v["result"]["collision"].is_null(), "{}", v["result"]);
 }
