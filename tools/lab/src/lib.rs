@@ -6,6 +6,10 @@
 //! - [`world`]: how a prior becomes a simulated run — the one conversion from trajectory priors
 //!   and accepted IPC priors to scenarios of the simulated proving ground (`v2t-sim`), and from
 //!   scenario cards back to the prior a BV would receive;
+//! - [`vut`] and [`sumo`]: the VUT a run faces — one of this project's driver models in the builtin
+//!   world, or one of Eclipse SUMO's drivers in the SUMO world (SUMO drives the VUT on the network
+//!   converted from the same map, our BVs are imposed on it every control period);
+//! - [`reach`]: which PETs any BV can reach against a VUT (an open-loop grid, for scoring only);
 //! - [`controllers`]: the onboard algorithms as BV controllers of the simulated proving ground;
 //! - [`stats`]: the statistics of repeated runs every experiment reports;
 //! - [`sim`]: one run with reference-following BVs (`video2track sim`);
@@ -16,8 +20,8 @@
 //! - [`ecu`]: the simulated drive-by-wire ECU behind the real CAN frames (binary `v2t-sim-ecu`);
 //! - [`bench_latency`] and [`bench_game`]: the benches (binary `v2t-bench`).
 //!
-//! Every figure that comes out of here comes from a simulated world with VUT driver models this
-//! project wrote; outputs say so.
+//! Every figure that comes out of here comes from a simulated world, with VUT driver models this
+//! project wrote or, in the SUMO world, SUMO's; outputs say which.
 //!
 //! ```
 //! use v2t_lab::stats::Tally;

@@ -255,3 +255,42 @@ fn a_stale_state_brings_the_minimal_risk_stop() {
     // The state goes stale 200 ms after the last fix; the stop must follow within 100 ms of that.
     assert!(after_ms <= 300.0, "{after_ms:.1} ms");
 }
+
+#[test]
+fn the_vut_turning_left_runs_through_the_processes_with_sumo_driving_it() {
+    let found = v2t_sumo::SumoBinaries::find().is_ok();
+    if !v2t_test_support::found_or_not_run(found, "SUMO (sumo, netconvert)", v2t_sumo::INSTALL_HINT) {
+        return;
+    }
+    let ns = namespace("sumo");
+    let cfg = config();
+    let scratch = tempfile::Builder::new().prefix("v2t-edge-sumo-").tempdir().unwrap();
+    let out = scratch.path().join("run.json");
+    let can = can_args();
+    let mut args = vec!["launch", "--config", &cfg, "--namespace", &ns];
+    args.extend(can.iter().map(String::as_str));
+    let mut launcher = Proc::start(&edge_bin(), &args);
+    let card = root().join("config/scenarios/left_turn_vut.toml").display().to_string();
+    let ecu = Command::new(ecu_bin())
+        .args(["--config", &cfg, "--namespace", &ns, "--scenario", &card])
+        .args(&can)
+        .args(["--world", "sumo", "--sumo-driver", "config/vut/sumo/impatient.toml"])
+        .args(["--style", "rush", "--tau", "3", "--seed", "1", "--out"])
+        .arg(&out)
+        .current_dir(root())
+        .output()
+        .unwrap();
+    let summary = String::from_utf8_lossy(&ecu.stdout);
+    eprintln!("{summary}{}", String::from_utf8_lossy(&ecu.stderr));
+    assert!(ecu.status.success());
+    assert!(summary.contains("VUT driven by SUMO"), "{summary}");
+    assert!(launcher.terminate().success());
+    let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let r = &run["result"];
+    assert_eq!(r["vut_model"], "sumo-impatient");
+    assert_eq!(r["collision"], serde_json::Value::Null);
+    assert_eq!(r["zone_overlap"], false);
+    assert_eq!(r["conflicts"][0]["order_matches_style"], true, "{r}");
+    assert!(r["pet_min_s"].as_f64().is_some(), "{r}");
+    assert_eq!(run["ecu"]["frames_rejected"], 0);
+}
