@@ -145,6 +145,16 @@ fn every_configuration_file_loads_and_validates() {
                 assert!(r.classes.iter().all(|c| c.vehicles >= v2t_model::realism::MIN_VEHICLES), "{rel}");
             }
             "realism" if rel.ends_with("README.md") => {}
+            // This project's driver models: compiled into v2t-sim (a bad file fails the build); each
+            // is a model the command line knows, with the description the code carries.
+            "vut" if rel.starts_with("vut/builtin/") && rel.ends_with(".toml") => {
+                let text = std::fs::read_to_string(path).unwrap();
+                let name = text.lines().find_map(|l| l.strip_prefix("name = ")).unwrap().trim_matches('"');
+                let model: v2t_sim::vut::VutModel = name.parse().unwrap_or_else(|e| panic!("{rel}: {e}"));
+                assert!(text.contains(&format!("description = {:?}", model.description())), "{rel}");
+                let readme = std::fs::read_to_string(path.with_file_name("README.md")).unwrap();
+                assert!(readme.contains(&format!("`{name}.toml`")), "{rel}: its README does not list it");
+            }
             // SUMO's drivers of the VUT: each validates, and the README's table lists it.
             "vut" if rel.ends_with(".toml") => {
                 let driver = v2t_lab::sumo::SumoDriver::load(path).unwrap_or_else(|e| panic!("{e}"));

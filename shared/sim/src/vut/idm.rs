@@ -66,43 +66,19 @@ pub struct IdmParams {
 }
 
 impl IdmParams {
-    /// Long headway, gentle acceleration, large accepted gaps.
+    /// Long headway, gentle acceleration, large accepted gaps (`config/vut/builtin/idm-cautious.toml`).
     pub fn cautious() -> Self {
-        Self {
-            desired_time_gap_s: 2.0,
-            min_gap_m: 3.0,
-            max_accel_mps2: 1.2,
-            comfort_decel_mps2: 1.5,
-            accel_exponent: 4.0,
-            critical_gap_s: 3.5,
-            commit_margin_s: 1.0,
-        }
+        super::builtin::idm_cautious()
     }
 
-    /// Typical human driver.
+    /// Typical human driver (`config/vut/builtin/idm-normal.toml`).
     pub fn normal() -> Self {
-        Self {
-            desired_time_gap_s: 1.5,
-            min_gap_m: 2.0,
-            max_accel_mps2: 1.5,
-            comfort_decel_mps2: 2.0,
-            accel_exponent: 4.0,
-            critical_gap_s: 2.5,
-            commit_margin_s: 0.6,
-        }
+        super::builtin::idm_normal()
     }
 
-    /// Short headway, brisk acceleration, small accepted gaps.
+    /// Short headway, brisk acceleration, small accepted gaps (`config/vut/builtin/idm-aggressive.toml`).
     pub fn aggressive() -> Self {
-        Self {
-            desired_time_gap_s: 1.0,
-            min_gap_m: 1.5,
-            max_accel_mps2: 2.0,
-            comfort_decel_mps2: 3.0,
-            accel_exponent: 4.0,
-            critical_gap_s: 1.5,
-            commit_margin_s: 0.3,
-        }
+        super::builtin::idm_aggressive()
     }
 }
 

@@ -8,8 +8,10 @@
 //! - [`sampling::SamplingPlanner`]: a sampling-based speed planner that scores candidate
 //!   acceleration profiles against constant-velocity predictions of the BVs.
 //!
-//! All follow their route laterally with pure pursuit.
+//! All follow their route laterally with pure pursuit. Their parameters come from
+//! `config/vut/builtin/<name>.toml`, compiled in (a bad file fails the build).
 
+mod builtin;
 pub(crate) mod common;
 pub mod idm;
 pub mod reactive;
@@ -62,6 +64,17 @@ impl VutModel {
             Self::IdmAggressive => "idm-aggressive",
             Self::Reactive => "reactive",
             Self::Sampling => "sampling",
+        }
+    }
+
+    /// One line on the model and its parameters (from its file, `config/vut/builtin/<name>.toml`).
+    pub fn description(self) -> &'static str {
+        match self {
+            Self::IdmCautious => builtin::IDM_CAUTIOUS_DESCRIPTION,
+            Self::IdmNormal => builtin::IDM_NORMAL_DESCRIPTION,
+            Self::IdmAggressive => builtin::IDM_AGGRESSIVE_DESCRIPTION,
+            Self::Reactive => builtin::REACTIVE_DESCRIPTION,
+            Self::Sampling => builtin::SAMPLING_DESCRIPTION,
         }
     }
 

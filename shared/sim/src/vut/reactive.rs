@@ -65,20 +65,9 @@ pub struct ReactiveParams {
 }
 
 impl Default for ReactiveParams {
+    /// `config/vut/builtin/reactive.toml`.
     fn default() -> Self {
-        Self {
-            reaction_time_s: 0.8,
-            pet_threshold_s: 2.0,
-            ttc_threshold_s: 3.0,
-            cruise_gain: 0.6,
-            brake_gain: 1.5,
-            max_brake_mps2: 6.0,
-            max_accel_mps2: 2.0,
-            yield_margin_s: 1.0,
-            simultaneous_window_s: 1.0,
-            time_gap_s: 1.2,
-            min_gap_m: 2.0,
-        }
+        super::builtin::reactive()
     }
 }
 

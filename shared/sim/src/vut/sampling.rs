@@ -78,23 +78,9 @@ pub struct SamplingParams {
 }
 
 impl Default for SamplingParams {
+    /// `config/vut/builtin/sampling.toml`.
     fn default() -> Self {
-        Self {
-            horizon_s: 5.0,
-            step_s: 0.2,
-            replan_period_s: 0.2,
-            candidate_accels_mps2: vec![-6.0, -4.0, -3.0, -2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5, 2.0],
-            progress_weight: 1.0,
-            comfort_weight: 2.0,
-            change_weight: 1.0,
-            risk_weight: 200.0,
-            zone_weight: 3000.0,
-            headway_weight: 100.0,
-            safety_distance_m: 1.5,
-            zone_time_margin_s: 1.0,
-            headway_s: 1.2,
-            min_gap_m: 2.0,
-        }
+        super::builtin::sampling()
     }
 }
 
