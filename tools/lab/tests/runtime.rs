@@ -161,32 +161,38 @@ impl GateWatch {
     }
 }
 
-#[test]
-fn a_yielding_left_turn_runs_to_the_end_through_the_processes_and_lands_on_the_target_pet() {
-    let ns = namespace("closed");
+/// One card through the launcher's processes and the simulated ECU (with `ecu_args`): the run the
+/// ECU wrote and its summary line; the launcher must shut down cleanly on SIGTERM afterwards.
+fn closed_loop(tag: &str, card: &str, ecu_args: &[&str]) -> (serde_json::Value, String) {
+    let ns = namespace(tag);
     let cfg = config();
-    let scratch = tempfile::Builder::new().prefix("v2t-edge-closed-").tempdir().unwrap();
+    let scratch = tempfile::Builder::new().prefix(&format!("v2t-edge-{tag}-")).tempdir().unwrap();
     let out = scratch.path().join("run.json");
     let can = can_args();
     let mut args = vec!["launch", "--config", &cfg, "--namespace", &ns];
     args.extend(can.iter().map(String::as_str));
     let mut launcher = Proc::start(&edge_bin(), &args);
-    let card = root().join("config/scenarios/left_turn_basic.toml").display().to_string();
+    let card = root().join(format!("config/scenarios/{card}.toml")).display().to_string();
     let ecu = Command::new(ecu_bin())
         .args(["--config", &cfg, "--namespace", &ns, "--scenario", &card])
         .args(&can)
-        .args(["--style", "yield", "--tau", "3", "--seed", "1", "--out"])
+        .args(ecu_args)
+        .arg("--out")
         .arg(&out)
         .current_dir(root())
         .output()
         .unwrap();
-    let summary = String::from_utf8_lossy(&ecu.stdout);
+    let summary = String::from_utf8_lossy(&ecu.stdout).into_owned();
     eprintln!("{summary}{}", String::from_utf8_lossy(&ecu.stderr));
     assert!(ecu.status.success());
     let status = launcher.terminate();
     assert!(status.success(), "the launcher shuts down cleanly on SIGTERM: {status}");
+    (serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap(), summary)
+}
 
-    let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+#[test]
+fn a_yielding_left_turn_runs_to_the_end_through_the_processes_and_lands_on_the_target_pet() {
+    let (run, _) = closed_loop("closed", "left_turn_basic", &["--style", "yield", "--tau", "3", "--seed", "1"]);
     let r = &run["result"];
     assert_eq!(r["collision"], serde_json::Value::Null);
     assert_eq!(r["zone_overlap"], false);
@@ -262,30 +268,10 @@ fn the_vut_turning_left_runs_through_the_processes_with_sumo_driving_it() {
     if !v2t_test_support::found_or_not_run(found, "SUMO (sumo, netconvert)", v2t_sumo::INSTALL_HINT) {
         return;
     }
-    let ns = namespace("sumo");
-    let cfg = config();
-    let scratch = tempfile::Builder::new().prefix("v2t-edge-sumo-").tempdir().unwrap();
-    let out = scratch.path().join("run.json");
-    let can = can_args();
-    let mut args = vec!["launch", "--config", &cfg, "--namespace", &ns];
-    args.extend(can.iter().map(String::as_str));
-    let mut launcher = Proc::start(&edge_bin(), &args);
-    let card = root().join("config/scenarios/left_turn_vut.toml").display().to_string();
-    let ecu = Command::new(ecu_bin())
-        .args(["--config", &cfg, "--namespace", &ns, "--scenario", &card])
-        .args(&can)
-        .args(["--world", "sumo", "--sumo-driver", "config/vut/sumo/impatient.toml"])
-        .args(["--style", "rush", "--tau", "3", "--seed", "1", "--out"])
-        .arg(&out)
-        .current_dir(root())
-        .output()
-        .unwrap();
-    let summary = String::from_utf8_lossy(&ecu.stdout);
-    eprintln!("{summary}{}", String::from_utf8_lossy(&ecu.stderr));
-    assert!(ecu.status.success());
+    let sumo = ["--world", "sumo", "--sumo-driver", "config/vut/sumo/impatient.toml"];
+    let (run, summary) =
+        closed_loop("sumo", "left_turn_vut", &[&sumo[..], &["--style", "rush", "--tau", "3", "--seed", "1"]].concat());
     assert!(summary.contains("VUT driven by SUMO"), "{summary}");
-    assert!(launcher.terminate().success());
-    let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
     let r = &run["result"];
     assert_eq!(r["vut_model"], "sumo-impatient");
     assert_eq!(r["collision"], serde_json::Value::Null);
