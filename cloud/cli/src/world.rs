@@ -4,13 +4,10 @@
 use std::path::{Path, PathBuf};
 
 use v2t_files::shipped;
-use v2t_lab::sumo::{SumoDriver, SumoWorld};
+use v2t_lab::sumo::{DEFAULT_DRIVER, DRIVERS_DIR, SumoDriver, SumoWorld};
 use v2t_lab::vut::World;
 
 use crate::Usage;
-
-/// The folder of the shipped SUMO drivers.
-pub(crate) const SUMO_DRIVERS: &str = "config/vut/sumo";
 
 /// The options that choose the VUT's world.
 #[derive(Debug, Clone, clap::Args)]
@@ -48,14 +45,14 @@ impl WorldArgs {
             return Ok(None);
         }
         let drivers = if self.sumo_drivers.is_empty() && default_all {
-            SumoDriver::load_dir(Path::new(SUMO_DRIVERS))?
+            SumoDriver::load_dir(Path::new(DRIVERS_DIR))?
         } else if self.sumo_drivers.is_empty() {
-            vec![SumoDriver::load(&Path::new(SUMO_DRIVERS).join("krauss.toml"))?]
+            vec![SumoDriver::load(Path::new(DEFAULT_DRIVER))?]
         } else {
             self.sumo_drivers.iter().map(|p| SumoDriver::load(p)).collect::<Result<Vec<_>, _>>()?
         };
         if drivers.is_empty() {
-            return Err(Usage(format!("no SUMO driver files (*.toml) in {SUMO_DRIVERS}")).into());
+            return Err(Usage(format!("no SUMO driver files (*.toml) in {DRIVERS_DIR}")).into());
         }
         let world = SumoWorld::new(Path::new(shipped::MAP))?;
         Ok(Some(Sumo { world, drivers }))

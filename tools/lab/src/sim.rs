@@ -29,10 +29,7 @@ fn who(f: Option<FirstThrough>) -> &'static str {
 pub fn report(outcome: &RunOutcome, world: World) -> String {
     let r = &outcome.result;
     let mut out = String::new();
-    let place = match world {
-        World::Builtin => "simulated proving ground",
-        World::Sumo => "simulated proving ground, VUT driven by SUMO",
-    };
+    let place = world.place();
     let _ = writeln!(
         out,
         "scenario {}  |  VUT {}  |  BV {}  |  seed {}  |  style {} (target PET {:.2} s)  |  {place}",

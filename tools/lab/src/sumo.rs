@@ -16,7 +16,7 @@
 //! seed); [`SumoWorld`] keeps the idle ones. SUMO is found by [`v2t_sumo::SumoBinaries::find`]; its
 //! absence is an error that says how to install it (`scripts/install-sumo`).
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
@@ -42,6 +42,11 @@ pub const MAX_OFF_LANE_BV_M: f64 = 2.0;
 const MAX_INSERT_ERROR_M: f64 = 0.5;
 /// Attributes of the VUT's `<vType>` that come from the vehicle file, never from a driver file.
 pub const RESERVED_ATTRIBUTES: [&str; 6] = ["id", "length", "width", "maxSpeed", "emergencyDecel", "vClass"];
+
+/// The folder of the shipped SUMO drivers (relative to the repository root).
+pub const DRIVERS_DIR: &str = "config/vut/sumo";
+/// The driver a single run takes when none is named: SUMO's defaults.
+pub const DEFAULT_DRIVER: &str = "config/vut/sumo/krauss.toml";
 
 /// One SUMO driver of the VUT (a file under `config/vut/sumo/`).
 #[derive(Debug, Clone, PartialEq, serde::Deserialize, serde::Serialize)]
@@ -151,13 +156,7 @@ impl SumoDriver {
 
     /// The `<vType>` of this driver for a vehicle.
     fn vtype(&self, id: &str, vehicle: &VehicleConfig) -> VType {
-        let mut out = vec![
-            ("vClass".to_owned(), "passenger".to_owned()),
-            ("length".to_owned(), format!("{}", vehicle.geometry.length_m)),
-            ("width".to_owned(), format!("{}", vehicle.geometry.width_m)),
-            ("maxSpeed".to_owned(), format!("{}", vehicle.limits.max_speed_mps)),
-            ("emergencyDecel".to_owned(), format!("{}", vehicle.limits.max_decel_mps2)),
-        ];
+        let mut out = vehicle_attributes(vehicle);
         // The card's route keeps the VUT in its lane: no lane change for speed or to keep right,
         // unless the driver file asks for it (strategic changes for the route stay).
         for (k, v) in [("lcKeepRight", "0"), ("lcSpeedGain", "0")] {
@@ -168,6 +167,17 @@ impl SumoDriver {
         out.extend(self.vtype.iter().map(|(k, v)| (k.clone(), v.xml())));
         (id.to_owned(), out)
     }
+}
+
+/// The `<vType>` attributes a vehicle file sets ([`RESERVED_ATTRIBUTES`] but the id).
+fn vehicle_attributes(v: &VehicleConfig) -> Vec<(String, String)> {
+    vec![
+        ("vClass".to_owned(), "passenger".to_owned()),
+        ("length".to_owned(), format!("{}", v.geometry.length_m)),
+        ("width".to_owned(), format!("{}", v.geometry.width_m)),
+        ("maxSpeed".to_owned(), format!("{}", v.limits.max_speed_mps)),
+        ("emergencyDecel".to_owned(), format!("{}", v.limits.max_decel_mps2)),
+    ]
 }
 
 /// Why the SUMO world could not run.
@@ -203,6 +213,8 @@ pub struct SumoWorld {
     net: PathBuf,
     network: Network,
     idle: Mutex<Vec<Sumo>>,
+    /// Routes matched to the network, by a hash of the sampled path and the tolerance.
+    matched: Mutex<HashMap<u64, MatchedRoute>>,
 }
 
 impl Drop for SumoWorld {
@@ -214,12 +226,6 @@ impl Drop for SumoWorld {
         }
         let _ = std::fs::remove_dir_all(&self.dir);
     }
-}
-
-/// How a vehicle's route runs on the SUMO network.
-#[derive(Debug, Clone)]
-struct Placed {
-    route: MatchedRoute,
 }
 
 impl SumoWorld {
@@ -237,7 +243,7 @@ impl SumoWorld {
         let net = dir.join("map.net.xml");
         v2t_sumo::convert_map(&bins, map, &net)?;
         let network = Network::read(&net)?;
-        Ok(Self { bins, version, dir, net, network, idle: Mutex::new(Vec::new()) })
+        Ok(Self { bins, version, dir, net, network, idle: Mutex::new(Vec::new()), matched: Mutex::new(HashMap::new()) })
     }
 
     /// SUMO's version line (for reports).
@@ -251,10 +257,11 @@ impl SumoWorld {
     }
 
     /// Where `agent`'s route runs on the network: its front bumper's path from the start to the end.
-    fn place(&self, scenario: &Scenario, agent: &Agent, max_off_m: f64) -> Result<Placed, SumoWorldError> {
+    /// Matched once per route and tolerance: every later run of the same route reuses it.
+    fn place(&self, scenario: &Scenario, agent: &Agent, max_off_m: f64) -> Result<MatchedRoute, SumoWorldError> {
         let route = &agent.route;
         let half = 0.5 * agent.vehicle.geometry.length_m;
-        let n = ((route.length() - half).max(0.0) / 1.0).ceil() as usize;
+        let n = (route.length() - half).max(0.0).ceil() as usize;
         let points: Vec<[f64; 3]> = (0..=n)
             .map(|k| {
                 let s = (half + k as f64).min(route.length());
@@ -262,11 +269,18 @@ impl SumoWorld {
                 [p.x, p.y, route.heading_at(s)]
             })
             .collect();
-        let route = self.network.match_route(&points, max_off_m).map_err(|e| SumoWorldError::Scenario {
+        let key = fnv1a(points.iter().flatten().chain([&max_off_m]).flat_map(|x| x.to_le_bytes()));
+        if let Some(hit) = self.matched.lock().ok().and_then(|m| m.get(&key).cloned()) {
+            return Ok(hit);
+        }
+        let matched = self.network.match_route(&points, max_off_m).map_err(|e| SumoWorldError::Scenario {
             scenario: scenario.name.clone(),
             message: format!("{}'s route is not on the SUMO network of the map: {e}", agent.id),
         })?;
-        Ok(Placed { route })
+        if let Ok(mut m) = self.matched.lock() {
+            m.insert(key, matched.clone());
+        }
+        Ok(matched)
     }
 
     /// The additional file with the VUT's and the BVs' vehicle types for `driver`.
@@ -275,22 +289,16 @@ impl SumoWorld {
         for (i, bv) in scenario.bvs.iter().enumerate() {
             // A BV is imposed; its type only tells SUMO's drivers its size and what it could do.
             let v = &bv.agent.vehicle;
-            types.push((
-                format!("bv{i}"),
-                vec![
-                    ("vClass".to_owned(), "passenger".to_owned()),
-                    ("length".to_owned(), format!("{}", v.geometry.length_m)),
-                    ("width".to_owned(), format!("{}", v.geometry.width_m)),
-                    ("maxSpeed".to_owned(), format!("{}", v.limits.max_speed_mps)),
-                    ("accel".to_owned(), format!("{}", v.limits.max_accel_mps2)),
-                    ("decel".to_owned(), format!("{}", v.limits.max_decel_mps2)),
-                    ("emergencyDecel".to_owned(), format!("{}", v.limits.max_decel_mps2)),
-                    ("sigma".to_owned(), "0".to_owned()),
-                ],
-            ));
+            let mut attributes = vehicle_attributes(v);
+            attributes.extend([
+                ("accel".to_owned(), format!("{}", v.limits.max_accel_mps2)),
+                ("decel".to_owned(), format!("{}", v.limits.max_decel_mps2)),
+                ("sigma".to_owned(), "0".to_owned()),
+            ]);
+            types.push((format!("bv{i}"), attributes));
         }
         let text = v2t_sumo::additional_xml(&types)?;
-        let path = self.dir.join(format!("vtypes-{:016x}.add.xml", fnv1a(text.as_bytes())));
+        let path = self.dir.join(format!("vtypes-{:016x}.add.xml", fnv1a(text.bytes())));
         if !path.exists() {
             let tmp = path.with_extension(format!("tmp{:?}", std::thread::current().id()).replace(['(', ')'], ""));
             std::fs::write(&tmp, &text).map_err(|source| SumoWorldError::Io { path: tmp.clone(), source })?;
@@ -392,9 +400,9 @@ impl ExternalVut for SumoSession<'_> {
     }
 }
 
-/// FNV-1a: a stable name for a scratch file from its content.
-fn fnv1a(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| (h ^ u64::from(*b)).wrapping_mul(0x0100_0000_01b3))
+/// FNV-1a: a stable key (a scratch file's name, a cached route's) from bytes.
+fn fnv1a(bytes: impl IntoIterator<Item = u8>) -> u64 {
+    bytes.into_iter().fold(0xcbf2_9ce4_8422_2325_u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
 }
 
 /// SUMO's angle (degrees, clockwise from north) of a heading (radians, counter-clockwise from east).
@@ -414,6 +422,8 @@ struct SumoVut {
     name: String,
     vut_half_length_m: f64,
     bv_half_lengths_m: Vec<f64>,
+    /// The BVs' SUMO ids, in scenario order.
+    bv_ids: Vec<String>,
     healthy: bool,
     scenario: String,
 }
@@ -423,13 +433,13 @@ impl SumoVut {
     fn begin(
         mut sumo: Sumo,
         scenario: &Scenario,
-        vut: &Placed,
-        bvs: &[Placed],
+        vut: &MatchedRoute,
+        bvs: &[MatchedRoute],
         driver: &SumoDriver,
     ) -> Result<Self, SumoWorldError> {
         let fail = |message: String| SumoWorldError::Scenario { scenario: scenario.name.clone(), message };
         let vut_agent = &scenario.vut.agent;
-        sumo.add_route("vut_route", &vut.route.edges)?;
+        sumo.add_route("vut_route", &vut.edges)?;
         let mut replies = Vec::new();
         sumo.batch(
             &[Request::AddVehicle(NewVehicle {
@@ -437,8 +447,8 @@ impl SumoVut {
                 route: "vut_route",
                 vehicle_type: "vut",
                 depart: "now",
-                depart_lane: &vut.route.depart_lane.to_string(),
-                depart_pos: &format!("{:.3}", vut.route.depart_pos_m),
+                depart_lane: &vut.depart_lane.to_string(),
+                depart_pos: &format!("{:.3}", vut.depart_pos_m),
                 depart_speed: &format!("{:.3}", vut_agent.initial_speed_mps),
                 arrival_pos: "max",
             })],
@@ -448,15 +458,15 @@ impl SumoVut {
         for (i, (bv, place)) in scenario.bvs.iter().zip(bvs).enumerate() {
             let id = format!("bv{}", i + 1);
             let route = format!("{id}_route");
-            sumo.add_route(&route, &place.route.edges)?;
+            sumo.add_route(&route, &place.edges)?;
             sumo.batch(
                 &[Request::AddVehicle(NewVehicle {
                     id: &id,
                     route: &route,
                     vehicle_type: &format!("bv{i}"),
                     depart: "now",
-                    depart_lane: &place.route.depart_lane.to_string(),
-                    depart_pos: &format!("{:.3}", place.route.depart_pos_m),
+                    depart_lane: &place.depart_lane.to_string(),
+                    depart_pos: &format!("{:.3}", place.depart_pos_m),
                     depart_speed: &format!("{:.3}", bv.agent.initial_speed_mps),
                     arrival_pos: "max",
                 })],
@@ -479,7 +489,7 @@ impl SumoVut {
                 let route = place.map_or_else(String::new, |p| {
                     format!(
                         " (route {:?}, depart lane {}, front bumper at {:.2} m)",
-                        p.route.edges, p.route.depart_lane, p.route.depart_pos_m
+                        p.edges, p.depart_lane, p.depart_pos_m
                     )
                 });
                 return Err(fail(format!(
@@ -505,16 +515,16 @@ impl SumoVut {
             name: driver.name.clone(),
             vut_half_length_m: half,
             bv_half_lengths_m: scenario.bvs.iter().map(|b| 0.5 * b.agent.vehicle.geometry.length_m).collect(),
+            bv_ids: (1..=scenario.bvs.len()).map(|i| format!("bv{i}")).collect(),
             healthy: true,
             scenario: scenario.name.clone(),
         })
     }
 
     fn advance_inner(&mut self, bvs: &[State]) -> Result<State, SumoError> {
-        let ids: Vec<String> = (1..=bvs.len()).map(|i| format!("bv{i}")).collect();
         // SUMO takes the BV's speed from how far it moved in the step.
         let mut requests = Vec::with_capacity(bvs.len());
-        for ((st, half), id) in bvs.iter().zip(&self.bv_half_lengths_m).zip(&ids) {
+        for ((st, half), id) in bvs.iter().zip(&self.bv_half_lengths_m).zip(&self.bv_ids) {
             // keepRoute 1: onto the nearest lane of the BV's own route, so SUMO's drivers see it on
             // its route (a junction's conflicts, a lane's leader) wherever our plant has put it.
             requests.push(Request::MoveToXy(MoveToXy {

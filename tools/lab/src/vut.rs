@@ -34,6 +34,14 @@ impl World {
         }
     }
 
+    /// Where a run took place, in a run's one-line report.
+    pub fn place(self) -> &'static str {
+        match self {
+            Self::Builtin => "simulated proving ground",
+            Self::Sumo => "simulated proving ground, VUT driven by SUMO",
+        }
+    }
+
     /// One line on where the figures come from.
     pub fn provenance(self) -> &'static str {
         match self {

@@ -348,11 +348,6 @@ impl Sumo {
         self.one(Request::MoveToXy(m)).map(|_| ())
     }
 
-    /// Holds a vehicle at `mps`; a negative value hands it back to its driver model.
-    pub fn set_speed(&mut self, vehicle: &str, mps: f64) -> Result<(), SumoError> {
-        self.one(Request::SetSpeed { vehicle, mps }).map(|_| ())
-    }
-
     /// Caps a vehicle's speed at `mps` (the vehicle gets a type of its own).
     pub fn set_max_speed(&mut self, vehicle: &str, mps: f64) -> Result<(), SumoError> {
         self.one(Request::SetMaxSpeed { vehicle, mps }).map(|_| ())

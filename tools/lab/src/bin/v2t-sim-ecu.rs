@@ -106,7 +106,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 }))
                 .into());
             }
-            let path = driver.unwrap_or_else(|| PathBuf::from("config/vut/sumo/krauss.toml"));
+            let path = driver.unwrap_or_else(|| PathBuf::from(v2t_lab::sumo::DEFAULT_DRIVER));
             Some((cli.map, v2t_lab::sumo::SumoDriver::load(&path).map_err(EcuError::from)?))
         }
         (_, Some(_)) => {
@@ -118,8 +118,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         _ => None,
     };
-    let world_label =
-        if sumo.is_some() { "simulated proving ground, VUT driven by SUMO" } else { "simulated proving ground" };
+    let world = if sumo.is_some() { v2t_lab::vut::World::Sumo } else { v2t_lab::vut::World::Builtin };
     let opts = EcuOptions {
         sumo,
         source,
@@ -134,7 +133,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     let r = &outcome.result;
     let pet = r.pet_min_s.map_or_else(|| "none".to_owned(), |p| format!("{p:.2} s"));
     println!(
-        "{}: VUT {}, PET_min {pet} (τ {:.2} s, {}), completed {}, collision {}, frames ok {} rejected {}, ECU timeout steps {}, late steps {} ({world_label})",
+        "{}: VUT {}, PET_min {pet} (τ {:.2} s, {}), completed {}, collision {}, frames ok {} rejected {}, ECU timeout steps {}, late steps {} ({})",
         r.scenario,
         r.vut_model,
         r.tau_s,
@@ -144,7 +143,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         stats.frames_ok,
         stats.frames_rejected,
         stats.timeout_steps,
-        stats.late_steps
+        stats.late_steps,
+        world.place()
     );
     if let (Some(r), Some(h)) = (&realism, &opts.human) {
         print!("{}", v2t_lab::sim::realism_report(r, h));
