@@ -32,6 +32,7 @@
 //! assert!((decision.predicted_pet_s.unwrap() - 2.0).abs() < 0.05);
 //! ```
 
+pub mod campaign;
 pub mod fixtures;
 pub mod qp;
 pub mod reference;

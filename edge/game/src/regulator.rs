@@ -230,6 +230,36 @@ pub enum RegulatorStatus {
     Fallback,
 }
 
+/// How the regulator knows that τ is out of this VUT's reach.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BelowReachCause {
+    /// In this run: yield, and the VUT has stood before its zone for [`WAIT_BELOW_REACH_S`] while the
+    /// BV was before its own — it waits for the BV, so it will not pass first.
+    VutWaits,
+    /// Earlier runs of this test against this VUT (the campaign memory, [`crate::campaign`]): the
+    /// PET did not follow the aim.
+    Campaign,
+    /// Earlier runs of this test against this VUT: two runs in a row without a PET in the asked
+    /// order.
+    OrderRefused,
+}
+
+/// τ is out of this VUT's reach: what the regulator reports with its status.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BelowReach {
+    /// What shows it.
+    pub cause: BelowReachCause,
+    /// The PET this VUT allows, as far as it is known, s (`None`: not known, or no PET in the
+    /// asked order at all).
+    pub pet_bound_s: Option<f64>,
+}
+
+/// Yield: how long the VUT must stand before the zone while the BV holds back before the
+/// regulator reports the target out of reach ([`BelowReachCause::VutWaits`]), s.
+pub const WAIT_BELOW_REACH_S: f64 = 3.0;
+
 /// One decision.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Decision {
@@ -247,6 +277,9 @@ pub struct Decision {
     pub leader_slack_m: f64,
     /// Slack of the follower's order constraint in the safety check, m.
     pub follower_slack_m: f64,
+    /// τ is out of this VUT's reach (with what shows it and the bound); `None`: nothing says so.
+    /// It changes nothing in the plan: a report for the operator and the campaign.
+    pub below_reach: Option<BelowReach>,
 }
 
 /// The regulator of one BV: four QPs built once (follower with an upper or lower order
@@ -266,6 +299,12 @@ pub struct Regulator {
     bv_exit_t_s: Option<f64>,
     /// The prior's timing along the BV's path (the realism term's reference).
     reference: ReferenceTiming,
+    /// What earlier runs of this test showed ([`Regulator::set_known_below_reach`]).
+    known_below_reach: Option<BelowReach>,
+    /// Since when the regulator has been waiting for a VUT standing before the zone, absolute.
+    waiting_since_t_s: Option<f64>,
+    /// What this run has shown (kept until [`Regulator::reset`]).
+    seen_below_reach: Option<BelowReach>,
 }
 
 /// What the realism term pulls toward in one decision: the reference's remaining time to the
@@ -293,6 +332,8 @@ const MERGE_SPEED_MARGIN_MPS: f64 = 2.0;
 const MERGE_RAMP_GAIN: f64 = 2.5;
 /// The key time the first decision of an interaction starts its fixed point from, s from now.
 const FIRST_KEY_GUESS_S: f64 = 5.0;
+/// A VUT at or below this speed stands, m/s (the same threshold as "predicted never to leave").
+const VUT_STANDING_MPS: f64 = 0.5;
 /// How far behind the zone entry the BV holds when it gives way, m.
 const HOLD_BACK_M: f64 = 0.5;
 
@@ -320,6 +361,9 @@ impl Regulator {
             last_key_t_s: None,
             bv_exit_t_s: None,
             reference: ReferenceTiming::default(),
+            known_below_reach: None,
+            waiting_since_t_s: None,
+            seen_below_reach: None,
         })
     }
 
@@ -353,11 +397,39 @@ impl Regulator {
         &self.params
     }
 
-    /// Forgets what it remembered of the current interaction (call between runs).
+    /// Forgets what it remembered of the current interaction (call between runs). What earlier
+    /// runs showed ([`Self::set_known_below_reach`]) stays.
     pub fn reset(&mut self) {
         self.vut_exit_t_s = None;
         self.last_key_t_s = None;
         self.bv_exit_t_s = None;
+        self.waiting_since_t_s = None;
+        self.seen_below_reach = None;
+    }
+
+    /// What earlier runs of this test against this VUT showed about reach (the campaign memory's
+    /// verdict, [`crate::campaign::CaseMemory::below_reach`]): reported with every decision of the
+    /// run until this run shows its own. It changes no plan.
+    pub fn set_known_below_reach(&mut self, known: Option<BelowReach>) {
+        self.known_below_reach = known;
+    }
+
+    /// Updates what this run shows about reach from one decision, and returns the report.
+    fn watch_reach(&mut self, inp: &RegulatorInput) -> Option<BelowReach> {
+        // Yield, both before their zones, the VUT standing: it waits for the BV (whatever the
+        // status says: a measured speed that flickers just above zero gives a very late key time
+        // rather than `Waiting`).
+        let standing = inp.vut.v_mps.is_finite() && inp.vut.v_mps <= VUT_STANDING_MPS;
+        let both_before = inp.vut.s_m < inp.zone_vut.enter_s_m && inp.bv.s_m < inp.zone_bv.enter_s_m;
+        if inp.target.style() == Style::Yield && standing && both_before && inp.t_s.is_finite() {
+            let since = *self.waiting_since_t_s.get_or_insert(inp.t_s);
+            if inp.t_s - since >= WAIT_BELOW_REACH_S && self.seen_below_reach.is_none() {
+                self.seen_below_reach = Some(BelowReach { cause: BelowReachCause::VutWaits, pet_bound_s: None });
+            }
+        } else {
+            self.waiting_since_t_s = None;
+        }
+        self.seen_below_reach.or(self.known_below_reach)
     }
 
     fn fallback(&self, status: RegulatorStatus, v: f64) -> Decision {
@@ -371,6 +443,7 @@ impl Regulator {
             predicted_pet_s: None,
             leader_slack_m: 0.0,
             follower_slack_m: 0.0,
+            below_reach: None,
         }
     }
 
@@ -509,13 +582,16 @@ impl Regulator {
             predicted_pet_s: pet,
             leader_slack_m: qp.slack_m(),
             follower_slack_m: fslack,
+            below_reach: None,
         }
     }
 
     /// One decision.
     pub fn decide(&mut self, inp: &RegulatorInput) -> Decision {
         self.set_caps(inp, None);
-        self.decide_capped(inp)
+        let mut d = self.decide_capped(inp);
+        d.below_reach = self.watch_reach(inp);
+        d
     }
 
     /// [`Self::decide`] for a BV whose path limits its speed: `speed_limit_at(s)` is the highest
@@ -524,7 +600,9 @@ impl Regulator {
     /// conservative, and never infeasible (the cap is approached at a bounded deceleration).
     pub fn decide_on_path(&mut self, inp: &RegulatorInput, speed_limit_at: &dyn Fn(f64) -> f64) -> Decision {
         self.set_caps(inp, Some(speed_limit_at));
-        self.decide_capped(inp)
+        let mut d = self.decide_capped(inp);
+        d.below_reach = self.watch_reach(inp);
+        d
     }
 
     /// Writes the leader plans' per-step speed caps (no allocation).
@@ -766,7 +844,7 @@ impl Regulator {
         if d <= 0.0 {
             return Some(0.0);
         }
-        (inp.vut.v_mps > 0.5).then(|| d / inp.vut.v_mps)
+        (inp.vut.v_mps > VUT_STANDING_MPS).then(|| d / inp.vut.v_mps)
     }
 }
 

@@ -275,3 +275,62 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn a_vut_that_waits_for_a_yielding_bv_is_reported_below_reach_after_its_wait() {
+    let mut r = regulator();
+    let mut inp = input(Style::Yield, 2.0);
+    inp.vut = PathState { s_m: 55.0, v_mps: 0.0, age_s: 0.1 };
+    inp.bv.v_mps = 2.0;
+    let mut first_report = None;
+    for k in 0..50 {
+        inp.t_s = 0.1 * f64::from(k);
+        // The measured speed flickers just above zero, as a noisy sensor gives it.
+        inp.vut.v_mps = if k % 3 == 0 { 0.12 } else { 0.0 };
+        let d = r.decide(&inp);
+        if let Some(b) = d.below_reach {
+            assert_eq!(b, BelowReach { cause: BelowReachCause::VutWaits, pet_bound_s: None });
+            first_report.get_or_insert(inp.t_s);
+        }
+    }
+    let t = first_report.expect("reported");
+    assert!((t - WAIT_BELOW_REACH_S).abs() < 0.11, "after {t} s of waiting");
+    // Forgotten between runs.
+    r.reset();
+    inp.t_s = 0.0;
+    assert_eq!(r.decide(&inp).below_reach, None);
+}
+
+#[test]
+fn a_moving_vut_or_a_rushing_bv_is_never_reported_waiting() {
+    for (style, v) in [(Style::Yield, 3.0), (Style::Rush, 0.0)] {
+        let mut r = regulator();
+        let mut inp = input(style, 2.0);
+        inp.vut = PathState { s_m: 55.0, v_mps: v, age_s: 0.1 };
+        for k in 0..60 {
+            inp.t_s = 0.1 * f64::from(k);
+            assert_eq!(r.decide(&inp).below_reach, None, "{style:?} at {v} m/s");
+        }
+    }
+}
+
+#[test]
+fn what_earlier_runs_showed_is_reported_and_changes_no_plan() {
+    let known = BelowReach { cause: BelowReachCause::Campaign, pet_bound_s: Some(2.04) };
+    for style in Style::ALL {
+        let (mut plain, mut told) = (regulator(), regulator());
+        told.set_known_below_reach(Some(known));
+        let mut inp = input(style, 1.5);
+        for k in 0..30 {
+            inp.t_s = 0.1 * f64::from(k);
+            let (a, b) = (plain.decide(&inp), told.decide(&inp));
+            assert_eq!(b.below_reach, Some(known));
+            assert_eq!(Decision { below_reach: None, ..b }, a, "{style:?}: the plan is the same");
+            inp.bv.s_m += 1.0;
+            inp.vut.s_m += 1.0;
+        }
+        // It outlives a reset (it is what earlier runs showed, not this run).
+        told.reset();
+        assert_eq!(told.decide(&input(style, 1.5)).below_reach, Some(known));
+    }
+}
