@@ -17,7 +17,7 @@ use std::time::{Duration, Instant};
 use v2t_model::{Style, Target, TargetError};
 use v2t_wire::link::{self, ALL_BVS, CloudBody, Command, EdgeReport, Telemetry, topics};
 use v2t_wire::mqtt::{Lane, LinkEvent, MqttLink, QueueLimits, Subscription};
-use v2t_wire::{Code, GateReason, GateState, PlanStatus};
+use v2t_wire::{BelowReachCode, Code, GateReason, GateState, PlanStatus};
 
 use crate::link::{BvEvent, Connection, LinkError, Signer, command, prior_from_file, unix_ms};
 
@@ -217,30 +217,52 @@ impl Fleet {
     /// A table of every BV at `now`.
     pub fn table(&self, now: Instant) -> String {
         let mut s = String::from(
-            "BV        link     health   prior  speed   plan              PET pred  gate  (telemetry age)\n",
+            "BV        link     health   prior  speed   plan              PET pred  τ reach           gate  (telemetry age)\n",
         );
         for (id, b) in &self.bvs {
             let link = if b.online(now) { "online" } else { "OFFLINE" };
             let health = if b.healthy { "ok" } else { "DEGRADED" };
-            let (prior, speed, plan, pet, gate) = match &b.telemetry {
+            let (prior, speed, plan, pet, reach, gate) = match &b.telemetry {
                 Some(t) => (
                     if t.prior_id == 0 { "-".to_owned() } else { t.prior_id.to_string() },
                     format!("{:.1}", t.speed_mps),
                     PlanStatus::from_code(t.plan_status)
                         .map_or_else(|_| format!("?{}", t.plan_status), |p| format!("{p:?}")),
                     t.predicted_pet_s.map_or_else(|| "-".to_owned(), |p| format!("{p:.2} s")),
+                    reach_text(t.below_reach, t.pet_bound_s),
                     gate_text(t.gate_state, t.gate_reason),
                 ),
-                None => ("-".into(), "-".into(), "-".into(), "-".into(), "-".into()),
+                None => ("-".into(), "-".into(), "-".into(), "-".into(), "-".into(), "-".into()),
             };
             let late = if b.telemetry_age_ms > LATE_AFTER_MS {
                 format!("  LATE: {:.1} s old on arrival", b.telemetry_age_ms as f64 * 1e-3)
             } else {
                 String::new()
             };
-            let _ = writeln!(s, "{id:<9} {link:<8} {health:<8} {prior:<6} {speed:<7} {plan:<17} {pet:<9} {gate}{late}");
+            let _ = writeln!(
+                s,
+                "{id:<9} {link:<8} {health:<8} {prior:<6} {speed:<7} {plan:<17} {pet:<9} {reach:<17} {gate}{late}"
+            );
         }
         s
+    }
+}
+
+/// The regulator's word on reach: `-` when nothing says τ is out of reach, else why, with the
+/// bound when one is known (`BELOW: campaign ≥ 2.04 s`).
+fn reach_text(code: u8, bound_s: Option<f64>) -> String {
+    if code == 0 {
+        return "-".to_owned();
+    }
+    let cause = match BelowReachCode::from_code(code) {
+        Ok(BelowReachCode::VutWaits) => "VUT waits".to_owned(),
+        Ok(BelowReachCode::Campaign) => "campaign".to_owned(),
+        Ok(BelowReachCode::OrderRefused) => "order refused".to_owned(),
+        Err(_) => format!("?{code}"),
+    };
+    match bound_s {
+        Some(b) => format!("BELOW: {cause} {b:.2} s"),
+        None => format!("BELOW: {cause}"),
     }
 }
 
@@ -569,6 +591,8 @@ mod tests {
             speed_mps: 8.25,
             plan_status: PlanStatus::Regulating.code(),
             predicted_pet_s: Some(2.5),
+            below_reach: 0,
+            pet_bound_s: None,
             gate_state: GateState::Engaged.code(),
             gate_reason: GateReason::EngageRequest.code(),
         }
@@ -607,6 +631,29 @@ mod tests {
         assert!(f.on_message("v2t/pg/bv1/heartbeat", &beat, t0, 10).is_err());
         assert_eq!(f.bvs.len(), 1);
         assert!(!f.table(t0).contains("LATE"));
+    }
+
+    #[test]
+    fn the_fleet_table_says_when_tau_is_out_of_the_vuts_reach() {
+        let mut f = Fleet::default();
+        let t0 = Instant::now();
+        f.on_message("v2t/pg/bv/bv1/telemetry", &telemetry_frame(&telemetry("bv1", 42)).unwrap(), t0, 10).unwrap();
+        assert!(!f.table(t0).contains("BELOW"), "{}", f.table(t0));
+        let below = Telemetry {
+            seq: 2,
+            below_reach: BelowReachCode::Campaign.code(),
+            pet_bound_s: Some(2.04),
+            ..telemetry("bv1", 42)
+        };
+        f.on_message("v2t/pg/bv/bv1/telemetry", &telemetry_frame(&below).unwrap(), t0, 10).unwrap();
+        assert!(f.table(t0).contains("BELOW: campaign 2.04 s"), "{}", f.table(t0));
+        let waits = Telemetry { seq: 3, below_reach: BelowReachCode::VutWaits.code(), ..telemetry("bv1", 42) };
+        f.on_message("v2t/pg/bv/bv1/telemetry", &telemetry_frame(&waits).unwrap(), t0, 10).unwrap();
+        assert!(f.table(t0).contains("BELOW: VUT waits"), "{}", f.table(t0));
+        // An unknown code is shown as such, never as "nothing".
+        let odd = Telemetry { seq: 4, below_reach: 77, ..telemetry("bv1", 42) };
+        f.on_message("v2t/pg/bv/bv1/telemetry", &telemetry_frame(&odd).unwrap(), t0, 10).unwrap();
+        assert!(f.table(t0).contains("BELOW: ?77"), "{}", f.table(t0));
     }
 
     #[test]

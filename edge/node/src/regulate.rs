@@ -5,10 +5,14 @@ use std::time::Duration;
 
 use iceoryx2::service::Service;
 use v2t_game::reference::ReferenceSample;
-use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams, RegulatorStatus, curve_speed_limit};
+use v2t_game::regulator::{
+    BelowReachCause, PathState, Regulator, RegulatorInput, RegulatorParams, RegulatorStatus, curve_speed_limit,
+};
 use v2t_model::geometry::Point2;
 use v2t_model::path::ReferencePath;
-use v2t_wire::{ActivePrior, BvState, Code, Header, NodeKind, PlanStatus, RegulatedPlan, Vector, VutState, services};
+use v2t_wire::{
+    ActivePrior, BelowReachCode, BvState, Code, Header, NodeKind, PlanStatus, RegulatedPlan, Vector, VutState, services,
+};
 
 use crate::clock::{now_ns, secs_between};
 use crate::config::Loaded;
@@ -46,6 +50,14 @@ pub struct Regulation {
     last_accel: f64,
     header: Header,
     lat_accel_mps2: f64,
+}
+
+fn below_reach_code(c: BelowReachCause) -> BelowReachCode {
+    match c {
+        BelowReachCause::VutWaits => BelowReachCode::VutWaits,
+        BelowReachCause::Campaign => BelowReachCode::Campaign,
+        BelowReachCause::OrderRefused => BelowReachCode::OrderRefused,
+    }
 }
 
 fn status_code(s: RegulatorStatus) -> PlanStatus {
@@ -108,10 +120,13 @@ impl Regulation {
             prior_id: 0,
             status: PlanStatus::NoPrior.code(),
             has_predicted_pet: 0,
+            below_reach: 0,
+            has_pet_bound: 0,
             s0_m: 0.0,
             v0_mps: bv.speed_mps.max(0.0),
             accel_mps2: -fallback,
             predicted_pet_s: 0.0,
+            pet_bound_s: 0.0,
             solve_ns: 0,
         };
         self.header = plan.header;
@@ -154,6 +169,13 @@ impl Regulation {
         if let Some(pet) = d.predicted_pet_s {
             plan.has_predicted_pet = 1;
             plan.predicted_pet_s = pet;
+        }
+        if let Some(b) = d.below_reach {
+            plan.below_reach = below_reach_code(b.cause).code();
+            if let Some(bound) = b.pet_bound_s {
+                plan.has_pet_bound = 1;
+                plan.pet_bound_s = bound;
+            }
         }
         plan
     }
@@ -275,5 +297,30 @@ mod tests {
         let plan = reg.decide(&nan, Some(&vut), 1_020_000_000);
         assert_eq!(plan.status, PlanStatus::Fallback.code());
         assert!(plan.accel_mps2 < 0.0);
+    }
+
+    #[test]
+    fn a_vut_standing_before_the_zone_in_yield_is_reported_below_reach_on_the_plan() {
+        let (mut reg, mut prior) = setup();
+        prior.set_target(v2t_model::Target::new(2.0, v2t_model::Style::Yield).unwrap());
+        reg.set_prior(&prior).unwrap();
+        let q = prior.vut_path[0];
+        let mut last = RegulatedPlan::default();
+        for k in 0..45_u64 {
+            let now = 1_000_000_000 + k * 100_000_000;
+            let bv = bv_at(&prior, 0, now);
+            let vut = VutState {
+                header: Header { seq: k + 1, stamp_ns: now },
+                px_m: q.x_m,
+                py_m: q.y_m,
+                ..VutState::default()
+            };
+            last = reg.decide(&bv, Some(&vut), now + 10_000_000);
+            if k < 25 {
+                assert_eq!(last.below_reach, 0, "not before {} s of waiting", v2t_game::regulator::WAIT_BELOW_REACH_S);
+            }
+        }
+        assert_eq!(BelowReachCode::from_code(last.below_reach), Ok(BelowReachCode::VutWaits));
+        assert_eq!(last.has_pet_bound, 0, "no PET in the asked order: no bound");
     }
 }

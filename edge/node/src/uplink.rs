@@ -398,6 +398,9 @@ impl<'a, S: Service> Node<'a, S> {
                 plan_status: p.status,
                 predicted_pet_s: (p.has_predicted_pet == 1 && p.predicted_pet_s.is_finite())
                     .then_some(p.predicted_pet_s),
+                below_reach: p.below_reach,
+                pet_bound_s: (p.below_reach != 0 && p.has_pet_bound == 1 && p.pet_bound_s.is_finite())
+                    .then_some(p.pet_bound_s),
                 gate_state: g.state,
                 gate_reason: g.reason,
             };

@@ -111,11 +111,18 @@ pub struct PlanRecord {
     pub accel_mps2: f64,
     /// The PET it predicts, s.
     pub predicted_pet_s: Option<f64>,
+    /// Why it reports τ out of the VUT's reach (`VutWaits`, `Campaign`, `OrderRefused`); `None`:
+    /// nothing says so.
+    #[serde(default)]
+    pub below_reach: Option<String>,
+    /// With `below_reach`: the PET the VUT allows as far as known, s.
+    #[serde(default)]
+    pub pet_bound_s: Option<f64>,
     /// How long the decision took, µs.
     pub solve_us: f64,
 }
 
-const PLAN_SCHEMA: &str = r#"{"type":"object","title":"v2t.Plan","properties":{"t_s":{"type":"number"},"prior_id":{"type":"integer"},"status":{"type":"string"},"s_m":{"type":"number"},"v_mps":{"type":"number"},"accel_mps2":{"type":"number"},"predicted_pet_s":{"type":["number","null"]},"solve_us":{"type":"number"}}}"#;
+const PLAN_SCHEMA: &str = r#"{"type":"object","title":"v2t.Plan","properties":{"t_s":{"type":"number"},"prior_id":{"type":"integer"},"status":{"type":"string"},"s_m":{"type":"number"},"v_mps":{"type":"number"},"accel_mps2":{"type":"number"},"predicted_pet_s":{"type":["number","null"]},"below_reach":{"type":["string","null"]},"pet_bound_s":{"type":["number","null"]},"solve_us":{"type":"number"}}}"#;
 
 /// Writes `run` as an MCAP file at `path`.
 pub fn write(run: &RunOutcome, path: &Path) -> Result<(), RecordingError> {

@@ -128,6 +128,19 @@ wire_enum!(
 );
 
 wire_enum!(
+    /// Why the regulator reports τ out of the VUT's reach (`v2t_game::regulator::BelowReachCause`);
+    /// code 0 on the wire means "nothing says so".
+    BelowReachCode, "below-reach cause" {
+        /// Yield, and the VUT stands before the zone while the BV holds back.
+        VutWaits = 1,
+        /// Earlier runs of this test against this VUT: the PET did not follow the aim.
+        Campaign = 2,
+        /// Earlier runs: no PET in the asked order twice in a row.
+        OrderRefused = 3,
+    }
+);
+
+wire_enum!(
     /// Drive-by-wire mode reported by the vehicle.
     DbwMode, "drive-by-wire mode" {
         /// The driver drives; commands are ignored.
@@ -238,6 +251,7 @@ mod tests {
         round_trip::<StyleCode>();
         round_trip::<ZoneKind>();
         round_trip::<PlanStatus>();
+        round_trip::<BelowReachCode>();
         round_trip::<DbwMode>();
         round_trip::<GateState>();
         round_trip::<GateReason>();

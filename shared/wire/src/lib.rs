@@ -30,7 +30,8 @@ mod payloads;
 pub mod services;
 
 pub use codes::{
-    Code, CodeError, DbwMode, GateReason, GateState, NodeKind, PlanStatus, SafetyAction, StyleCode, ZoneKind,
+    BelowReachCode, Code, CodeError, DbwMode, GateReason, GateState, NodeKind, PlanStatus, SafetyAction, StyleCode,
+    ZoneKind,
 };
 pub use payloads::*;
 

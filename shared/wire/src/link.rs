@@ -169,6 +169,10 @@ pub struct Telemetry {
     pub plan_status: u8,
     /// The regulator's predicted PET, s (NaN-free: `None` when it has none).
     pub predicted_pet_s: Option<f64>,
+    /// τ out of the VUT's reach (`v2t_wire::BelowReachCode` code, 0 when nothing says so).
+    pub below_reach: u8,
+    /// With `below_reach`: the PET the VUT allows as far as known, s.
+    pub pet_bound_s: Option<f64>,
     /// The actuation gate's state (`v2t_wire::GateState` code).
     pub gate_state: u8,
     /// Why the gate is in that state (`v2t_wire::GateReason` code).
@@ -587,6 +591,8 @@ mod tests {
             speed_mps: 0.0,
             plan_status: 0,
             predicted_pet_s: None,
+            below_reach: 0,
+            pet_bound_s: None,
             gate_state: 0,
             gate_reason: 0,
         })

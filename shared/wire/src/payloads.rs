@@ -256,6 +256,10 @@ pub struct RegulatedPlan {
     pub status: u8,
     /// 1 when `predicted_pet_s` holds a value.
     pub has_predicted_pet: u8,
+    /// τ out of the VUT's reach: a [`crate::BelowReachCode`], 0 when nothing says so.
+    pub below_reach: u8,
+    /// 1 when `pet_bound_s` holds a value.
+    pub has_pet_bound: u8,
     /// The BV's arc length along its path at the stamp, m.
     pub s0_m: f64,
     /// Speed at the stamp, m/s.
@@ -264,6 +268,8 @@ pub struct RegulatedPlan {
     pub accel_mps2: f64,
     /// Predicted PET, s.
     pub predicted_pet_s: f64,
+    /// With `below_reach`: the PET this VUT allows as far as known, s.
+    pub pet_bound_s: f64,
     /// CPU time of the decision, ns.
     pub solve_ns: u64,
 }

@@ -22,7 +22,9 @@ use v2t_sim::plant::ActuationRequest;
 use v2t_sim::recording::PlanRecord;
 use v2t_sim::runner::{RunOutcome, Simulation};
 use v2t_sim::vut::VutModel;
-use v2t_wire::{ActivePrior, Code, DbwMode, Header, Localization, PlanStatus, RegulatedPlan, VutState, services};
+use v2t_wire::{
+    ActivePrior, BelowReachCode, Code, DbwMode, Header, Localization, PlanStatus, RegulatedPlan, VutState, services,
+};
 
 use crate::world::{self, Vehicles, WorldError};
 
@@ -391,6 +393,12 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<EcuR
                 accel_mps2: p.accel_mps2,
                 predicted_pet_s: (p.has_predicted_pet != 0 && p.predicted_pet_s.is_finite())
                     .then_some(p.predicted_pet_s),
+                below_reach: (p.below_reach != 0).then(|| {
+                    BelowReachCode::from_code(p.below_reach)
+                        .map_or_else(|_| format!("code {}", p.below_reach), |c| format!("{c:?}"))
+                }),
+                pet_bound_s: (p.below_reach != 0 && p.has_pet_bound != 0 && p.pet_bound_s.is_finite())
+                    .then_some(p.pet_bound_s),
                 solve_us: p.solve_ns as f64 * 1e-3,
             });
         }
