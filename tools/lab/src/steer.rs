@@ -62,6 +62,21 @@ pub struct SteerReport {
     pub reach: Vec<Reach>,
     /// Over the cases whose target is reachable (when reach was measured): mean and largest error.
     pub reachable_errors: Option<(f64, f64)>,
+    /// Per VUT: the same figures over that VUT's cases only (never pooled across VUTs).
+    pub per_vut: Vec<VutErrors>,
+}
+
+/// The steering errors of one VUT.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct VutErrors {
+    /// The VUT.
+    pub vut: String,
+    /// Its cases.
+    pub cases: usize,
+    /// Mean and largest error over its cases.
+    pub all: (f64, f64),
+    /// Cases whose τ some BV reached, and the mean and largest error over them (when measured).
+    pub reachable: Option<(usize, f64, f64)>,
 }
 
 impl SteerCase {
@@ -169,7 +184,25 @@ pub fn steerability(
     });
     let (mean_error_rel, max_error_rel) = mean_max(cases.iter());
     let reachable_errors = reach_seed.map(|_| mean_max(cases.iter().filter(|c| c.reachable == Some(true))));
-    SteerReport { mean_error_rel, max_error_rel, reach: reaches, reachable_errors, cases }
+    let mut names: Vec<&str> = cases.iter().map(|c| c.vut.as_str()).collect();
+    names.sort_unstable();
+    names.dedup();
+    let per_vut = names
+        .iter()
+        .map(|&vut| {
+            let mine = || cases.iter().filter(move |c| c.vut == vut);
+            VutErrors {
+                vut: vut.to_owned(),
+                cases: mine().count(),
+                all: mean_max(mine()),
+                reachable: reach_seed.map(|_| {
+                    let (mean, max) = mean_max(mine().filter(|c| c.reachable == Some(true)));
+                    (mine().filter(|c| c.reachable == Some(true)).count(), mean, max)
+                }),
+            }
+        })
+        .collect();
+    SteerReport { mean_error_rel, max_error_rel, reach: reaches, reachable_errors, per_vut, cases }
 }
 
 /// A markdown table of the report.
@@ -218,6 +251,23 @@ pub fn steer_markdown(r: &SteerReport) -> String {
             100.0 * max,
             r.cases.len() - n
         ));
+    }
+    out.push_str("\nPer VUT (each case's mean PET over that VUT's runs only; never pooled across VUTs):\n\n| VUT | cases | mean error | max error | cases τ reachable | mean error, reachable | max error, reachable |\n|---|---|---|---|---|---|---|\n");
+    for v in &r.per_vut {
+        let (n, mean, max) = v.reachable.map_or_else(
+            || ("not measured".to_owned(), "—".to_owned(), "—".to_owned()),
+            |(n, mean, max)| (n.to_string(), format!("{:.1} %", 100.0 * mean), format!("{:.1} %", 100.0 * max)),
+        );
+        out.push_str(&format!(
+            "| {} | {} | {:.1} % | {:.1} % | {n} | {mean} | {max} |\n",
+            v.vut,
+            v.cases,
+            100.0 * v.all.0,
+            100.0 * v.all.1
+        ));
+    }
+    if let Some(worst) = r.per_vut.iter().map(|v| v.reachable.map_or(v.all.0, |x| x.1)).reduce(f64::max) {
+        out.push_str(&format!("worst VUT's mean error (reachable cases when measured): {:.1} %\n", 100.0 * worst));
     }
     if !r.reach.is_empty() {
         out.push_str("\nWhat open-loop BVs reached (a grid of ");
