@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
+use anyhow::Context as _;
 use clap::ValueEnum as _;
 use v2t_files::{load_toml, shipped};
 use v2t_game::regulator::RegulatorParams;
@@ -27,6 +28,9 @@ pub enum Experiment {
     /// The regulator's realism weight w_real swept (0, 0.1, 0.3, 1, 3, 10): steering error per VUT
     /// model against the BV's realism, for TroubleMaker-like and Video2Track.
     Tradeoff,
+    /// Test campaigns on the scenario cards: each test repeated --runs times against one VUT, the
+    /// regulator learning the VUT's reaction from run to run; error per run index and per VUT.
+    Campaign,
 }
 
 /// `experiment`'s arguments.
@@ -38,13 +42,22 @@ pub struct ExperimentArgs {
     /// Write the per-case results as JSON to this file.
     #[arg(long)]
     json: Option<PathBuf>,
-    /// Seeded noisy runs per case, seeds --first-seed to --first-seed + N − 1 (default 20; tradeoff: 5).
+    /// Seeded noisy runs per case, seeds --first-seed to --first-seed + N − 1 (default 20; tradeoff:
+    /// 5). campaign: the number of campaigns per case (default 15), each with its own seed.
     #[arg(long)]
     repeats: Option<usize>,
-    /// The first seed (default 1; tradeoff: 6). Constants are chosen on seeds 1–5: report seeds 6
-    /// onward (`--first-seed 6 --repeats 15`) to keep the reported runs out of the tuning.
+    /// The first seed (default 1; tradeoff and campaign: 6). Constants are chosen on seeds 1–5:
+    /// report seeds 6 onward (`--first-seed 6 --repeats 15`) to keep the reported runs out of the
+    /// tuning.
     #[arg(long)]
     first_seed: Option<u64>,
+    /// campaign: runs per campaign (default 10).
+    #[arg(long)]
+    runs: Option<usize>,
+    /// campaign: write what each campaign learned, one memory file per VUT and campaign
+    /// (`DIR/<vut>/campaign-<seed>.json`, the file `video2track sim --campaign` reads).
+    #[arg(long)]
+    memory_dir: Option<PathBuf>,
     /// tradeoff: only these realism weights (default: 0 0.1 0.3 1 3 10; repeat the option).
     #[arg(long = "w-real", allow_negative_numbers = true)]
     w_real: Vec<f64>,
@@ -87,34 +100,53 @@ pub struct ExperimentArgs {
 impl ExperimentArgs {
     /// An option given where this experiment does not read it (it would be dropped silently).
     fn unused_option(&self) -> Option<String> {
-        let steerability = self.which == Experiment::Steerability;
-        if !self.cards.is_empty() && (self.methods || !steerability) {
+        let campaign = self.which == Experiment::Campaign;
+        // The regulator alone on the scenario cards: steerability without --methods, and campaigns.
+        let steerability = (self.which == Experiment::Steerability && !self.methods) || campaign;
+        if campaign && self.methods {
             return Some(
-                "--card applies to `experiment steerability` (the regulator on scenario cards); the four \
-                 methods run on the paper's scenarios"
+                "--methods applies to `experiment steerability`; campaigns run the regulator on the cards".to_owned(),
+            );
+        }
+        if (self.runs.is_some() || self.memory_dir.is_some()) && !campaign {
+            return Some("--runs and --memory-dir apply to `experiment campaign` only".to_owned());
+        }
+        if self.runs.is_some_and(|r| r == 0 || r > v2t_lab::campaign::MAX_RUNS) {
+            return Some(format!(
+                "--runs must lie in [1, {}], got {}",
+                v2t_lab::campaign::MAX_RUNS,
+                self.runs.unwrap_or(0)
+            ));
+        }
+        if !self.cards.is_empty() && !steerability {
+            return Some(
+                "--card applies to `experiment steerability` and `campaign` (the regulator on scenario cards); the \
+                 four methods run on the paper's scenarios"
                     .to_owned(),
             );
         }
         let tradeoff = self.which == Experiment::Tradeoff;
-        if (self.world.world != "builtin" || !self.world.sumo_drivers.is_empty()) && (self.methods || !steerability) {
+        if (self.world.world != "builtin" || !self.world.sumo_drivers.is_empty()) && !steerability {
             return Some(
-                "--world sumo and --sumo-driver apply to `experiment steerability` on the scenario cards; the four \
-                 methods and the realism sweep run in the builtin world only"
+                "--world sumo and --sumo-driver apply to `experiment steerability` and `campaign` on the scenario \
+                 cards; the four methods and the realism sweep run in the builtin world only"
                     .to_owned(),
             );
         }
         if self.world.world == "sumo" && !self.vut.is_empty() {
             return Some("--vut names builtin driver models; with --world sumo use --sumo-driver".to_owned());
         }
-        if !self.scenarios.is_empty() && steerability && !self.methods {
+        if !self.scenarios.is_empty() && steerability {
             return Some(
                 "--scenario picks among the paper's scenarios of the four methods and tradeoff; the regulator on \
                  the cards takes --card"
                     .to_owned(),
             );
         }
-        if self.no_reach && (self.methods || !steerability) {
-            return Some("--no-reach applies to `experiment steerability` on the scenario cards".to_owned());
+        if self.no_reach && !steerability {
+            return Some(
+                "--no-reach applies to `experiment steerability` and `campaign` on the scenario cards".to_owned(),
+            );
         }
         if (!self.w_real.is_empty() || self.svg_dir.is_some()) && !tradeoff {
             return Some("--w-real and --svg-dir apply to `experiment tradeoff` only".to_owned());
@@ -128,10 +160,10 @@ impl ExperimentArgs {
         if self.repeats.is_some_and(|r| r == 0 || r > 1_000_000) {
             return Some(format!("--repeats must lie in [1, 1000000], got {}", self.repeats.unwrap_or(0)));
         }
-        if !(self.tau.is_empty() || steerability || tradeoff) {
+        if !(self.tau.is_empty() || steerability || self.which == Experiment::Steerability || tradeoff) {
             let name = self.which.to_possible_value().map_or_else(String::new, |v| v.get_name().to_owned());
             return Some(format!(
-                "--tau applies to `experiment steerability` and `tradeoff` only; `experiment {name}` sets its own targets"
+                "--tau applies to `experiment steerability`, `campaign` and `tradeoff` only; `experiment {name}` sets its own targets"
             ));
         }
         None
@@ -145,6 +177,7 @@ pub fn run(a: ExperimentArgs) -> anyhow::Result<()> {
     }
     match a.which {
         Experiment::Tradeoff => tradeoff(a),
+        Experiment::Campaign => campaign(a),
         Experiment::Steerability if !a.methods => regulator_on_cards(a),
         _ => four_methods(a),
     }
@@ -153,9 +186,13 @@ pub fn run(a: ExperimentArgs) -> anyhow::Result<()> {
 /// The seeds of the runs: 1–20 by default; for `tradeoff` 6–10 (out of the tuning seeds 1–5, and
 /// within its 10 minutes on 2 cores).
 fn seeds(a: &ExperimentArgs) -> std::ops::RangeInclusive<u64> {
-    let tradeoff = a.which == Experiment::Tradeoff;
-    let first = a.first_seed.unwrap_or(if tradeoff { 6 } else { 1 });
-    let repeats = a.repeats.unwrap_or(if tradeoff { 5 } else { 20 });
+    let (first, repeats) = match a.which {
+        Experiment::Tradeoff => (6, 5),
+        Experiment::Campaign => (6, 15),
+        _ => (1, 20),
+    };
+    let first = a.first_seed.unwrap_or(first);
+    let repeats = a.repeats.unwrap_or(repeats);
     first..=first + repeats as u64 - 1
 }
 
@@ -178,12 +215,26 @@ fn provenance(
     format!(
         "simulated proving ground; VUT driver models written by this project; the paper's scenarios, \
          semantics replayed from hand-written cassettes (no model's answer); Diffusion-only and Video2Track on the {}; \
-         BV realism against {}; seeds {}–{}",
+         BV realism against {}; {}",
         v2t_lab::demo::prior_kind(Path::new(shipped::WEIGHTS), model),
         human.provenance.split("; made by").next().unwrap_or_default(),
-        seeds.start(),
-        seeds.end()
+        seed_split(seeds)
     )
+}
+
+/// The seeds, and whether the figures over them are in-sample: the regulator's constants (and the
+/// campaign memory's) were chosen on seeds 1–5 of these cards, scenarios and VUT models.
+fn seed_split(seeds: &std::ops::RangeInclusive<u64>) -> String {
+    let (a, b) = (*seeds.start(), *seeds.end());
+    if b <= 5 {
+        format!("seeds {a}–{b}: tuning seeds, figures in-sample")
+    } else if a <= 5 {
+        format!(
+            "seeds {a}–{b}: seeds {a}–5 are tuning seeds, figures partly in-sample (report seeds 6 on: --first-seed 6)"
+        )
+    } else {
+        format!("seeds {a}–{b}: held out from the tuning seeds 1–5")
+    }
 }
 
 /// What the four-method experiments load from the shipped files.
@@ -264,24 +315,85 @@ fn four_methods(a: ExperimentArgs) -> anyhow::Result<()> {
         Experiment::Adversariality => Comparison::Adversariality,
         Experiment::Fidelity => Comparison::Fidelity,
         Experiment::Style => Comparison::Style,
-        Experiment::Steerability | Experiment::Tradeoff => Comparison::Steerability(steer::both_styles(&taus)),
+        Experiment::Steerability | Experiment::Tradeoff | Experiment::Campaign => {
+            Comparison::Steerability(steer::both_styles(&taus))
+        }
     };
     let seeds = seeds(&a);
     let cases = methods::run_all(&setup, &scenarios, &comparison, &models, seeds.clone())?;
     let summary = methods::summarize(&cases);
     // The fidelity error is against the video's PET label: only where τ is that label.
     let labels: Vec<(String, f64)> = match a.which {
-        Experiment::Adversariality | Experiment::Steerability | Experiment::Tradeoff => Vec::new(),
+        Experiment::Adversariality | Experiment::Steerability | Experiment::Tradeoff | Experiment::Campaign => {
+            Vec::new()
+        }
         _ => scenarios.iter().map(|r| (r.name.clone(), r.semantics.pet_label_s)).collect(),
     };
     println!("{}\n", provenance(model, human, &seeds));
     print!("{}", methods::markdown(&summary, &labels));
-    let steering = methods::steering_errors(&summary);
+    let steering = methods::steering_errors(&cases);
     if a.which == Experiment::Steerability {
         print!("{}", methods::steering_markdown(&steering));
     }
     if let Some(path) = a.json {
         write_json(&path, &serde_json::json!({ "cases": cases, "summary": summary, "steering": steering }))?;
+    }
+    Ok(())
+}
+
+/// Test campaigns on the scenario cards.
+fn campaign(a: ExperimentArgs) -> anyhow::Result<()> {
+    let settings: RegulatorParams = load_toml(&a.regulator)?;
+    let cards = if a.cards.is_empty() { shipped::CARDS.iter().map(PathBuf::from).collect() } else { a.cards.clone() };
+    let scenarios = cards.iter().map(|c| v2t_sim::files::load_scenario(c)).collect::<Result<Vec<_>, _>>()?;
+    let taus = if a.tau.is_empty() { steer::STEER_TAUS_S.to_vec() } else { a.tau.clone() };
+    let sumo = a.world.sumo(true)?;
+    let vuts: Vec<v2t_lab::vut::Vut<'_>> = match &sumo {
+        Some(s) => s.drivers.iter().map(|driver| v2t_lab::vut::Vut::Sumo { world: &s.world, driver }).collect(),
+        None => crate::vut_models(&a.vut)?.into_iter().map(v2t_lab::vut::Vut::Builtin).collect(),
+    };
+    let seeds = seeds(&a);
+    let runs = a.runs.unwrap_or(v2t_lab::campaign::DEFAULT_RUNS);
+    let reach_seed = (!a.no_reach).then_some(*seeds.start());
+    let (report, memories) = v2t_lab::campaign::campaigns(
+        &settings,
+        &scenarios,
+        &steer::both_styles(&taus),
+        &vuts,
+        seeds.clone(),
+        runs,
+        reach_seed,
+    );
+    let world = a.world.world()?;
+    let sumo_version = sumo.as_ref().map_or_else(String::new, |s| format!(" ({})", s.world.version()));
+    println!(
+        "{}{sumo_version}; scenario cards written by this project; campaigns ({}){}",
+        world.provenance(),
+        seed_split(&seeds),
+        if world == v2t_lab::vut::World::Sumo {
+            "; the regulator's and the campaign memory's constants as chosen in the builtin world (nothing tuned on SUMO)"
+        } else {
+            ""
+        }
+    );
+    print!("{}", v2t_lab::campaign::markdown(&report));
+    if let Some(dir) = &a.memory_dir {
+        for (vut, seed, memory) in &memories {
+            let sub = dir.join(vut);
+            std::fs::create_dir_all(&sub).with_context(|| format!("creating {}", sub.display()))?;
+            let path = sub.join(format!("campaign-{seed}.json"));
+            let text = v2t_lab::campaign::memory_json(memory)?;
+            std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+        }
+        println!(
+            "
+wrote {} memory files under {}",
+            memories.len(),
+            dir.display()
+        );
+    }
+    if let Some(path) = a.json {
+        write_json(&path, &report)?;
     }
     Ok(())
 }
@@ -304,10 +416,9 @@ fn regulator_on_cards(a: ExperimentArgs) -> anyhow::Result<()> {
     let world = a.world.world()?;
     let sumo_version = sumo.as_ref().map_or_else(String::new, |s| format!(" ({})", s.world.version()));
     println!(
-        "{}{sumo_version}; scenario cards written by this project; seeds {}–{}{}",
+        "{}{sumo_version}; scenario cards written by this project; {}{}",
         world.provenance(),
-        seeds.start(),
-        seeds.end(),
+        seed_split(&seeds),
         if world == v2t_lab::vut::World::Sumo {
             "; the regulator's settings as tuned in the builtin world (nothing tuned on SUMO)"
         } else {

@@ -11,6 +11,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod abstract_cmd;
+mod campaign;
 mod corpus;
 mod demo;
 mod experiment;
@@ -38,7 +39,8 @@ enum Command {
     /// processes and the simulated proving ground; writes report.html, summary.json, and per
     /// scenario the .xosc, the .mcap and the intermediate files.
     Demo(demo::DemoArgs),
-    /// Run one scenario card in the simulated proving ground with reference-following BVs.
+    /// Run one scenario card in the simulated proving ground with reference-following BVs (or,
+    /// with --regulated, the BVs' regulator; with --campaign, as one run of a test campaign).
     Sim(sim::SimArgs),
     /// Measure a recorded run (`sim --mcap`) again from its recorded truth and compare with what
     /// the run reported; exit 1 when they differ.
@@ -47,6 +49,12 @@ enum Command {
     Render(sim::RenderArgs),
     /// Reproduce a research question of the paper in the simulated proving ground.
     Experiment(experiment::ExperimentArgs),
+    /// A test campaign's memory of one VUT on the track: the next run's aim, a run's measured
+    /// outcome recorded, what was learned.
+    Campaign {
+        #[command(subcommand)]
+        command: campaign::CampaignCommand,
+    },
     /// Turn a driving video into scenario semantics with a vision-language model (endpoint from
     /// V2T_VLM_BASE_URL, V2T_VLM_MODEL, V2T_VLM_API_KEY), or replay a cassette offline.
     Abstract(abstract_cmd::AbstractCmd),
@@ -103,6 +111,7 @@ fn execute(command: Command) -> anyhow::Result<()> {
         Command::Replay(a) => sim::replay(a),
         Command::Render(a) => sim::render(a),
         Command::Experiment(a) => experiment::run(a),
+        Command::Campaign { command } => campaign::run(command),
         Command::Abstract(a) => abstract_cmd::run(a),
         Command::Generate(a) => generate::run(a),
         Command::Realism(a) => train::realism(a),

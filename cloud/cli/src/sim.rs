@@ -31,12 +31,24 @@ pub struct SimArgs {
     /// the shipped config/realism/human_reference.json when run from the repository).
     #[arg(long)]
     human_reference: Option<PathBuf>,
+    /// The BVs regulate (the onboard regulator, `--regulator`) instead of following their
+    /// references.
+    #[arg(long)]
+    regulated: bool,
+    /// With --regulated: the regulator's settings (TOML).
+    #[arg(long, default_value = v2t_files::shipped::REGULATOR, requires = "regulated")]
+    regulator: PathBuf,
+    /// With --regulated: one run of a test campaign. The memory of this VUT (JSON; made when
+    /// missing) gives each BV its aim and what earlier runs showed about reach; the run's outcome
+    /// is recorded in it afterwards.
+    #[arg(long, requires = "regulated")]
+    campaign: Option<PathBuf>,
 }
 
 /// Runs the card and prints what happened.
 pub fn run(a: SimArgs) -> anyhow::Result<()> {
     let scenario = v2t_sim::files::load_scenario(&a.card)?;
-    let model = match a.vut {
+    let model = match &a.vut {
         Some(name) => Some(name.parse::<VutModel>().map_err(crate::Usage)?),
         None => None,
     };
@@ -54,7 +66,11 @@ pub fn run(a: SimArgs) -> anyhow::Result<()> {
         },
         None => v2t_lab::vut::Vut::Builtin(model.unwrap_or(scenario.vut.default_model)),
     };
-    let outcome = v2t_lab::sim::run_reference(&scenario, &vut, a.seed)?;
+    let outcome = if a.regulated {
+        regulated(&a, &scenario, &vut)?
+    } else {
+        v2t_lab::sim::run_reference(&scenario, &vut, a.seed)?
+    };
     print!("{}", v2t_lab::sim::report(&outcome, vut.world()));
     let realism = match &human {
         Some(h) => {
@@ -78,6 +94,55 @@ pub fn run(a: SimArgs) -> anyhow::Result<()> {
         write_json(&path, &Output { outcome: &outcome, realism: realism.as_ref() })?;
     }
     Ok(())
+}
+
+/// One run with regulated BVs, as one run of a campaign when asked.
+fn regulated(
+    a: &SimArgs,
+    scenario: &v2t_sim::scenario::Scenario,
+    vut: &v2t_lab::vut::Vut<'_>,
+) -> anyhow::Result<v2t_sim::runner::RunOutcome> {
+    use v2t_lab::campaign;
+    let settings: v2t_game::regulator::RegulatorParams = v2t_files::load_toml(&a.regulator)?;
+    let (name, world) = (vut.name(), vut.world().as_str());
+    let mut memory = match &a.campaign {
+        Some(path) => {
+            let m =
+                crate::campaign::load(path)?.unwrap_or_else(|| v2t_game::campaign::CampaignMemory::new(&name, world));
+            m.check_vut(&name, world).map_err(|e| crate::Usage(format!("{}: {e}", path.display())))?;
+            Some(m)
+        }
+        None => None,
+    };
+    let line = |m: &v2t_game::campaign::CampaignMemory, i: usize| {
+        m.case(&scenario.name, i, scenario.target)
+            .map_or_else(|| "no earlier run: aims at τ".to_owned(), |c| campaign::case_line(c, scenario.target))
+    };
+    if let Some(m) = &memory {
+        for i in 0..scenario.bvs.len() {
+            println!("campaign, BV {i} before the run: {}", line(m, i));
+        }
+    }
+    let run = campaign::regulated_run(&settings, scenario, vut, a.seed, memory.as_ref())?;
+    for (i, (aim, below)) in run.aims.iter().zip(&run.below_reach).enumerate() {
+        let reach = below.map_or_else(String::new, |b| {
+            format!(
+                "; the regulator reported τ out of the VUT's reach ({:?}{})",
+                b.cause,
+                b.pet_bound_s.map_or_else(String::new, |x| format!(", PET bound {x:.2} s"))
+            )
+        });
+        println!("BV {i} regulated, aiming at {:.2} s for τ {:.2} s{reach}", aim.tau_s(), scenario.target.tau_s());
+    }
+    if let (Some(m), Some(path)) = (memory.as_mut(), &a.campaign) {
+        campaign::record_run(m, scenario, &run);
+        crate::campaign::save(path, m)?;
+        for i in 0..scenario.bvs.len() {
+            println!("campaign, BV {i} after the run: {}", line(m, i));
+        }
+        println!("wrote {}", path.display());
+    }
+    Ok(run.outcome)
 }
 
 /// `replay`'s arguments.

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{repo, tempdir, text, video2track};
+use common::{ok, repo, s, tempdir, text, video2track};
 
 use std::path::{Path, PathBuf};
 
@@ -263,7 +263,7 @@ fn experiment_options_an_experiment_would_ignore_are_refused() {
     for (args, needle) in [
         (
             &["experiment", "fidelity", "--tau", "3"][..],
-            "--tau applies to `experiment steerability` and `tradeoff` only",
+            "--tau applies to `experiment steerability`, `campaign` and `tradeoff` only",
         ),
         (
             &["experiment", "fidelity", "--w-real", "1"][..],
@@ -282,8 +282,19 @@ fn experiment_options_an_experiment_would_ignore_are_refused() {
         ),
         (
             &["experiment", "adversariality", "--world", "sumo"][..],
-            "apply to `experiment steerability` on the scenario cards",
+            "apply to `experiment steerability` and `campaign` on the scenario cards",
         ),
+        (
+            &["experiment", "steerability", "--runs", "3"][..],
+            "--runs and --memory-dir apply to `experiment campaign` only",
+        ),
+        (
+            &["experiment", "tradeoff", "--memory-dir", "x"][..],
+            "--runs and --memory-dir apply to `experiment campaign` only",
+        ),
+        (&["experiment", "campaign", "--runs", "0"][..], "--runs must lie in [1, 1000], got 0"),
+        (&["experiment", "campaign", "--methods"][..], "campaigns run the regulator on the cards"),
+        (&["experiment", "campaign", "--scenario", "cut_in"][..], "--scenario picks among the paper's scenarios"),
         (
             &["experiment", "steerability", "--world", "sumo", "--vut", "idm-normal"][..],
             "with --world sumo use --sumo-driver",
@@ -304,6 +315,137 @@ fn experiment_options_an_experiment_would_ignore_are_refused() {
         assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
         assert!(err.contains(needle), "{args:?}: {err}");
     }
+}
+
+/// One test run three times as a campaign: the memory file is made on the first run and read on
+/// the next, the aim moves, the file refuses another VUT, a broken file is bad input; `campaign`
+/// gives the aim, records a track run and shows the memory.
+#[test]
+fn sim_runs_one_run_of_a_campaign_and_keeps_its_memory_in_a_file() {
+    let scratch = tempdir("campaign");
+    let memory = scratch.path().join("reactive.json");
+    let card = "config/scenarios/left_turn_basic.toml";
+    let run =
+        |seed: &str| ok(&["sim", card, "--vut", "reactive", "--seed", seed, "--regulated", "--campaign", s(&memory)]);
+    let first = run("1");
+    assert!(first.contains("before the run: no earlier run: aims at τ"), "{first}");
+    assert!(first.contains("after the run: 1 runs before"), "{first}");
+    let file = std::fs::read_to_string(&memory).unwrap();
+    assert!(file.contains("\"vut\": \"reactive\"") && file.contains("\"world\": \"builtin\""), "{file}");
+    let second = run("2");
+    assert!(second.contains("before the run: 1 runs before"), "{second}");
+    let aimed = second.lines().find(|l| l.starts_with("BV 0 regulated, aiming at")).unwrap();
+    assert!(!aimed.contains("aiming at 2.00 s for τ 2.00 s"), "the second run aims off τ after a miss: {aimed}");
+
+    // Another VUT's run is refused: nothing learned leaks.
+    let o = video2track(&["sim", card, "--vut", "idm-cautious", "--regulated", "--campaign", s(&memory)]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("learned from VUT `reactive`") && err.contains("`idm-cautious`"), "{err}");
+    // --campaign needs --regulated.
+    let o = video2track(&["sim", card, "--campaign", s(&memory)]);
+    assert_eq!(o.status.code(), Some(2));
+
+    // The track's side: the aim, a measured run recorded, the memory shown.
+    let aim = ok(&["campaign", "aim", s(&memory), "--scenario", "left_turn_basic", "--style", "rush", "--tau", "2"]);
+    let aim: f64 = aim.trim().parse().unwrap();
+    assert!((1.0..=3.0).contains(&aim), "{aim}");
+    let recorded = ok(&[
+        "campaign",
+        "record",
+        s(&memory),
+        "--scenario",
+        "left_turn_basic",
+        "--style",
+        "rush",
+        "--tau",
+        "2",
+        "--vut",
+        "reactive",
+        "--world",
+        "builtin",
+        "--aim",
+        &aim.to_string(),
+        "--pet",
+        "2.95",
+    ]);
+    assert!(recorded.contains("3 runs before"), "{recorded}");
+    let shown = ok(&["campaign", "show", s(&memory)]);
+    assert!(
+        shown.contains("campaign memory of VUT `reactive`") && shown.contains("left_turn_basic BV 0 rush"),
+        "{shown}"
+    );
+    let o = video2track(&[
+        "campaign",
+        "record",
+        s(&memory),
+        "--scenario",
+        "x",
+        "--style",
+        "rush",
+        "--tau",
+        "2",
+        "--vut",
+        "reactive",
+        "--world",
+        "builtin",
+        "--aim",
+        "2",
+        "--pet",
+        "NaN",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o).1.contains("--pet must lie in [0, 3600] s, got NaN"));
+
+    // A memory that does not parse or validate: bad input naming the file.
+    std::fs::write(&memory, "{\"format\": 1, \"vut\": \"reactive\", \"world\": \"builtin\", \"cases\": [{\"scenario\": \"s\", \"bv\": 0, \"style\": \"rush\", \"tau_s\": 1e300, \"memory\": {\"runs\": [], \"offset_s\": 0, \"gain\": 1, \"dropped\": false, \"learned_error_s\": 0, \"default_error_s\": 0, \"compared\": 0, \"below_reach\": null}}]}").unwrap();
+    for args in [
+        vec!["sim", card, "--vut", "reactive", "--regulated", "--campaign", s(&memory)],
+        vec!["campaign", "show", s(&memory)],
+    ] {
+        let o = video2track(&args);
+        let (_, err) = text(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains("reactive.json") && err.contains("cases[0].tau_s"), "{err}");
+    }
+}
+
+#[test]
+fn a_campaign_experiment_reports_per_vut_and_writes_the_memories() {
+    let scratch = tempdir("campaign-exp");
+    let dir = scratch.path();
+    let json = dir.join("campaign.json");
+    let out = ok(&[
+        "experiment",
+        "campaign",
+        "--card",
+        "config/scenarios/cut_in_basic.toml",
+        "--tau",
+        "3",
+        "--vut",
+        "idm-normal",
+        "--repeats",
+        "1",
+        "--runs",
+        "3",
+        "--no-reach",
+        "--memory-dir",
+        s(dir),
+        "--json",
+        s(&json),
+    ]);
+    assert!(out.contains("campaigns (seeds 6–6: held out from the tuning seeds 1–5)"), "{out}");
+    assert!(out.contains("Campaigns of 3 runs") && out.contains("| idm-normal | cut_in_basic | rush | 3.0 |"), "{out}");
+    let memory = std::fs::read_to_string(dir.join("idm-normal/campaign-6.json")).unwrap();
+    assert!(
+        memory.contains("\"cut_in_basic\"") && memory.matches("\"aim_s\"").count() == 6,
+        "2 tests × 3 runs: {memory}"
+    );
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(report["cases"].as_array().unwrap().len(), 2);
+    assert_eq!(report["cases"][0]["runs"].as_array().unwrap().len(), 3);
+    assert_eq!(report["cases"][0]["runs"][0]["seed"], 6001);
+    assert_eq!(report["per_vut"][0]["vut"], "idm-normal");
 }
 
 #[test]

@@ -16,6 +16,8 @@
 //! - [`steer`], [`methods`] and [`tradeoff`]: the experiments (`video2track experiment …`), the
 //!   regulator alone on the scenario cards, the paper's four methods on its scenarios, and the
 //!   sweep of the regulator's realism weight;
+//! - [`campaign`]: one test repeated as a proving ground repeats it, the regulator learning the
+//!   VUT's reaction from run to run (`video2track experiment campaign`, `sim --campaign`);
 //! - [`demo`]: the whole pipeline end to end through the onboard processes (`video2track demo`);
 //! - [`ecu`]: the simulated drive-by-wire ECU behind the real CAN frames (binary `v2t-sim-ecu`);
 //! - [`bench_latency`] and [`bench_game`]: the benches (binary `v2t-bench`).
@@ -31,6 +33,7 @@
 
 pub mod bench_game;
 pub mod bench_latency;
+pub mod campaign;
 pub mod controllers;
 pub mod demo;
 pub mod ecu;

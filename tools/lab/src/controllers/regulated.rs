@@ -1,9 +1,14 @@
 //! The regulator (`v2t-game`) as a BV controller of the simulated proving ground: the regulator
 //! decides the longitudinal motion every control period, pure pursuit keeps the BV on its path.
 
+use std::cell::Cell;
+use std::rc::Rc;
 use v2t_game::qp::QpError;
 use v2t_game::reference::{MAX_REFERENCE_SAMPLES, ReferenceSample};
-use v2t_game::regulator::{Decision, Limits, PathState, Regulator, RegulatorInput, RegulatorParams, curve_speed_limit};
+
+use v2t_game::regulator::{
+    BelowReach, Decision, Limits, PathState, Regulator, RegulatorInput, RegulatorParams, curve_speed_limit,
+};
 use v2t_model::Target;
 use v2t_sim::bv::BvController;
 use v2t_sim::control::pure_pursuit;
@@ -17,6 +22,8 @@ pub struct RegulatedBv {
     target: Target,
     last_accel: f64,
     last: Option<Decision>,
+    /// The last "τ out of reach" the regulator reported in this run (shared with whoever asked).
+    below_reach: Rc<Cell<Option<BelowReach>>>,
 }
 
 /// Period at which the BV's reference speed profile is sampled for the regulator's realism term, s.
@@ -40,7 +47,21 @@ impl RegulatedBv {
             // A reference the regulator refuses leaves it without the realism term: it still regulates.
             let _ = regulator.set_reference(samples);
         }
-        Ok(Self { regulator, target: scenario.target, last_accel: 0.0, last: None })
+        Ok(Self { regulator, target: scenario.target, last_accel: 0.0, last: None, below_reach: Rc::default() })
+    }
+
+    /// This BV aiming at `aim` instead of the scenario's target (a campaign's learned aim, see
+    /// [`v2t_game::campaign`]), told what earlier runs showed about reach.
+    #[must_use]
+    pub fn aiming(mut self, aim: v2t_model::Target, known: Option<BelowReach>) -> Self {
+        self.target = aim;
+        self.regulator.set_known_below_reach(known);
+        self
+    }
+
+    /// Where the last "τ out of reach" of the run will be (`None` while nothing said so).
+    pub fn below_reach_report(&self) -> Rc<Cell<Option<BelowReach>>> {
+        Rc::clone(&self.below_reach)
     }
 
     /// `settings` with the limits of BV `bv_index` and the VUT of `scenario` (unchanged when the
@@ -101,6 +122,9 @@ impl BvController for RegulatedBv {
         let d = self.regulator.decide_on_path(&input, &|s| curve_speed_limit(&bv.agent.route, s, lat));
         self.last_accel = d.accel_mps2;
         self.last = Some(d);
+        if d.below_reach.is_some() {
+            self.below_reach.set(d.below_reach);
+        }
         ActuationRequest {
             accel_mps2: d.accel_mps2,
             steer_rad: pure_pursuit(&bv.agent.route, &obs.own.state, obs.own.s_m, vehicle),

@@ -1,0 +1,171 @@
+//! `video2track campaign`: the campaign memory of one VUT between the runs of a test campaign on
+//! the track — the aim of the next run, a run's measured outcome recorded, what was learned.
+//!
+//! In the simulated proving ground `video2track sim --regulated --campaign FILE` does all three
+//! around one run. On the track, the PET comes from the track's own measurement: `campaign aim`
+//! gives the τ to send (`video2track send target --tau …`), `campaign record` takes the run's
+//! outcome afterwards. The memory's rules are [`v2t_game::campaign`]'s.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context as _;
+use v2t_game::campaign::{CampaignMemory, RunRecord};
+use v2t_model::{Style, Target};
+
+use crate::Usage;
+
+/// `campaign`'s subcommands.
+#[derive(Debug, clap::Subcommand)]
+pub enum CampaignCommand {
+    /// The τ to give the BV in the next run of a test, and whether earlier runs showed τ out of
+    /// this VUT's reach.
+    Aim(AimArgs),
+    /// Record one run's outcome (its aim and the PET the track measured) and update what is learned.
+    Record(RecordArgs),
+    /// Every test in a memory file: runs, the learned model, the next aim, reach.
+    Show {
+        /// The memory file (JSON).
+        memory: PathBuf,
+    },
+}
+
+/// Which test of a memory.
+#[derive(Debug, clap::Args)]
+pub struct TestArgs {
+    /// The memory file of this VUT (JSON; one file per VUT).
+    memory: PathBuf,
+    /// The scenario's name (as in its card or grounded scenario).
+    #[arg(long)]
+    scenario: String,
+    /// Which BV of the scenario (index).
+    #[arg(long, default_value_t = 0)]
+    bv: usize,
+    /// The test's style.
+    #[arg(long)]
+    style: Style,
+    /// The test's target PET τ, s.
+    #[arg(long, value_parser = Target::parse_tau)]
+    tau: f64,
+}
+
+/// `campaign aim`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct AimArgs {
+    #[command(flatten)]
+    test: TestArgs,
+}
+
+/// `campaign record`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct RecordArgs {
+    #[command(flatten)]
+    test: TestArgs,
+    /// The VUT the runs are against (names a new memory file; must match an existing one's).
+    #[arg(long)]
+    vut: String,
+    /// Where the runs take place (a proving ground's name; `builtin` and `sumo` are the lab's).
+    #[arg(long, default_value = "track")]
+    world: String,
+    /// The τ the BV was given in that run, s (the aim `campaign aim` printed).
+    #[arg(long, value_parser = Target::parse_tau)]
+    aim: f64,
+    /// The PET measured, s (leave out when no PET was measured).
+    #[arg(long)]
+    pet: Option<f64>,
+    /// The vehicles passed in the order opposite to the style.
+    #[arg(long)]
+    opposite_order: bool,
+    /// The run ended in a collision.
+    #[arg(long)]
+    collision: bool,
+}
+
+/// Runs a `campaign` subcommand.
+pub fn run(c: CampaignCommand) -> anyhow::Result<()> {
+    match c {
+        CampaignCommand::Aim(a) => {
+            let target = Target::new(a.test.tau, a.test.style)?;
+            match load(&a.test.memory)? {
+                Some(m) => match m.case(&a.test.scenario, a.test.bv, target) {
+                    Some(case) => {
+                        println!("{}", case.aim(target).tau_s());
+                        eprintln!("{}", v2t_lab::campaign::case_line(case, target));
+                    }
+                    None => {
+                        println!("{}", target.tau_s());
+                        eprintln!("no run of this test against {} yet: aim at τ", m.vut);
+                    }
+                },
+                None => {
+                    println!("{}", target.tau_s());
+                    eprintln!("{} does not exist yet: run 1 aims at τ", a.test.memory.display());
+                }
+            }
+            Ok(())
+        }
+        CampaignCommand::Record(a) => record(a),
+        CampaignCommand::Show { memory } => {
+            let m = load(&memory)?.ok_or_else(|| Usage(format!("{}: no such memory file", memory.display())))?;
+            println!("campaign memory of VUT `{}` in `{}`: {} tests", m.vut, m.world, m.cases.len());
+            for c in &m.cases {
+                if let Ok(target) = Target::new(c.tau_s, c.style) {
+                    println!(
+                        "  {} BV {} {} τ {:.2} s: {}",
+                        c.scenario,
+                        c.bv,
+                        c.style,
+                        c.tau_s,
+                        v2t_lab::campaign::case_line(&c.memory, target)
+                    );
+                }
+            }
+            Ok(())
+        }
+    }
+}
+
+fn record(a: RecordArgs) -> anyhow::Result<()> {
+    let target = Target::new(a.test.tau, a.test.style)?;
+    if let Some(p) = a.pet
+        && !(p.is_finite() && (0.0..=3600.0).contains(&p))
+    {
+        return Err(Usage(format!("--pet must lie in [0, 3600] s, got {p}")).into());
+    }
+    for (field, s) in [("--vut", &a.vut), ("--world", &a.world)] {
+        if s.is_empty() || s.len() > 128 || s.chars().any(char::is_control) {
+            return Err(Usage(format!("{field} must be 1 to 128 printable characters")).into());
+        }
+    }
+    let mut memory = load(&a.test.memory)?.unwrap_or_else(|| CampaignMemory::new(&a.vut, &a.world));
+    memory.check_vut(&a.vut, &a.world).map_err(|e| Usage(format!("{}: {e}", a.test.memory.display())))?;
+    let case = memory.case_mut(&a.test.scenario, a.test.bv, target);
+    case.record(target, RunRecord { aim_s: a.aim, pet_s: a.pet, order_ok: !a.opposite_order, collision: a.collision });
+    let line = v2t_lab::campaign::case_line(case, target);
+    save(&a.test.memory, &memory)?;
+    println!("{line}");
+    Ok(())
+}
+
+/// Reads a memory file: `None` when it does not exist; a malformed one is bad input naming the file.
+pub(crate) fn load(path: &Path) -> anyhow::Result<Option<CampaignMemory>> {
+    let text = match std::fs::read_to_string(path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(Usage(format!("{}: {e}", path.display())).into()),
+    };
+    if text.len() > 64 << 20 {
+        return Err(Usage(format!("{}: a campaign memory is at most 64 MiB", path.display())).into());
+    }
+    v2t_lab::campaign::memory_from_json(&text)
+        .map(Some)
+        .map_err(|e| Usage(format!("{}: not a campaign memory: {e}", path.display())).into())
+}
+
+/// Writes a memory file whole (a temporary file renamed over it: a run never leaves half a file).
+pub(crate) fn save(path: &Path, memory: &CampaignMemory) -> anyhow::Result<()> {
+    let text = v2t_lab::campaign::memory_json(memory).context("serializing the campaign memory")?;
+    let tmp = path.with_extension("json.tmp");
+    std::fs::write(&tmp, text + "\n").with_context(|| format!("writing {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("replacing {}", path.display()))?;
+    Ok(())
+}

@@ -1,0 +1,602 @@
+//! `video2track experiment campaign`: one test repeated as a proving ground repeats it, the BV's
+//! regulator learning this VUT's reaction from run to run ([`v2t_game::campaign`]).
+//!
+//! For every scenario, style, target τ and VUT, `campaigns` independent campaigns of `runs` runs
+//! each. Campaign `c` (its seed) runs its run `k` (1-based) with the simulation seed
+//! [`run_seed`]`(c, k)`; each campaign starts from an empty memory (run 1 is uncalibrated) and
+//! carries its memory from one run to the next, exactly as a memory file would between two
+//! invocations of `video2track sim --campaign FILE`. Nothing is shared between VUTs, nor between
+//! campaigns.
+//!
+//! Scoring, per case and per run index `k`: the mean over the campaigns of run `k`'s PET against τ
+//! (`|meanPET_k − τ| / τ`). Where the open-loop grid of [`crate::reach`] shows that no BV reaches τ
+//! against this VUT, the case is marked *below reach* and scored against the reached PET nearest
+//! to τ instead (its *bound*); where no BV passes in the asked order at all, it has no error. The
+//! grid is an oracle for scoring only: neither the regulator nor the memory reads it. Errors are
+//! given per VUT, never pooled across VUTs.
+
+use std::cell::Cell;
+use std::rc::Rc;
+
+use serde::Serialize;
+use v2t_game::campaign::{CampaignMemory, CaseMemory, RunRecord};
+use v2t_game::regulator::{BelowReach, BelowReachCause, RegulatorParams};
+use v2t_model::{Style, Target};
+use v2t_sim::bv::BvController;
+use v2t_sim::runner::{RunError, RunOutcome, RunResult};
+use v2t_sim::scenario::Scenario;
+
+use crate::controllers::RegulatedBv;
+use crate::reach::{Reach, reach};
+use crate::vut::{Vut, World};
+
+/// Runs of one campaign when not told otherwise (the proving-ground campaign).
+pub const DEFAULT_RUNS: usize = 10;
+/// The largest campaign length.
+pub const MAX_RUNS: usize = 1000;
+/// Run indices from this one on are the calibrated ones the summary scores apart from run 1.
+pub const CALIBRATED_FROM: usize = 3;
+
+/// The simulation seed of run `k` (1-based) of campaign `campaign`: `1000 · campaign + k`, so the
+/// runs of campaigns 1–5 (tuning) and 6–20 (reported) never share a seed.
+pub fn run_seed(campaign: u64, k: usize) -> u64 {
+    campaign.saturating_mul(1000).saturating_add(k as u64)
+}
+
+/// One run of one campaign.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CampaignRun {
+    /// The campaign (its seed).
+    pub campaign: u64,
+    /// Run index, 1-based.
+    pub run: usize,
+    /// The simulation seed.
+    pub seed: u64,
+    /// The τ the regulator was given (the learned aim), s.
+    pub aim_s: f64,
+    /// `PET_min` measured, s.
+    pub pet_s: Option<f64>,
+    /// Every conflict passed in the asked order.
+    pub order_ok: bool,
+    /// A collision.
+    pub collision: bool,
+    /// The vehicles were in the zone together.
+    pub zone_overlap: bool,
+    /// The last "τ out of reach" the regulator reported during the run (`None`: none).
+    pub below_reach: Option<BelowReach>,
+    /// The world could not run it.
+    pub failed: bool,
+}
+
+/// What run index `k` gave over the campaigns of one case.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunIndexStats {
+    /// Run index, 1-based.
+    pub run: usize,
+    /// Mean of the measured PETs, s.
+    pub mean_pet_s: Option<f64>,
+    /// Mean aim, s.
+    pub mean_aim_s: f64,
+    /// `|meanPET − τ| / τ` (a run index without a measured PET counts as 1).
+    pub error_rel: f64,
+    /// Against the case's bound when it is below reach, `|meanPET − bound| / bound`.
+    pub error_vs_bound_rel: Option<f64>,
+    /// Runs without a measured PET.
+    pub unmeasured: usize,
+    /// Collisions.
+    pub collisions: usize,
+    /// Zone overlaps.
+    pub zone_overlaps: usize,
+    /// Share of the runs in the asked order.
+    pub order_ok_frac: f64,
+    /// Share of the runs in which the regulator reported τ out of reach.
+    pub below_reach_frac: f64,
+}
+
+/// One case: a test against one VUT, every campaign.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CampaignCase {
+    /// Scenario name.
+    pub scenario: String,
+    /// Style.
+    pub style: Style,
+    /// The VUT's driver.
+    pub vut: String,
+    /// The VUT's world.
+    pub world: World,
+    /// Target PET, s.
+    pub tau_s: f64,
+    /// Whether some BV reaches τ against this VUT (`None`: the grid was not run).
+    pub reachable: Option<bool>,
+    /// Below reach: the reached PET nearest to τ in the asked order, s (`None` when reachable, not
+    /// measured, or no BV passed in that order at all).
+    pub bound_s: Option<f64>,
+    /// Per run index.
+    pub per_run: Vec<RunIndexStats>,
+    /// Whether the regulator reported τ out of reach in most calibrated runs (index ≥
+    /// [`CALIBRATED_FROM`]).
+    pub detected_below_reach: bool,
+    /// Every run, campaign by campaign.
+    pub runs: Vec<CampaignRun>,
+}
+
+/// Errors of one VUT over its cases.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct VutSummary {
+    /// The VUT.
+    pub vut: String,
+    /// Reachable cases (or every case when reach was not measured).
+    pub reachable_cases: usize,
+    /// Run 1 (uncalibrated), reachable cases: mean and largest error.
+    pub run1: (f64, f64),
+    /// Runs [`CALIBRATED_FROM`] on, reachable cases: mean over cases and run indices, and the
+    /// largest per-case per-run-index error.
+    pub calibrated: (f64, f64),
+    /// Reachable cases within 10 % at every calibrated run index.
+    pub calibrated_within_10: usize,
+    /// Below-reach cases, and how many of them the regulator reported.
+    pub below_reach: (usize, usize),
+    /// Reachable cases the regulator reported out of reach.
+    pub false_below_reach: usize,
+    /// Below-reach cases with a bound: mean error against it over the calibrated runs.
+    pub calibrated_vs_bound: Option<f64>,
+    /// Runs, collisions, runs out of the asked order, runs without a PET.
+    pub runs: (usize, usize, usize, usize),
+}
+
+/// The whole experiment.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CampaignReport {
+    /// Runs per campaign.
+    pub runs_per_campaign: usize,
+    /// The campaigns (their seeds).
+    pub campaigns: Vec<u64>,
+    /// Every case.
+    pub cases: Vec<CampaignCase>,
+    /// Per VUT.
+    pub per_vut: Vec<VutSummary>,
+    /// What the open-loop grid reached (when measured).
+    pub reach: Vec<Reach>,
+}
+
+/// Runs one campaign of `runs` runs of `scenario` aiming at `target` against `vut`, learning in
+/// `memory` (the memory of this VUT; the test's entry is made when missing).
+pub fn run_campaign(
+    settings: &RegulatorParams,
+    scenario: &Scenario,
+    target: Target,
+    vut: &Vut<'_>,
+    campaign: u64,
+    runs: usize,
+    memory: &mut CampaignMemory,
+) -> Vec<CampaignRun> {
+    (1..=runs).map(|k| run_once(settings, scenario, target, vut, campaign, k, memory)).collect()
+}
+
+/// One run with regulated BVs, each aiming where `memory` says for its test (the scenario's target
+/// without a memory, or for a test it never saw).
+#[derive(Debug)]
+pub struct RegulatedRun {
+    /// The run.
+    pub outcome: RunOutcome,
+    /// Each BV's aim.
+    pub aims: Vec<Target>,
+    /// Each BV's last "τ out of reach" report of the run.
+    pub below_reach: Vec<Option<BelowReach>>,
+}
+
+/// Why a regulated run did not run.
+#[derive(Debug, thiserror::Error)]
+pub enum RegulatedRunError {
+    /// The regulator refused its settings.
+    #[error("regulator: {0}")]
+    Regulator(#[from] v2t_game::qp::QpError),
+    /// The world could not run it.
+    #[error(transparent)]
+    Run(#[from] RunError),
+}
+
+/// Runs `scenario` once against `vut` with regulated BVs aiming as `memory` says.
+pub fn regulated_run(
+    settings: &RegulatorParams,
+    scenario: &Scenario,
+    vut: &Vut<'_>,
+    seed: u64,
+    memory: Option<&CampaignMemory>,
+) -> Result<RegulatedRun, RegulatedRunError> {
+    let target = scenario.target;
+    let mut reports: Vec<Rc<Cell<Option<BelowReach>>>> = Vec::new();
+    let mut aims = Vec::with_capacity(scenario.bvs.len());
+    let mut bvs: Vec<Box<dyn BvController>> = Vec::with_capacity(scenario.bvs.len());
+    for i in 0..scenario.bvs.len() {
+        let case = memory.and_then(|m| m.case(&scenario.name, i, target));
+        let aim = case.map_or(target, |c| c.aim(target));
+        let r = RegulatedBv::new(RegulatedBv::params_for(settings, scenario, i), scenario, i)?
+            .aiming(aim, case.and_then(|c| c.below_reach));
+        reports.push(r.below_reach_report());
+        aims.push(aim);
+        bvs.push(Box::new(r));
+    }
+    let outcome = vut.run(scenario, &mut bvs, seed)?;
+    Ok(RegulatedRun { outcome, aims, below_reach: reports.iter().map(|r| r.get()).collect() })
+}
+
+/// Records a regulated run of `scenario` (its target is the test's) in `memory`, BV by BV.
+pub fn record_run(memory: &mut CampaignMemory, scenario: &Scenario, run: &RegulatedRun) {
+    let target = scenario.target;
+    for (i, aim) in run.aims.iter().enumerate() {
+        let id = scenario.bvs.get(i).map(|b| b.agent.id.as_str());
+        memory.case_mut(&scenario.name, i, target).record(target, bv_record(&run.outcome.result, id, aim.tau_s()));
+    }
+}
+
+/// One run of a campaign: the aim and what is known from the memory, the run, the memory updated.
+pub fn run_once(
+    settings: &RegulatorParams,
+    scenario: &Scenario,
+    target: Target,
+    vut: &Vut<'_>,
+    campaign: u64,
+    k: usize,
+    memory: &mut CampaignMemory,
+) -> CampaignRun {
+    let mut sc = scenario.clone();
+    sc.target = target;
+    let seed = run_seed(campaign, k);
+    let aim_s = memory.aim(&sc.name, 0, target).tau_s();
+    let run = regulated_run(settings, &sc, vut, seed, Some(memory));
+    let Ok(run) = run else {
+        return CampaignRun {
+            campaign,
+            run: k,
+            seed,
+            aim_s,
+            pet_s: None,
+            order_ok: false,
+            collision: false,
+            zone_overlap: false,
+            below_reach: None,
+            failed: true,
+        };
+    };
+    record_run(memory, &sc, &run);
+    let below_reach = run.below_reach.first().copied().flatten();
+    let r = &run.outcome.result;
+    CampaignRun {
+        campaign,
+        run: k,
+        seed,
+        aim_s,
+        pet_s: r.pet_min_s,
+        order_ok: r.conflicts.iter().all(|c| c.order_matches_style == Some(true)),
+        collision: r.collision.is_some(),
+        zone_overlap: r.zone_overlap,
+        below_reach,
+        failed: false,
+    }
+}
+
+/// What the memory keeps of one run for the BV `bv_id`: its own conflict's PET and order (the
+/// run's `PET_min` and overall order when the run names no conflict of that BV).
+pub fn bv_record(r: &RunResult, bv_id: Option<&str>, aim_s: f64) -> RunRecord {
+    let own = r.conflicts.iter().find(|c| Some(c.bv_id.as_str()) == bv_id);
+    RunRecord {
+        aim_s,
+        pet_s: own.map_or(r.pet_min_s, |c| c.pet.pet_s()),
+        order_ok: own.map_or_else(
+            || r.conflicts.iter().all(|c| c.order_matches_style == Some(true)),
+            |c| c.order_matches_style == Some(true),
+        ),
+        collision: r.collision.is_some(),
+    }
+}
+
+/// The statistics of run index `k` over `runs`.
+fn index_stats(k: usize, tau: f64, bound: Option<f64>, runs: &[&CampaignRun]) -> RunIndexStats {
+    let n = runs.len().max(1) as f64;
+    let pets: Vec<f64> = runs.iter().filter_map(|r| r.pet_s).collect();
+    let mean_pet_s = (!pets.is_empty()).then(|| pets.iter().sum::<f64>() / pets.len() as f64);
+    RunIndexStats {
+        run: k,
+        mean_pet_s,
+        mean_aim_s: runs.iter().map(|r| r.aim_s).sum::<f64>() / n,
+        error_rel: mean_pet_s.map_or(1.0, |m| (m - tau).abs() / tau),
+        error_vs_bound_rel: bound.zip(mean_pet_s).map(|(b, m)| (m - b).abs() / b),
+        unmeasured: runs.len() - pets.len(),
+        collisions: runs.iter().filter(|r| r.collision).count(),
+        zone_overlaps: runs.iter().filter(|r| r.zone_overlap).count(),
+        order_ok_frac: runs.iter().filter(|r| r.order_ok).count() as f64 / n,
+        below_reach_frac: runs.iter().filter(|r| r.below_reach.is_some()).count() as f64 / n,
+    }
+}
+
+/// The reached PET nearest to τ in `style`'s order (`None`: none in that order).
+pub fn nearest_reached(reach: &Reach, target: Target) -> Option<f64> {
+    let tau = target.tau_s();
+    reach.pets(target.style()).iter().copied().min_by(|a, b| (a - tau).abs().total_cmp(&(b - tau).abs()))
+}
+
+/// Runs every case (scenario × target × VUT) and every campaign, on the available cores. With
+/// `reach_seed`, first runs the open-loop grid for every scenario and VUT on that seed.
+pub fn campaigns(
+    settings: &RegulatorParams,
+    scenarios: &[Scenario],
+    targets: &[Target],
+    vuts: &[Vut<'_>],
+    campaigns: std::ops::RangeInclusive<u64>,
+    runs: usize,
+    reach_seed: Option<u64>,
+) -> (CampaignReport, Vec<(String, u64, CampaignMemory)>) {
+    let mut reaches = Vec::new();
+    if let Some(seed) = reach_seed {
+        let pairs: Vec<(&Scenario, &Vut<'_>)> =
+            scenarios.iter().flat_map(|sc| vuts.iter().map(move |v| (sc, v))).collect();
+        reaches = crate::parallel_map(&pairs, |(sc, v)| reach(sc, v, seed));
+    }
+    // One job per (VUT, campaign, scenario, target): each carries its own memory of that VUT.
+    let mut jobs = Vec::new();
+    for v in vuts {
+        for c in campaigns.clone() {
+            for sc in scenarios {
+                for &target in targets {
+                    jobs.push((v, c, sc, target));
+                }
+            }
+        }
+    }
+    let done = crate::parallel_map(&jobs, |(v, c, sc, target)| {
+        let mut memory = CampaignMemory::new(v.name(), v.world().as_str());
+        let runs = run_campaign(settings, sc, *target, v, *c, runs, &mut memory);
+        (v.name(), *c, memory, sc.name.clone(), *target, v.world(), runs)
+    });
+    // Memories per VUT and campaign (every test of that campaign in one file).
+    let mut memories: Vec<(String, u64, CampaignMemory)> = Vec::new();
+    let mut cases: Vec<CampaignCase> = Vec::new();
+    for (vut, c, memory, scenario, target, world, runs) in done {
+        match memories.iter_mut().find(|(v, cc, _)| *v == vut && *cc == c) {
+            Some((_, _, m)) => m.cases.extend(memory.cases),
+            None => memories.push((vut.clone(), c, memory)),
+        }
+        let i = match cases.iter().position(|x| {
+            x.scenario == scenario && x.vut == vut && x.style == target.style() && x.tau_s == target.tau_s()
+        }) {
+            Some(i) => i,
+            None => {
+                cases.push(CampaignCase {
+                    scenario,
+                    style: target.style(),
+                    vut,
+                    world,
+                    tau_s: target.tau_s(),
+                    reachable: None,
+                    bound_s: None,
+                    per_run: Vec::new(),
+                    detected_below_reach: false,
+                    runs: Vec::new(),
+                });
+                cases.len() - 1
+            }
+        };
+        if let Some(case) = cases.get_mut(i) {
+            case.runs.extend(runs);
+        }
+    }
+    for case in &mut cases {
+        let Ok(target) = Target::new(case.tau_s, case.style) else { continue };
+        let reached = reaches.iter().find(|r| r.scenario == case.scenario && r.vut == case.vut);
+        let per_run = |bound: Option<f64>| -> Vec<RunIndexStats> {
+            (1..=runs)
+                .map(|k| {
+                    let at: Vec<&CampaignRun> = case.runs.iter().filter(|r| r.run == k).collect();
+                    index_stats(k, case.tau_s, bound, &at)
+                })
+                .collect()
+        };
+        // Reachable: the grid reached τ, or the regulated runs themselves landed safely on it at
+        // some run index (they are a BV too).
+        let stats = per_run(None);
+        let landed = stats.iter().any(|s| {
+            s.error_rel <= 0.10
+                && s.collisions == 0
+                && s.zone_overlaps == 0
+                && s.unmeasured == 0
+                && s.order_ok_frac >= 1.0
+        });
+        case.reachable = reached.map(|r| r.reachable(target) || landed);
+        case.bound_s = match case.reachable {
+            Some(false) => reached.and_then(|r| nearest_reached(r, target)),
+            _ => None,
+        };
+        case.per_run = per_run(case.bound_s);
+        let calibrated: Vec<&CampaignRun> = case.runs.iter().filter(|r| r.run >= CALIBRATED_FROM).collect();
+        case.detected_below_reach = !calibrated.is_empty()
+            && 2 * calibrated.iter().filter(|r| r.below_reach.is_some()).count() > calibrated.len();
+        case.runs.sort_by_key(|r| (r.campaign, r.run));
+    }
+    cases.sort_by(|a, b| {
+        (&a.vut, &a.scenario, a.style as u8, a.tau_s.to_bits()).cmp(&(
+            &b.vut,
+            &b.scenario,
+            b.style as u8,
+            b.tau_s.to_bits(),
+        ))
+    });
+    let per_vut = summarize(&cases, runs);
+    memories.sort_by(|a, b| (&a.0, a.1).cmp(&(&b.0, b.1)));
+    let report =
+        CampaignReport { runs_per_campaign: runs, campaigns: campaigns.collect(), cases, per_vut, reach: reaches };
+    (report, memories)
+}
+
+fn mean(xs: &[f64]) -> f64 {
+    if xs.is_empty() { 0.0 } else { xs.iter().sum::<f64>() / xs.len() as f64 }
+}
+
+fn max(xs: &[f64]) -> f64 {
+    xs.iter().copied().fold(0.0, f64::max)
+}
+
+/// Per VUT, in the order of the cases.
+fn summarize(cases: &[CampaignCase], runs: usize) -> Vec<VutSummary> {
+    let mut vuts: Vec<&str> = cases.iter().map(|c| c.vut.as_str()).collect();
+    vuts.dedup();
+    vuts.iter()
+        .map(|&vut| {
+            let mine: Vec<&CampaignCase> = cases.iter().filter(|c| c.vut == vut).collect();
+            let reachable: Vec<&&CampaignCase> = mine.iter().filter(|c| c.reachable != Some(false)).collect();
+            let below: Vec<&&CampaignCase> = mine.iter().filter(|c| c.reachable == Some(false)).collect();
+            let run1: Vec<f64> = reachable.iter().filter_map(|c| c.per_run.first()).map(|s| s.error_rel).collect();
+            let cal = |c: &CampaignCase| -> Vec<f64> {
+                c.per_run.iter().filter(|s| s.run >= CALIBRATED_FROM).map(|s| s.error_rel).collect()
+            };
+            let cal_all: Vec<f64> = reachable.iter().flat_map(|c| cal(c)).collect();
+            let vs_bound: Vec<f64> = below
+                .iter()
+                .flat_map(|c| {
+                    c.per_run.iter().filter(|s| s.run >= CALIBRATED_FROM).filter_map(|s| s.error_vs_bound_rel)
+                })
+                .collect();
+            let all_runs: Vec<&CampaignRun> = mine.iter().flat_map(|c| c.runs.iter()).collect();
+            VutSummary {
+                vut: vut.to_owned(),
+                reachable_cases: reachable.len(),
+                run1: (mean(&run1), max(&run1)),
+                calibrated: (mean(&cal_all), max(&cal_all)),
+                calibrated_within_10: reachable
+                    .iter()
+                    .filter(|c| runs >= CALIBRATED_FROM && max(&cal(c)) <= 0.10)
+                    .count(),
+                below_reach: (below.len(), below.iter().filter(|c| c.detected_below_reach).count()),
+                false_below_reach: reachable.iter().filter(|c| c.detected_below_reach).count(),
+                calibrated_vs_bound: (!vs_bound.is_empty()).then(|| mean(&vs_bound)),
+                runs: (
+                    all_runs.len(),
+                    all_runs.iter().filter(|r| r.collision).count(),
+                    all_runs.iter().filter(|r| !r.order_ok && r.pet_s.is_some()).count(),
+                    all_runs.iter().filter(|r| r.pet_s.is_none()).count(),
+                ),
+            }
+        })
+        .collect()
+}
+
+/// The cause as a table word.
+fn cause(b: &BelowReach) -> &'static str {
+    match b.cause {
+        BelowReachCause::VutWaits => "VUT waits",
+        BelowReachCause::Campaign => "campaign",
+        BelowReachCause::OrderRefused => "order refused",
+    }
+}
+
+/// Markdown: per VUT the summary, then per case run 1, run 2 and the calibrated runs.
+pub fn markdown(r: &CampaignReport) -> String {
+    let pct = |x: f64| format!("{:.1} %", 100.0 * x);
+    let mut out = format!(
+        "Campaigns of {} runs, campaigns (seeds) {}; run k of campaign c uses simulation seed 1000·c + k. Errors per VUT, never pooled; \"calibrated\" = runs {CALIBRATED_FROM}–{}.\n\n",
+        r.runs_per_campaign,
+        match (r.campaigns.first(), r.campaigns.last()) {
+            (Some(a), Some(b)) => format!("{a}–{b}"),
+            _ => "none".to_owned(),
+        },
+        r.runs_per_campaign
+    );
+    out.push_str("| VUT | reachable cases | run 1 mean / max | calibrated mean / max | reachable within 10 % at every calibrated run | below reach: cases / reported | reachable reported below reach | below reach: calibrated error vs bound | runs | collisions | out of order | no PET |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    for v in &r.per_vut {
+        out.push_str(&format!(
+            "| {} | {} | {} / {} | {} / {} | {} / {} | {} / {} | {} | {} | {} | {} | {} | {} |\n",
+            v.vut,
+            v.reachable_cases,
+            pct(v.run1.0),
+            pct(v.run1.1),
+            pct(v.calibrated.0),
+            pct(v.calibrated.1),
+            v.calibrated_within_10,
+            v.reachable_cases,
+            v.below_reach.0,
+            v.below_reach.1,
+            v.false_below_reach,
+            v.calibrated_vs_bound.map_or_else(|| "—".to_owned(), pct),
+            v.runs.0,
+            v.runs.1,
+            v.runs.2,
+            v.runs.3
+        ));
+    }
+    out.push_str("\n| VUT | scenario | style | τ (s) | τ reachable | run 1 PET (error) | run 2 PET (error) | calibrated mean PET | calibrated mean / max error | mean aim, last run (s) | reported below reach (calibrated runs) |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+    for c in &r.cases {
+        let reach = match (c.reachable, c.bound_s) {
+            (Some(true), _) => "yes".to_owned(),
+            (Some(false), Some(b)) => format!("**below reach**: nearest reached {b:.2} s"),
+            (Some(false), None) => "**below reach**: no BV passes in this order".to_owned(),
+            (None, _) => "not measured".to_owned(),
+        };
+        let at = |k: usize| {
+            c.per_run.get(k).map_or_else(
+                || "—".to_owned(),
+                |s| s.mean_pet_s.map_or_else(|| "no PET".to_owned(), |p| format!("{p:.2} ({})", pct(s.error_rel))),
+            )
+        };
+        let cal: Vec<&RunIndexStats> = c.per_run.iter().filter(|s| s.run >= CALIBRATED_FROM).collect();
+        let cal_pets: Vec<f64> = cal.iter().filter_map(|s| s.mean_pet_s).collect();
+        let cal_err: Vec<f64> = cal.iter().map(|s| s.error_rel).collect();
+        let reported = c.runs.iter().filter(|r| r.run >= CALIBRATED_FROM);
+        let n = reported.clone().count();
+        let flagged: Vec<&CampaignRun> = reported.filter(|r| r.below_reach.is_some()).collect();
+        let why = flagged.first().and_then(|r| r.below_reach).map_or_else(String::new, |b| {
+            format!(" ({}{})", cause(&b), b.pet_bound_s.map_or_else(String::new, |x| format!(", bound {x:.2} s")))
+        });
+        out.push_str(&format!(
+            "| {} | {} | {} | {:.1} | {reach} | {} | {} | {} | {} / {} | {:.2} | {}/{n}{why} |\n",
+            c.vut,
+            c.scenario,
+            c.style,
+            c.tau_s,
+            at(0),
+            at(1),
+            if cal_pets.is_empty() { "—".to_owned() } else { format!("{:.2}", mean(&cal_pets)) },
+            if cal_err.is_empty() { "—".to_owned() } else { pct(mean(&cal_err)) },
+            if cal_err.is_empty() { "—".to_owned() } else { pct(max(&cal_err)) },
+            c.per_run.last().map_or(c.tau_s, |s| s.mean_aim_s),
+            flagged.len()
+        ));
+    }
+    out
+}
+
+/// The memory of one campaign as the file `video2track sim --campaign` reads.
+pub fn memory_json(memory: &CampaignMemory) -> Result<String, serde_json::Error> {
+    serde_json::to_string_pretty(memory)
+}
+
+/// Reads a memory file's text, checked ([`v2t_model::validate::Validate`]).
+pub fn memory_from_json(text: &str) -> Result<CampaignMemory, String> {
+    use v2t_model::validate::Validate as _;
+    let m: CampaignMemory = serde_json::from_str(text).map_err(|e| e.to_string())?;
+    m.validate().map_err(|e| e.to_string())?;
+    Ok(m)
+}
+
+/// What a run's memory knows about one test (for a run's one-line report).
+pub fn case_line(memory: &CaseMemory, target: Target) -> String {
+    let aim = memory.aim(target).tau_s();
+    let valid = memory.runs.iter().filter(|r| r.valid_pet().is_some()).count();
+    let mut s = format!(
+        "{} runs before ({valid} with a PET in order); next aim {aim:.2} s for τ {:.2} s",
+        memory.runs.len(),
+        target.tau_s()
+    );
+    if memory.dropped {
+        s.push_str("; learned model dropped (it predicted worse than none)");
+    } else if valid > 0 {
+        s.push_str(&format!("; model PET ≈ {:.2} + {:.2}·aim", memory.offset_s, memory.gain));
+    }
+    if let Some(b) = memory.below_reach {
+        s.push_str(&format!(
+            "; τ below reach ({}{})",
+            cause(&b),
+            b.pet_bound_s.map_or_else(String::new, |x| format!(", PET bound {x:.2} s"))
+        ));
+    }
+    s
+}
