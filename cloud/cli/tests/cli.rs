@@ -224,6 +224,7 @@ fn steerability_compares_the_four_methods_on_request() {
     assert_eq!(steering.len(), 4);
     for s in steering {
         assert_eq!(s["rows"], 6, "{s}");
+        assert_eq!(s["vut"], "idm-normal", "per VUT model: {s}");
         assert!(s["mean_error_rel"].as_f64().unwrap().is_finite());
     }
 }

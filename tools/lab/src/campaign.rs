@@ -600,3 +600,62 @@ pub fn case_line(memory: &CaseMemory, target: Target) -> String {
     }
     s
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+
+    use super::*;
+
+    fn run(k: usize, pet: Option<f64>, below: bool) -> CampaignRun {
+        CampaignRun {
+            campaign: 6,
+            run: k,
+            seed: run_seed(6, k),
+            aim_s: 2.0,
+            pet_s: pet,
+            order_ok: pet.is_some(),
+            collision: false,
+            zone_overlap: false,
+            below_reach: below.then_some(BelowReach { cause: BelowReachCause::Campaign, pet_bound_s: Some(2.5) }),
+            failed: false,
+        }
+    }
+
+    #[test]
+    fn seeds_of_tuning_and_reported_campaigns_never_meet() {
+        assert_eq!(run_seed(6, 1), 6001);
+        let tuning: Vec<u64> = (1..=5).flat_map(|c| (1..=MAX_RUNS).map(move |k| run_seed(c, k))).collect();
+        assert!((6..=20).all(|c| (1..=10).all(|k| !tuning.contains(&run_seed(c, k)))));
+    }
+
+    #[test]
+    fn a_run_index_is_scored_over_the_campaigns_and_against_the_bound_when_below_reach() {
+        let runs = [run(3, Some(2.4), true), run(3, Some(2.6), true), run(3, None, false)];
+        let s = index_stats(3, 2.0, Some(2.5), &runs.iter().collect::<Vec<_>>());
+        assert!((s.mean_pet_s.unwrap() - 2.5).abs() < 1e-12);
+        assert!((s.error_rel - 0.25).abs() < 1e-12);
+        assert!(s.error_vs_bound_rel.unwrap().abs() < 1e-12);
+        assert_eq!(s.unmeasured, 1);
+        assert!((s.below_reach_frac - 2.0 / 3.0).abs() < 1e-12);
+        assert!((s.order_ok_frac - 2.0 / 3.0).abs() < 1e-12);
+        let none = index_stats(1, 2.0, None, &[&run(1, None, false)]);
+        assert_eq!((none.mean_pet_s, none.error_rel), (None, 1.0), "no PET counts as error 1");
+    }
+
+    #[test]
+    fn the_bound_is_the_reached_pet_nearest_to_tau_in_the_asked_order() {
+        let reach = Reach {
+            scenario: "s".into(),
+            vut: "v".into(),
+            seed: 1,
+            profiles: 3,
+            rush_pets_s: vec![0.9, 2.05, 3.1],
+            yield_pets_s: vec![],
+            collisions: 0,
+            failed: 0,
+        };
+        assert_eq!(nearest_reached(&reach, Target::new(1.5, Style::Rush).unwrap()), Some(2.05));
+        assert_eq!(nearest_reached(&reach, Target::new(1.5, Style::Yield).unwrap()), None);
+    }
+}

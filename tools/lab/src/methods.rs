@@ -509,3 +509,45 @@ pub fn markdown(rows: &[MethodSummary], labels: &[(String, f64)]) -> String {
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+
+    use super::*;
+
+    fn case(vut: &str, tau_s: f64, mean: f64) -> MethodCase {
+        MethodCase {
+            scenario: "s".into(),
+            method: Method::Video2track,
+            style: Style::Rush,
+            tau_s,
+            vut: vut.into(),
+            stats: RunStats {
+                repeats: 1,
+                mean_pet_min_s: Some(mean),
+                pet_min_track_s: Some(mean),
+                collisions: 0,
+                zone_overlaps: 0,
+                order_ok_frac: 1.0,
+                unmeasured: 0,
+                failed: 0,
+                bv_realism: None,
+                vut_realism: None,
+            },
+        }
+    }
+
+    /// An overshoot against one model and an undershoot against another do not cancel.
+    #[test]
+    fn steering_errors_are_per_model_and_never_cancel() {
+        let cases = [case("a", 2.0, 2.4), case("b", 2.0, 1.6), case("a", 4.0, 4.0)];
+        let e = steering_errors(&cases);
+        assert_eq!(e.len(), 2);
+        assert_eq!((e[0].vut.as_str(), e[0].rows), ("a", 2));
+        assert!((e[0].mean_error_rel - 0.1).abs() < 1e-12 && (e[0].max_error_rel - 0.2).abs() < 1e-12);
+        assert!((e[1].mean_error_rel - 0.2).abs() < 1e-12, "pooled, 2.4 and 1.6 would average to 2.0: 0 %");
+        let md = steering_markdown(&e);
+        assert!(md.contains("| Video2Track | **worst model** | | 20.0 % | 20.0 %"), "{md}");
+    }
+}
