@@ -341,40 +341,77 @@ fn four_methods(a: ExperimentArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// What the experiments of the regulator on the scenario cards load: its settings, the cards, the
+/// targets in both styles, and the SUMO world when asked.
+struct Cards {
+    settings: RegulatorParams,
+    scenarios: Vec<v2t_sim::scenario::Scenario>,
+    targets: Vec<v2t_model::Target>,
+    sumo: Option<crate::world::Sumo>,
+}
+
+impl Cards {
+    fn load(a: &ExperimentArgs) -> anyhow::Result<Self> {
+        let settings: RegulatorParams = load_toml(&a.regulator)?;
+        let cards =
+            if a.cards.is_empty() { shipped::CARDS.iter().map(PathBuf::from).collect() } else { a.cards.clone() };
+        let scenarios = cards.iter().map(|c| v2t_sim::files::load_scenario(c)).collect::<Result<Vec<_>, _>>()?;
+        let taus = if a.tau.is_empty() { steer::STEER_TAUS_S.to_vec() } else { a.tau.clone() };
+        Ok(Self { settings, scenarios, targets: steer::both_styles(&taus), sumo: a.world.sumo(true)? })
+    }
+
+    /// The VUTs: every SUMO driver asked for, or the builtin models named (all by default).
+    fn vuts(&self, a: &ExperimentArgs) -> anyhow::Result<Vec<v2t_lab::vut::Vut<'_>>> {
+        Ok(match &self.sumo {
+            Some(s) => s.drivers.iter().map(|driver| v2t_lab::vut::Vut::Sumo { world: &s.world, driver }).collect(),
+            None => crate::vut_models(&a.vut)?.into_iter().map(v2t_lab::vut::Vut::Builtin).collect(),
+        })
+    }
+
+    /// The first line of the output: where the figures come from, the seeds, `tuned` what was
+    /// chosen in the builtin world.
+    fn provenance(
+        &self,
+        a: &ExperimentArgs,
+        seeds: &std::ops::RangeInclusive<u64>,
+        what: &str,
+    ) -> anyhow::Result<String> {
+        let world = a.world.world()?;
+        let sumo_version = self.sumo.as_ref().map_or_else(String::new, |s| format!(" ({})", s.world.version()));
+        let tuned = if world == v2t_lab::vut::World::Sumo {
+            format!("; {what} as chosen in the builtin world (nothing tuned on SUMO)")
+        } else {
+            String::new()
+        };
+        Ok(format!(
+            "{}{sumo_version}; scenario cards written by this project; {}{tuned}",
+            world.provenance(),
+            seed_split(seeds)
+        ))
+    }
+}
+
 /// Test campaigns on the scenario cards.
 fn campaign(a: ExperimentArgs) -> anyhow::Result<()> {
-    let settings: RegulatorParams = load_toml(&a.regulator)?;
-    let cards = if a.cards.is_empty() { shipped::CARDS.iter().map(PathBuf::from).collect() } else { a.cards.clone() };
-    let scenarios = cards.iter().map(|c| v2t_sim::files::load_scenario(c)).collect::<Result<Vec<_>, _>>()?;
-    let taus = if a.tau.is_empty() { steer::STEER_TAUS_S.to_vec() } else { a.tau.clone() };
-    let sumo = a.world.sumo(true)?;
-    let vuts: Vec<v2t_lab::vut::Vut<'_>> = match &sumo {
-        Some(s) => s.drivers.iter().map(|driver| v2t_lab::vut::Vut::Sumo { world: &s.world, driver }).collect(),
-        None => crate::vut_models(&a.vut)?.into_iter().map(v2t_lab::vut::Vut::Builtin).collect(),
-    };
+    let cards = Cards::load(&a)?;
+    let vuts = cards.vuts(&a)?;
     let seeds = seeds(&a);
     let runs = a.runs.unwrap_or(v2t_lab::campaign::DEFAULT_RUNS);
     let reach_seed = (!a.no_reach).then_some(*seeds.start());
     let (report, memories) = v2t_lab::campaign::campaigns(
-        &settings,
-        &scenarios,
-        &steer::both_styles(&taus),
+        &cards.settings,
+        &cards.scenarios,
+        &cards.targets,
         &vuts,
         seeds.clone(),
         runs,
         reach_seed,
     );
-    let world = a.world.world()?;
-    let sumo_version = sumo.as_ref().map_or_else(String::new, |s| format!(" ({})", s.world.version()));
     println!(
-        "{}{sumo_version}; scenario cards written by this project; campaigns ({}){}",
-        world.provenance(),
-        seed_split(&seeds),
-        if world == v2t_lab::vut::World::Sumo {
-            "; the regulator's and the campaign memory's constants as chosen in the builtin world (nothing tuned on SUMO)"
-        } else {
-            ""
-        }
+        "{}",
+        cards
+            .provenance(&a, &seeds, "the regulator's and the campaign memory's constants")?
+            .replace("; seeds", "; campaigns: seeds")
     );
     print!("{}", v2t_lab::campaign::markdown(&report));
     if let Some(dir) = &a.memory_dir {
@@ -385,12 +422,7 @@ fn campaign(a: ExperimentArgs) -> anyhow::Result<()> {
             let text = v2t_lab::campaign::memory_json(memory)?;
             std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
         }
-        println!(
-            "
-wrote {} memory files under {}",
-            memories.len(),
-            dir.display()
-        );
+        println!("\nwrote {} memory files under {}", memories.len(), dir.display());
     }
     if let Some(path) = a.json {
         write_json(&path, &report)?;
@@ -400,31 +432,13 @@ wrote {} memory files under {}",
 
 /// The regulator alone on the scenario cards.
 fn regulator_on_cards(a: ExperimentArgs) -> anyhow::Result<()> {
-    let settings: RegulatorParams = load_toml(&a.regulator)?;
-    let cards = if a.cards.is_empty() { shipped::CARDS.iter().map(PathBuf::from).collect() } else { a.cards.clone() };
-    let scenarios = cards.iter().map(|c| v2t_sim::files::load_scenario(c)).collect::<Result<Vec<_>, _>>()?;
-    let taus = if a.tau.is_empty() { steer::STEER_TAUS_S.to_vec() } else { a.tau.clone() };
-    let sumo = a.world.sumo(true)?;
-    let vuts: Vec<v2t_lab::vut::Vut<'_>> = match &sumo {
-        Some(s) => s.drivers.iter().map(|driver| v2t_lab::vut::Vut::Sumo { world: &s.world, driver }).collect(),
-        None => crate::vut_models(&a.vut)?.into_iter().map(v2t_lab::vut::Vut::Builtin).collect(),
-    };
+    let cards = Cards::load(&a)?;
+    let vuts = cards.vuts(&a)?;
     let seeds = seeds(&a);
     let reach_seed = (!a.no_reach).then_some(*seeds.start());
     let report =
-        steer::steerability(&settings, &scenarios, &steer::both_styles(&taus), &vuts, seeds.clone(), reach_seed);
-    let world = a.world.world()?;
-    let sumo_version = sumo.as_ref().map_or_else(String::new, |s| format!(" ({})", s.world.version()));
-    println!(
-        "{}{sumo_version}; scenario cards written by this project; {}{}",
-        world.provenance(),
-        seed_split(&seeds),
-        if world == v2t_lab::vut::World::Sumo {
-            "; the regulator's settings as tuned in the builtin world (nothing tuned on SUMO)"
-        } else {
-            ""
-        }
-    );
+        steer::steerability(&cards.settings, &cards.scenarios, &cards.targets, &vuts, seeds.clone(), reach_seed);
+    println!("{}", cards.provenance(&a, &seeds, "the regulator's settings")?);
     print!("{}", steer::steer_markdown(&report));
     if let Some(path) = a.json {
         write_json(&path, &report)?;

@@ -435,7 +435,7 @@ fn a_campaign_experiment_reports_per_vut_and_writes_the_memories() {
         "--json",
         s(&json),
     ]);
-    assert!(out.contains("campaigns (seeds 6–6: held out from the tuning seeds 1–5)"), "{out}");
+    assert!(out.contains("; campaigns: seeds 6–6: held out from the tuning seeds 1–5"), "{out}");
     assert!(out.contains("Campaigns of 3 runs") && out.contains("| idm-normal | cut_in_basic | rush | 3.0 |"), "{out}");
     let memory = std::fs::read_to_string(dir.join("idm-normal/campaign-6.json")).unwrap();
     assert!(
