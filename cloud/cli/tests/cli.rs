@@ -137,6 +137,7 @@ fn help_lists_only_real_commands() {
             "replay",
             "render",
             "experiment",
+            "campaign",
             "abstract",
             "generate",
             "realism",
