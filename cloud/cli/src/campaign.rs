@@ -136,8 +136,7 @@ fn record(a: RecordArgs) -> anyhow::Result<()> {
             return Err(Usage(format!("{field} must be 1 to 128 printable characters")).into());
         }
     }
-    let mut memory = load(&a.test.memory)?.unwrap_or_else(|| CampaignMemory::new(&a.vut, &a.world));
-    memory.check_vut(&a.vut, &a.world).map_err(|e| Usage(format!("{}: {e}", a.test.memory.display())))?;
+    let mut memory = load_for(&a.test.memory, &a.vut, &a.world)?;
     let case = memory.case_mut(&a.test.scenario, a.test.bv, target);
     case.record(target, RunRecord { aim_s: a.aim, pet_s: a.pet, order_ok: !a.opposite_order, collision: a.collision });
     let line = v2t_lab::campaign::case_line(case, target);
@@ -159,6 +158,14 @@ pub(crate) fn load(path: &Path) -> anyhow::Result<Option<CampaignMemory>> {
     v2t_lab::campaign::memory_from_json(&text)
         .map(Some)
         .map_err(|e| Usage(format!("{}: not a campaign memory: {e}", path.display())).into())
+}
+
+/// The memory of `vut` in `world` from `path` (an empty one when the file does not exist yet); a
+/// file learned from another VUT or world is bad input.
+pub(crate) fn load_for(path: &Path, vut: &str, world: &str) -> anyhow::Result<CampaignMemory> {
+    let memory = load(path)?.unwrap_or_else(|| CampaignMemory::new(vut, world));
+    memory.check_vut(vut, world).map_err(|e| Usage(format!("{}: {e}", path.display())))?;
+    Ok(memory)
 }
 
 /// Writes a memory file whole (a temporary file renamed over it: a run never leaves half a file).

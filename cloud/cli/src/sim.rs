@@ -105,15 +105,7 @@ fn regulated(
     use v2t_lab::campaign;
     let settings: v2t_game::regulator::RegulatorParams = v2t_files::load_toml(&a.regulator)?;
     let (name, world) = (vut.name(), vut.world().as_str());
-    let mut memory = match &a.campaign {
-        Some(path) => {
-            let m =
-                crate::campaign::load(path)?.unwrap_or_else(|| v2t_game::campaign::CampaignMemory::new(&name, world));
-            m.check_vut(&name, world).map_err(|e| crate::Usage(format!("{}: {e}", path.display())))?;
-            Some(m)
-        }
-        None => None,
-    };
+    let mut memory = a.campaign.as_deref().map(|path| crate::campaign::load_for(path, &name, world)).transpose()?;
     let line = |m: &v2t_game::campaign::CampaignMemory, i: usize| {
         m.case(&scenario.name, i, scenario.target)
             .map_or_else(|| "no earlier run: aims at τ".to_owned(), |c| campaign::case_line(c, scenario.target))

@@ -198,12 +198,7 @@ impl CaseMemory {
         }
         self.runs.push(run);
         (self.offset_s, self.gain) = if self.dropped { (0.0, 1.0) } else { self.fit(tau) };
-        let verdict = self.reach_verdict(tau);
-        // The aim holds where the PET came closest when the PET did not follow it (the first rule);
-        // a verdict of misses alone leaves the aim to the model.
-        self.holding = verdict.is_some_and(|v| v.cause == BelowReachCause::Campaign)
-            && (self.holding || aim_moved_in_vain(&self.valid().collect::<Vec<_>>(), tau));
-        self.below_reach = verdict;
+        (self.below_reach, self.holding) = self.reach_verdict(tau);
     }
 
     /// The reaction model `(offset, gain)` fitted to the recent valid runs.
@@ -226,15 +221,17 @@ impl CaseMemory {
         if offset.is_finite() && gain.is_finite() { (offset, gain) } else { (0.0, 1.0) }
     }
 
-    /// The verdict on reach after the runs so far (see the module's documentation).
-    fn reach_verdict(&self, tau: f64) -> Option<BelowReach> {
+    /// The verdict on reach after the runs so far (see the module's documentation), and whether
+    /// the aim holds where the PET came closest (only when the PET did not follow the aim; a
+    /// verdict of misses alone leaves the aim to the model).
+    fn reach_verdict(&self, tau: f64) -> (Option<BelowReach>, bool) {
         let refused = self.runs.len() >= 2
             && self.runs.iter().rev().take(2).all(|r| !r.collision && (r.pet_s.is_none() || !r.order_ok));
         if refused {
-            return Some(BelowReach { cause: BelowReachCause::OrderRefused, pet_bound_s: None });
+            return (Some(BelowReach { cause: BelowReachCause::OrderRefused, pet_bound_s: None }), false);
         }
         let valid: Vec<(f64, f64)> = self.valid().collect();
-        let [.., (_, p_prev), (_, p_last)] = valid[..] else { return None };
+        let [.., (_, p_prev), (_, p_last)] = valid[..] else { return (None, false) };
         let miss = side(p_last, tau);
         let floor = Some(BelowReach { cause: BelowReachCause::Campaign, pet_bound_s: Some(0.5 * (p_prev + p_last)) });
         // Once the PET has shown that it does not follow the aim, that stands while the runs keep
@@ -244,18 +241,18 @@ impl CaseMemory {
             && miss != 0.0
             && self.below_reach.and_then(|b| b.pet_bound_s).is_some_and(|b| side(b, tau) == miss)
         {
-            return floor;
+            return (floor, true);
         }
         if aim_moved_in_vain(&valid, tau) {
-            return floor;
+            return (floor, true);
         }
         // However the aim moved, none of the last runs landed on τ.
         let recent: Vec<f64> = valid.iter().rev().take(REACH_MISS_RUNS).map(|&(_, p)| p).collect();
         if recent.len() == REACH_MISS_RUNS && recent.iter().all(|&p| side(p, tau) != 0.0) {
             let nearest = recent.iter().copied().min_by(|a, b| (a - tau).abs().total_cmp(&(b - tau).abs()));
-            return Some(BelowReach { cause: BelowReachCause::Campaign, pet_bound_s: nearest });
+            return (Some(BelowReach { cause: BelowReachCause::Campaign, pet_bound_s: nearest }), self.holding);
         }
-        None
+        (None, false)
     }
 }
 

@@ -243,14 +243,12 @@ pub fn run_once(
     let mut sc = scenario.clone();
     sc.target = target;
     let seed = run_seed(campaign, k);
-    let aim_s = memory.aim(&sc.name, 0, target).tau_s();
-    let run = regulated_run(settings, &sc, vut, seed, Some(memory));
-    let Ok(run) = run else {
+    let Ok(run) = regulated_run(settings, &sc, vut, seed, Some(memory)) else {
         return CampaignRun {
             campaign,
             run: k,
             seed,
-            aim_s,
+            aim_s: memory.aim(&sc.name, 0, target).tau_s(),
             pet_s: None,
             order_ok: false,
             collision: false,
@@ -266,7 +264,7 @@ pub fn run_once(
         campaign,
         run: k,
         seed,
-        aim_s,
+        aim_s: run.aims.first().map_or(target.tau_s(), |a| a.tau_s()),
         pet_s: r.pet_min_s,
         order_ok: r.conflicts.iter().all(|c| c.order_matches_style == Some(true)),
         collision: r.collision.is_some(),
