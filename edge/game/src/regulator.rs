@@ -332,6 +332,9 @@ const MERGE_SPEED_MARGIN_MPS: f64 = 2.0;
 const MERGE_RAMP_GAIN: f64 = 2.5;
 /// The key time the first decision of an interaction starts its fixed point from, s from now.
 const FIRST_KEY_GUESS_S: f64 = 5.0;
+/// A yielding BV this far past its zone's entry has only crept in (it still gives way to a VUT in
+/// the zone); beyond it, it is committed and clears the zone, m.
+const CREPT_IN_M: f64 = 1.0;
 /// A VUT at or below this speed stands, m/s (the same threshold as "predicted never to leave").
 const VUT_STANDING_MPS: f64 = 0.5;
 /// How far behind the zone entry the BV holds when it gives way, m.
@@ -605,6 +608,19 @@ impl Regulator {
         d
     }
 
+    /// The accelerations decision `d` (the last one this regulator made) plans, one per step of
+    /// [`RegulatorParams::dt_s`] over the horizon: what a regulator in the cloud sends a BV to
+    /// track. `None` for a stale or fallback decision (the minimal-risk deceleration).
+    pub fn planned_accels(&self, d: &Decision) -> Option<&[f64]> {
+        match d.status {
+            RegulatorStatus::Regulating | RegulatorStatus::Degraded | RegulatorStatus::Passed => {
+                Some(self.leader_equal.accel())
+            }
+            RegulatorStatus::SafetyYield | RegulatorStatus::Waiting => Some(self.leader_upper.accel()),
+            RegulatorStatus::Stale | RegulatorStatus::Fallback => None,
+        }
+    }
+
     /// Writes the leader plans' per-step speed caps (no allocation).
     fn set_caps(&mut self, inp: &RegulatorInput, speed_limit_at: Option<&dyn Fn(f64) -> f64>) {
         let (dt, a_max) = (self.params.dt_s, self.params.bv.max_accel_mps2);
@@ -668,8 +684,19 @@ impl Regulator {
             Style::Rush => inp.zone_bv.exit_s_m,
             Style::Yield => inp.zone_bv.enter_s_m,
         };
-        // Past the interaction: follow the reference.
         let vut_gone = inp.vut.s_m >= inp.zone_vut.exit_s_m;
+        // Yielding at a crossing, the BV has crept over its entry (a plan that holds it just
+        // before the zone, tracked late or noisily) while the VUT has yet to leave the zone: it is
+        // not past anything — give way until the VUT has left, never drive on across its path.
+        if inp.target.style() == Style::Yield
+            && inp.zone_kind == ConflictKind::Crossing
+            && inp.bv.s_m >= inp.zone_bv.enter_s_m
+            && inp.bv.s_m < inp.zone_bv.enter_s_m + CREPT_IN_M
+            && !vut_gone
+        {
+            return self.give_way(inp);
+        }
+        // Past the interaction: follow the reference.
         if inp.bv.s_m >= bv_key
             || (inp.target.style() == Style::Rush && vut_gone)
             || (inp.target.style() == Style::Yield && inp.bv.s_m >= inp.zone_bv.enter_s_m)

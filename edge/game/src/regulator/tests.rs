@@ -85,6 +85,62 @@ fn a_bv_past_its_key_point_follows_its_reference() {
     assert!(d.accel_mps2.abs() < 0.1, "cruising at the reference: {d:?}");
 }
 
+/// The plan a cloud regulator sends starts with the acceleration the decision applies, covers the
+/// horizon and, integrated, keeps the planned key time; a stale decision has none.
+#[test]
+fn the_planned_accelerations_are_the_decisions_plan() {
+    for style in [Style::Rush, Style::Yield] {
+        let mut r = regulator();
+        let inp = input(style, 2.0);
+        let d = r.decide(&inp);
+        let plan = r.planned_accels(&d).unwrap();
+        assert_eq!(plan.len(), RegulatorParams::default().horizon);
+        assert!((plan[0] - d.accel_mps2).abs() < 1e-6, "{} vs {}", plan[0], d.accel_mps2);
+        // Integrated, the plan reaches the BV's key station at the key time.
+        let (mut s, mut v, mut t) = (inp.bv.s_m, inp.bv.v_mps, 0.0);
+        let key_station = if style == Style::Rush { inp.zone_bv.exit_s_m } else { inp.zone_bv.enter_s_m };
+        for a in plan {
+            if s >= key_station {
+                break;
+            }
+            s += v * 0.1 + 0.5 * a * 0.01;
+            v += a * 0.1;
+            t += 0.1;
+        }
+        // Rush: the key time (4 s) lies within the horizon; yield: beyond it (9 s).
+        let key = d.key_time_s.unwrap();
+        if key < 4.9 {
+            assert!((t - key).abs() <= 0.15, "{style}: at the station at {t} s, key {key}");
+        } else {
+            assert!(s < key_station, "{style}: at the station within the horizon, key {key}");
+        }
+    }
+    let mut r = regulator();
+    let mut inp = input(Style::Rush, 2.0);
+    inp.vut.age_s = 2.0;
+    let d = r.decide(&inp);
+    assert_eq!(r.planned_accels(&d), None);
+}
+
+/// A yielding BV that crept over its entry before the VUT has left the zone gives way; one that is well
+/// inside, or whose VUT has left, goes on.
+#[test]
+fn a_yielding_bv_that_crept_in_gives_way_to_a_vut_in_the_zone() {
+    let mut inp = input(Style::Yield, 2.0);
+    inp.bv = PathState { s_m: 40.3, v_mps: 0.2, age_s: 0.05 };
+    inp.vut = PathState { s_m: 65.0, v_mps: 8.0, age_s: 0.15 };
+    let d = regulator().decide(&inp);
+    assert_eq!(d.status, RegulatorStatus::SafetyYield, "{d:?}");
+    assert!(d.accel_mps2 < 0.0, "it stops, it does not drive on into the VUT: {d:?}");
+    inp.vut.s_m = 40.0;
+    assert_eq!(regulator().decide(&inp).status, RegulatorStatus::SafetyYield, "nor before it comes");
+    inp.vut.s_m = 71.0;
+    assert_eq!(regulator().decide(&inp).status, RegulatorStatus::Passed);
+    inp.vut.s_m = 65.0;
+    inp.bv.s_m = 42.0;
+    assert_eq!(regulator().decide(&inp).status, RegulatorStatus::Passed, "committed: it clears the zone");
+}
+
 #[test]
 fn stale_or_broken_inputs_give_the_minimal_risk_profile() {
     let mut r = regulator();
