@@ -60,7 +60,8 @@ fn below_reach_code(c: BelowReachCause) -> BelowReachCode {
     }
 }
 
-fn status_code(s: RegulatorStatus) -> PlanStatus {
+/// The wire code of a regulator status.
+pub fn status_code(s: RegulatorStatus) -> PlanStatus {
     match s {
         RegulatorStatus::Regulating => PlanStatus::Regulating,
         RegulatorStatus::Degraded => PlanStatus::Degraded,

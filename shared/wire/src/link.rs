@@ -46,6 +46,8 @@ pub mod topics {
     pub const PRIOR: &str = "prior";
     /// Cloud → BV: commands (signed).
     pub const CMD: &str = "cmd";
+    /// Cloud → BV: the cloud regulator's plans (signed), for a BV regulated in the cloud.
+    pub const PLAN: &str = "plan";
     /// BV → cloud: telemetry at 10 Hz.
     pub const TELEMETRY: &str = "telemetry";
     /// BV → cloud: heartbeat at 5 Hz.
@@ -115,6 +117,82 @@ pub enum CloudBody {
     Prior(PriorUpload),
     /// A supervision command.
     Command(Command),
+    /// A plan of the cloud regulator, for a BV regulated in the cloud (the onboard runtime
+    /// regulates itself and never subscribes to plans).
+    Plan(CloudPlan),
+}
+
+/// Most steps a cloud plan carries (the regulator's longest horizon).
+pub const MAX_PLAN_STEPS: usize = 200;
+
+/// The cloud regulator's plan for one BV: from the BV's arc length and speed at `t0_ms`, one
+/// acceleration per step of `dt_s`. The BV tracks it against its own clock (synchronised to the
+/// cloud's, GNSS time on a track), so a plan that arrives late is still read at the right instant.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CloudPlan {
+    /// Sequence of the BV state the plan was computed from.
+    pub state_seq: u64,
+    /// The instant the plan starts, Unix ms.
+    pub t0_ms: u64,
+    /// The BV's arc length along its path at `t0_ms`, as the cloud predicted it, m.
+    pub s0_m: f64,
+    /// Speed at `t0_ms`, m/s.
+    pub v0_mps: f64,
+    /// Step, s.
+    pub dt_s: f64,
+    /// Acceleration per step, m/s² (empty: brake at `fallback_decel_mps2`).
+    pub accel_mps2: Vec<f64>,
+    /// The regulator's status (`v2t_wire::PlanStatus` code).
+    pub status: u8,
+    /// Predicted PET, s.
+    pub predicted_pet_s: Option<f64>,
+}
+
+impl CloudPlan {
+    /// Refuses numbers no regulator plans: each field against its bound.
+    pub fn check(&self) -> Result<(), LinkError> {
+        let bad = |field: &str, bound: &str, v: f64| {
+            Err(LinkError::Malformed(format!("plan field {field} = {v}: must be finite and {bound}")))
+        };
+        if !(self.s0_m.is_finite() && self.s0_m.abs() <= 1.0e6) {
+            return bad("s0_m", "within ±1e6 m", self.s0_m);
+        }
+        if !(self.v0_mps.is_finite() && (0.0..=150.0).contains(&self.v0_mps)) {
+            return bad("v0_mps", "within [0, 150] m/s", self.v0_mps);
+        }
+        if !(self.dt_s.is_finite() && (0.01..=1.0).contains(&self.dt_s)) {
+            return bad("dt_s", "within [0.01, 1] s", self.dt_s);
+        }
+        if self.accel_mps2.len() > MAX_PLAN_STEPS {
+            return Err(LinkError::Malformed(format!(
+                "plan field accel_mps2: {} steps, at most {MAX_PLAN_STEPS}",
+                self.accel_mps2.len()
+            )));
+        }
+        if let Some(&a) = self.accel_mps2.iter().find(|a| !(a.is_finite() && a.abs() <= 50.0)) {
+            return bad("accel_mps2", "within ±50 m/s²", a);
+        }
+        Ok(())
+    }
+
+    /// Arc length, speed and acceleration the plan sets at `t_ms` (before `t0_ms`: its start;
+    /// speed never below 0, a braking plan stops and stays). `None` past its last step.
+    pub fn at(&self, t_ms: u64) -> Option<(f64, f64, f64)> {
+        let mut t = t_ms.saturating_sub(self.t0_ms) as f64 / 1000.0;
+        let (mut s, mut v) = (self.s0_m, self.v0_mps.max(0.0));
+        for &a in &self.accel_mps2 {
+            let step = t.min(self.dt_s);
+            // A braking step ends where the speed reaches 0.
+            let moving = if a < 0.0 { step.min(v / -a) } else { step };
+            s += v * moving + 0.5 * a * moving * moving;
+            v = (v + a * moving).max(0.0);
+            if t < self.dt_s {
+                return Some((s, v, if v > 0.0 { a } else { 0.0 }));
+            }
+            t -= self.dt_s;
+        }
+        None
+    }
 }
 
 /// A prior for one BV: the generated trajectories of the scenario, which of them this BV drives,
@@ -358,6 +436,8 @@ pub enum Arrival {
     Command,
     /// `v2t/<fleet>/all/cmd`: commands addressed to every BV ([`ALL_BVS`]).
     AllCommand,
+    /// `v2t/<fleet>/bv/<me>/plan`: the cloud regulator's plans for this BV.
+    Plan,
 }
 
 impl Arrival {
@@ -366,6 +446,7 @@ impl Arrival {
             Self::Prior => "prior",
             Self::Command => "command",
             Self::AllCommand => "every-BV command",
+            Self::Plan => "plan",
         }
     }
 }
@@ -450,9 +531,14 @@ impl Receiver {
             (CloudBody::Prior(_), true) => ("prior for every BV", false),
             (CloudBody::Command(_), false) => ("command", arrival == Arrival::Command),
             (CloudBody::Command(_), true) => ("command for every BV", arrival == Arrival::AllCommand),
+            (CloudBody::Plan(_), false) => ("plan", arrival == Arrival::Plan),
+            (CloudBody::Plan(_), true) => ("plan for every BV", false),
         };
         if !fits {
             return Err(LinkError::WrongTopic { kind, topic: arrival.name() });
+        }
+        if let CloudBody::Plan(plan) = &msg.body {
+            plan.check()?;
         }
         Ok((msg, signed, sig))
     }
@@ -548,6 +634,51 @@ mod tests {
     /// Opens a command frame as it arrives on this BV's command topic; the refusal's reason.
     fn cmd(r: &mut Receiver, frame: &[u8], now_ms: u64) -> Result<CloudMessage, LinkError> {
         r.open(frame, Arrival::Command, now_ms).map_err(|e| e.reason)
+    }
+
+    fn plan(accel: Vec<f64>) -> CloudPlan {
+        CloudPlan {
+            state_seq: 3,
+            t0_ms: 10_000,
+            s0_m: 20.0,
+            v0_mps: 4.0,
+            dt_s: 0.1,
+            accel_mps2: accel,
+            status: 1,
+            predicted_pet_s: Some(2.0),
+        }
+    }
+
+    #[test]
+    fn a_plan_is_read_at_the_bvs_instant_and_ends_with_its_last_step() {
+        let p = plan(vec![1.0, 1.0, -50.0, 0.0]);
+        let (s, v, a) = p.at(10_150).unwrap();
+        // 0.1 s at 1 m/s² from 4 m/s, then 0.05 s more.
+        let s1 = 20.0 + 0.4 + 0.005;
+        assert!((s - (s1 + 4.1 * 0.05 + 0.5 * 0.05 * 0.05)).abs() < 1e-9 && (v - 4.15).abs() < 1e-9 && a == 1.0);
+        // Before its start: its start.
+        assert_eq!(p.at(9_000), Some((20.0, 4.0, 1.0)));
+        // The braking step stops at 0 and stays.
+        let (_, v, a) = p.at(10_290).unwrap();
+        assert_eq!((v, a), (0.0, 0.0));
+        assert_eq!(p.at(10_400), None, "past its last step the plan says nothing");
+    }
+
+    #[test]
+    fn a_plan_arrives_on_its_own_topic_and_its_numbers_are_checked_before_anything_else() {
+        let frame = seal(&msg(1, 1_000, CloudBody::Plan(plan(vec![0.5; 50]))), &key()).unwrap();
+        assert!(matches!(rx().open(&frame, Arrival::Command, 1_000).unwrap_err().reason, LinkError::WrongTopic { .. }));
+        assert!(rx().open(&frame, Arrival::Plan, 1_000).is_ok());
+        for (bad, field) in [
+            (CloudPlan { v0_mps: f64::NAN, ..plan(vec![]) }, "v0_mps"),
+            (plan(vec![0.0, f64::INFINITY]), "accel_mps2"),
+            (plan(vec![0.0; MAX_PLAN_STEPS + 1]), "201 steps"),
+            (CloudPlan { dt_s: 0.0, ..plan(vec![]) }, "dt_s"),
+        ] {
+            let frame = seal(&msg(2, 1_000, CloudBody::Plan(bad)), &key()).unwrap();
+            let e = rx().open(&frame, Arrival::Plan, 1_000).unwrap_err();
+            assert!(e.genuine_seq.is_none() && e.reason.to_string().contains(field), "{}", e.reason);
+        }
     }
 
     #[test]

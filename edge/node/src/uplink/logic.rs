@@ -193,6 +193,9 @@ impl UplinkLogic {
                 let prior = active.clone();
                 ok(vec![Action::Prior(Box::new(prior))], format!("set target (seq {seq}): {target}"))
             }
+            // This runtime regulates onboard: a cloud plan has no place here (and its topic is
+            // never subscribed).
+            CloudBody::Plan(_) => refused("a cloud plan: this BV regulates onboard".into()),
         }
     }
 }
