@@ -58,6 +58,12 @@ pub mod shipped {
         "config/scenarios/left_turn_vut.toml",
         "config/scenarios/cut_in_basic.toml",
     ];
+    /// The network presets between the track and the cloud: a 5G standalone cell, LTE, a
+    /// congested cell.
+    pub const NETWORKS: [&str; 3] =
+        ["config/network/5g_sa.toml", "config/network/lte.toml", "config/network/congested.toml"];
+    /// The network the TroubleMaker-like baseline runs its cloud regulator across.
+    pub const BASELINE_NETWORK: &str = "config/network/5g_sa.toml";
 }
 
 /// A configuration text that did not parse or did not validate.

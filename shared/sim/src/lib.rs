@@ -37,6 +37,7 @@ pub mod control;
 pub mod external;
 pub mod files;
 pub mod measure;
+pub mod network;
 pub mod observation;
 pub mod plant;
 pub mod realism;
