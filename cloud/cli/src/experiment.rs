@@ -31,6 +31,10 @@ pub enum Experiment {
     /// Test campaigns on the scenario cards: each test repeated --runs times against one VUT, the
     /// regulator learning the VUT's reaction from run to run; error per run index and per VUT.
     Campaign,
+    /// The regulator onboard against the same regulator in the cloud across a simulated network
+    /// (one-way delay 0–300 ms, loss 0 and 5 %, and the presets under config/network): steering
+    /// error, collisions, order, minimum distance and fallbacks per VUT model.
+    Latency,
 }
 
 /// `experiment`'s arguments.
@@ -95,12 +99,30 @@ pub struct ExperimentArgs {
     /// and style) instead of the regulator alone on the scenario cards.
     #[arg(long)]
     methods: bool,
+    /// latency: network settings (TOML, as in config/network) besides the sweep of constant delays
+    /// (default: the shipped presets — 5G SA, LTE, a congested cell; repeat the option).
+    #[arg(long = "network")]
+    networks: Vec<PathBuf>,
+    /// latency: write the plot of the steering error against the delay (SVG) to this file.
+    #[arg(long)]
+    svg: Option<PathBuf>,
 }
 
 impl ExperimentArgs {
     /// An option given where this experiment does not read it (it would be dropped silently).
     fn unused_option(&self) -> Option<String> {
         let campaign = self.which == Experiment::Campaign;
+        let latency = self.which == Experiment::Latency;
+        if (!self.networks.is_empty() || self.svg.is_some()) && !latency {
+            return Some("--network and --svg apply to `experiment latency` only".to_owned());
+        }
+        if latency && (self.methods || !self.tau.is_empty()) {
+            return Some(
+                "`experiment latency` runs the Video2Track regulator at its own targets (rush and yield, τ 2, 3, 4 s): \
+                 --methods and --tau do not apply"
+                    .to_owned(),
+            );
+        }
         // The regulator alone on the scenario cards: steerability without --methods, and campaigns.
         let steerability = (self.which == Experiment::Steerability && !self.methods) || campaign;
         if campaign && self.methods {
@@ -178,6 +200,7 @@ pub fn run(a: ExperimentArgs) -> anyhow::Result<()> {
     match a.which {
         Experiment::Tradeoff => tradeoff(a),
         Experiment::Campaign => campaign(a),
+        Experiment::Latency => latency(a),
         Experiment::Steerability if !a.methods => regulator_on_cards(a),
         _ => four_methods(a),
     }
@@ -189,6 +212,7 @@ fn seeds(a: &ExperimentArgs) -> std::ops::RangeInclusive<u64> {
     let (first, repeats) = match a.which {
         Experiment::Tradeoff => (6, 5),
         Experiment::Campaign => (6, 15),
+        Experiment::Latency => (6, 5),
         _ => (1, 20),
     };
     let first = a.first_seed.unwrap_or(first);
@@ -246,6 +270,7 @@ struct World {
     sim: v2t_sim::config::SimSettings,
     vut_vehicle: v2t_model::vehicle::VehicleConfig,
     bv_vehicle: v2t_model::vehicle::VehicleConfig,
+    baseline_network: v2t_sim::network::NetworkSettings,
 }
 
 impl World {
@@ -258,6 +283,7 @@ impl World {
             sim: load_toml(Path::new(shipped::SIM))?,
             vut_vehicle: load_toml(Path::new(shipped::VUT_VEHICLE))?,
             bv_vehicle: load_toml(Path::new(shipped::BV_VEHICLE))?,
+            baseline_network: load_toml(Path::new(shipped::BASELINE_NETWORK))?,
         })
     }
 
@@ -270,6 +296,7 @@ impl World {
             vut_vehicle: self.vut_vehicle.clone(),
             bv_vehicle: self.bv_vehicle.clone(),
             human: Some(&self.human),
+            baseline_network: Some(self.baseline_network.clone()),
         }
     }
 }
@@ -315,7 +342,7 @@ fn four_methods(a: ExperimentArgs) -> anyhow::Result<()> {
         Experiment::Adversariality => Comparison::Adversariality,
         Experiment::Fidelity => Comparison::Fidelity,
         Experiment::Style => Comparison::Style,
-        Experiment::Steerability | Experiment::Tradeoff | Experiment::Campaign => {
+        Experiment::Steerability | Experiment::Tradeoff | Experiment::Campaign | Experiment::Latency => {
             Comparison::Steerability(steer::both_styles(&taus))
         }
     };
@@ -324,12 +351,19 @@ fn four_methods(a: ExperimentArgs) -> anyhow::Result<()> {
     let summary = methods::summarize(&cases);
     // The fidelity error is against the video's PET label: only where τ is that label.
     let labels: Vec<(String, f64)> = match a.which {
-        Experiment::Adversariality | Experiment::Steerability | Experiment::Tradeoff | Experiment::Campaign => {
-            Vec::new()
-        }
+        Experiment::Adversariality
+        | Experiment::Steerability
+        | Experiment::Tradeoff
+        | Experiment::Campaign
+        | Experiment::Latency => Vec::new(),
         _ => scenarios.iter().map(|r| (r.name.clone(), r.semantics.pet_label_s)).collect(),
     };
-    println!("{}\n", provenance(model, human, &seeds));
+    println!(
+        "{}; TroubleMaker-like regulates in the cloud across the simulated \"{}\" network ({})\n",
+        provenance(model, human, &seeds),
+        world.baseline_network.name,
+        world.baseline_network.source
+    );
     print!("{}", methods::markdown(&summary, &labels));
     let steering = methods::steering_errors(&cases);
     if a.which == Experiment::Steerability {
@@ -337,6 +371,34 @@ fn four_methods(a: ExperimentArgs) -> anyhow::Result<()> {
     }
     if let Some(path) = a.json {
         write_json(&path, &serde_json::json!({ "cases": cases, "summary": summary, "steering": steering }))?;
+    }
+    Ok(())
+}
+
+/// The regulator onboard and in the cloud across the networks.
+fn latency(a: ExperimentArgs) -> anyhow::Result<()> {
+    let models = crate::vut_models(&a.vut)?;
+    let world = World::load(&a)?;
+    let (model, human, setup) = (&world.model, &world.human, world.setup());
+    let scenarios = paper_scenarios(&a.scenarios)?;
+    let files: Vec<PathBuf> =
+        if a.networks.is_empty() { shipped::NETWORKS.iter().map(PathBuf::from).collect() } else { a.networks.clone() };
+    let mut networks = v2t_lab::latency::sweep();
+    for f in &files {
+        networks.push(load_toml(f)?);
+    }
+    let seeds = seeds(&a);
+    let cases = v2t_lab::latency::run_all(&setup, &scenarios, &networks, &models, seeds.clone())?;
+    let rows = v2t_lab::latency::summarize(&cases, &networks);
+    println!("{}; networks simulated (presets named below)\n", provenance(model, human, &seeds));
+    print!("{}", v2t_lab::latency::markdown(&rows, &cases, &networks));
+    if let Some(path) = &a.svg {
+        std::fs::write(path, v2t_lab::latency::svg(&rows, &networks, &seeds))
+            .with_context(|| format!("writing {}", path.display()))?;
+        println!("\nwrote {}", path.display());
+    }
+    if let Some(path) = a.json {
+        write_json(&path, &serde_json::json!({ "networks": networks, "cases": cases, "summary": rows }))?;
     }
     Ok(())
 }

@@ -20,6 +20,7 @@ mod generate;
 mod ground;
 mod link;
 mod map;
+mod regulate;
 mod sim;
 mod train;
 mod world;
@@ -97,6 +98,10 @@ enum Command {
     Upload(link::UploadArgs),
     /// Send one signed supervision command: arm, start, abort or target (with --tau and --style).
     Send(link::SendArgs),
+    /// The regulator of one BV in the cloud, as the paper and TroubleMaker deploy it: plans on the
+    /// BV's states as they arrive through the broker, signed plans back (the BV side is `sim
+    /// --regulated --cloud-broker`).
+    Regulate(regulate::RegulateArgs),
 }
 
 /// Options that contradict each other or lie out of range: bad input (exit 2).
@@ -124,6 +129,7 @@ fn execute(command: Command) -> anyhow::Result<()> {
         Command::Serve(a) => link::serve(a),
         Command::Upload(a) => link::upload(a),
         Command::Send(a) => link::send(a),
+        Command::Regulate(a) => regulate::run(a),
     }
 }
 

@@ -43,6 +43,42 @@ pub struct SimArgs {
     /// is recorded in it afterwards.
     #[arg(long, requires = "regulated")]
     campaign: Option<PathBuf>,
+    /// With --regulated: the regulator runs in the cloud, across this simulated network (TOML, as
+    /// in config/network): the BV reports its state and the VUT's, follows the plans that reach it.
+    #[arg(long, requires = "regulated", conflicts_with_all = ["campaign", "cloud_broker"])]
+    network: Option<PathBuf>,
+    /// With --regulated: the regulator runs in a cloud process (`video2track regulate`) reached
+    /// through this MQTT broker (mqtt://host:port), in real time: the run takes as long as its
+    /// scenario. Needs --cloud-key and --start-unix-ms.
+    #[arg(long, requires_all = ["regulated", "cloud_key", "start_unix_ms"], conflicts_with = "campaign")]
+    cloud_broker: Option<String>,
+    /// With --cloud-broker: the cloud's public key (64 hex digits), which every plan must be signed with.
+    #[arg(long, requires = "cloud_broker")]
+    cloud_key: Option<PathBuf>,
+    /// With --cloud-broker: when the test starts, Unix ms (the same for `regulate`).
+    #[arg(long, requires = "cloud_broker")]
+    start_unix_ms: Option<u64>,
+    /// With --cloud-broker: the fleet and the BV's id on the link.
+    #[arg(long, default_value = "sim", requires = "cloud_broker")]
+    fleet: String,
+    /// With --cloud-broker: the BV's id on the link.
+    #[arg(long, default_value = "bv1", requires = "cloud_broker")]
+    bv_id: String,
+}
+
+impl SimArgs {
+    /// Where a cloud-regulated BV's regulator is.
+    fn cloud(&self) -> crate::regulate::CloudSide {
+        crate::regulate::CloudSide {
+            regulator: self.regulator.clone(),
+            network: self.network.clone(),
+            broker: self.cloud_broker.clone(),
+            key: self.cloud_key.clone(),
+            start_unix_ms: self.start_unix_ms,
+            fleet: self.fleet.clone(),
+            bv_id: self.bv_id.clone(),
+        }
+    }
 }
 
 /// Runs the card and prints what happened.
@@ -66,7 +102,9 @@ pub fn run(a: SimArgs) -> anyhow::Result<()> {
         },
         None => v2t_lab::vut::Vut::Builtin(model.unwrap_or(scenario.vut.default_model)),
     };
-    let outcome = if a.regulated {
+    let outcome = if a.regulated && (a.network.is_some() || a.cloud_broker.is_some()) {
+        crate::regulate::cloud_regulated_run(&a.cloud(), &scenario, &vut, a.seed)?
+    } else if a.regulated {
         regulated(&a, &scenario, &vut)?
     } else {
         v2t_lab::sim::run_reference(&scenario, &vut, a.seed)?

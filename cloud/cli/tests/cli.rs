@@ -150,6 +150,7 @@ fn help_lists_only_real_commands() {
             "serve",
             "upload",
             "send",
+            "regulate",
             "help"
         ],
         "{out}"
@@ -311,12 +312,124 @@ fn experiment_options_an_experiment_would_ignore_are_refused() {
             &["sim", "config/scenarios/left_turn_vut.toml", "--sumo-driver", "config/vut/sumo/idm.toml"][..],
             "--sumo-driver applies with --world sumo",
         ),
+        (&["experiment", "latency", "--tau", "3"][..], "--methods and --tau do not apply"),
+        (
+            &["experiment", "fidelity", "--network", "config/network/lte.toml"][..],
+            "--network and --svg apply to `experiment latency` only",
+        ),
+        (
+            &[
+                "regulate",
+                "config/scenarios/left_turn_basic.toml",
+                "--broker",
+                "mqtt://127.0.0.1:1",
+                "--key",
+                "config/keys/demo_cloud.key",
+                "--start-unix-ms",
+                "5",
+            ][..],
+            "--start-unix-ms 5 lies",
+        ),
+        (
+            &[
+                "regulate",
+                "config/scenarios/left_turn_basic.toml",
+                "--broker",
+                "mqtt://127.0.0.1:1",
+                "--key",
+                "config/keys/demo_cloud.key",
+                "--start-unix-ms",
+                "5",
+                "--bv-id",
+                "a/#",
+            ][..],
+            "--bv-id \"a/#\"",
+        ),
+        (
+            &["sim", "config/scenarios/left_turn_basic.toml", "--regulated", "--cloud-broker", "mqtt://127.0.0.1:1"][..],
+            "--cloud-key",
+        ),
     ] {
         let o = video2track(args);
         let (_, err) = text(&o);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
         assert!(err.contains(needle), "{args:?}: {err}");
     }
+}
+
+/// The regulator onboard against the same regulator in the cloud: per VUT model one onboard row and
+/// one per network (the sweep, then the files asked for), the JSON's cases, and the plot.
+#[test]
+fn the_latency_experiment_compares_onboard_and_cloud_per_network() {
+    let dir_scratch = tempdir("latency");
+    let dir = dir_scratch.path();
+    let (json, svg) = (dir.join("latency.json"), dir.join("latency.svg"));
+    let o = video2track(&[
+        "experiment",
+        "latency",
+        "--scenario",
+        "left_turn",
+        "--vut",
+        "idm-normal",
+        "--repeats",
+        "1",
+        "--network",
+        "config/network/congested.toml",
+        "--json",
+        json.to_str().unwrap(),
+        "--svg",
+        svg.to_str().unwrap(),
+    ]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(out.contains("seeds 6–6: held out") && out.contains("networks simulated"), "{out}");
+    assert!(out.contains("| onboard | every setting | 6 |"), "{out}");
+    assert!(
+        out.contains("| cloud | 300 ms, loss 5 % | 6 |") && out.contains("| cloud | congested cell | 6 |"),
+        "{out}"
+    );
+    assert!(out.contains("- congested cell: preset") && out.contains("Collisions: "), "{out}");
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(doc["cases"].as_array().unwrap().len(), 6 * (1 + 12 + 1), "6 cases × (onboard + 13 networks)");
+    assert_eq!(doc["summary"].as_array().unwrap().len(), 14);
+    assert_eq!(doc["networks"].as_array().unwrap().len(), 13);
+    let plot = std::fs::read_to_string(&svg).unwrap();
+    assert_eq!(plot.matches("<polyline").count(), 3, "onboard, cloud without and with loss: {plot}");
+}
+
+/// One run with the regulator in the cloud across a simulated network, and a network file out of
+/// bounds refused with its field (exit 2).
+#[test]
+fn sim_regulates_in_the_cloud_across_a_network_file_and_refuses_a_bad_one() {
+    let o = video2track(&[
+        "sim",
+        "config/scenarios/left_turn_basic.toml",
+        "--regulated",
+        "--network",
+        "config/network/lte.toml",
+        "--seed",
+        "3",
+    ]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(out.contains("regulated in the cloud across the simulated network LTE"), "{out}");
+    assert!(out.contains("BV cloud regulator") && out.contains("collision none"), "{out}");
+    let link = out.lines().find(|l| l.starts_with("link:")).unwrap();
+    assert!(link.contains("refused 0"), "{link}");
+    let dir_scratch = tempdir("network");
+    let bad = dir_scratch.path().join("bad.toml");
+    let text_of = std::fs::read_to_string(repo().join("config/network/lte.toml")).unwrap();
+    std::fs::write(&bad, text_of.replacen("loss = 0.0", "loss = 1.5", 1)).unwrap();
+    let o = video2track(&[
+        "sim",
+        "config/scenarios/left_turn_basic.toml",
+        "--regulated",
+        "--network",
+        bad.to_str().unwrap(),
+    ]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("uplink.loss") && err.contains("0.99"), "{err}");
 }
 
 /// One test run three times as a campaign: the memory file is made on the first run and read on

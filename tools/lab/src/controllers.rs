@@ -2,8 +2,13 @@
 //! Stackelberg regulator with pure pursuit, what the experiments run in process) and [`TrackedBv`]
 //! (the PID + Stanley tracker following a reference, what the tracking measurements run).
 
+mod cloud;
 mod regulated;
 mod tracked;
 
+pub use cloud::{
+    CloudBvError, CloudLink, CloudLinkStats, CloudRegulatedBv, CloudRegulator, PLAN_TIMEOUT_S, SimulatedNetwork,
+    VUT_ID, clock_ms,
+};
 pub use regulated::RegulatedBv;
 pub use tracked::TrackedBv;

@@ -16,6 +16,8 @@
 //! - [`steer`], [`methods`] and [`tradeoff`]: the experiments (`video2track experiment …`), the
 //!   regulator alone on the scenario cards, the paper's four methods on its scenarios, and the
 //!   sweep of the regulator's realism weight;
+//! - [`latency`]: the regulator onboard against the same regulator in the cloud across a simulated
+//!   network (`video2track experiment latency`);
 //! - [`campaign`]: one test repeated as a proving ground repeats it, the regulator learning the
 //!   VUT's reaction from run to run (`video2track experiment campaign`, `sim --campaign`);
 //! - [`demo`]: the whole pipeline end to end through the onboard processes (`video2track demo`);
@@ -34,10 +36,13 @@
 pub mod bench_game;
 pub mod bench_latency;
 pub mod campaign;
+pub mod cloud_mqtt;
 pub mod controllers;
 pub mod demo;
 pub mod ecu;
+pub mod latency;
 pub mod methods;
+pub mod netdelay;
 pub mod reach;
 pub mod sim;
 pub mod stats;

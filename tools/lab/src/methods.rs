@@ -10,7 +10,9 @@
 //! - **Predefined**: the BV follows the constant-speed trajectory along its grounded route whose
 //!   timing gives τ if the VUT keeps its speed (no adaptation);
 //! - **TroubleMaker-like**: the Stackelberg regulator along that constant-speed reference, its
-//!   realism term (`w_real`) pulling toward the reference's timing and speed shape;
+//!   realism term (`w_real`) pulling toward the reference's timing and speed shape, running in the
+//!   cloud as TroubleMaker's does: states up and plans down across [`Setup::baseline_network`]
+//!   (the 5G SA preset in the shipped experiments; onboard when `None`);
 //! - **Diffusion-only**: the BV follows the guided diffusion prior (best of 8 variants);
 //! - **Video2Track**: the same regulator along the diffusion prior, its realism term pulling
 //!   toward the prior.
@@ -43,12 +45,13 @@ use v2t_model::vehicle::VehicleConfig;
 use v2t_model::{Style, Target};
 use v2t_sim::bv::{BvController, ReferenceFollower};
 use v2t_sim::config::SimSettings;
+use v2t_sim::network::NetworkSettings;
 use v2t_sim::realism::measure_run;
 use v2t_sim::runner::run;
 use v2t_sim::scenario::Scenario;
 use v2t_sim::vut::VutModel;
 
-use crate::controllers::RegulatedBv;
+use crate::controllers::{CloudRegulatedBv, RegulatedBv};
 use crate::stats::{RealismStats, RunStats, Tally};
 use crate::world::{self, Vehicles, WorldError};
 
@@ -205,6 +208,8 @@ pub struct Setup<'a> {
     /// Recorded human driving per manoeuvre class: every run's realism is measured against it
     /// (`None`: not measured).
     pub human: Option<&'a HumanReference>,
+    /// The network TroubleMaker-like's cloud regulator works across (`None`: it runs onboard).
+    pub baseline_network: Option<NetworkSettings>,
 }
 
 /// The simulated world of a prior for the first conflict's BV ([`world::accept`], then
@@ -262,13 +267,16 @@ pub fn run_case(
     model: VutModel,
     seeds: RangeInclusive<u64>,
 ) -> MethodCase {
-    run_case_with(setup, &setup.regulator, scenario, method, model, seeds)
+    let cloud = if method == Method::TroublemakerLike { setup.baseline_network.as_ref() } else { None };
+    run_case_with(setup, &setup.regulator, cloud, scenario, method, model, seeds)
 }
 
-/// [`run_case`] with other regulator settings.
+/// [`run_case`] with other regulator settings, the regulator in the cloud across `cloud` when
+/// given (else onboard).
 pub fn run_case_with(
     setup: &Setup<'_>,
     regulator: &RegulatorParams,
+    cloud: Option<&NetworkSettings>,
     scenario: &Scenario,
     method: Method,
     model: VutModel,
@@ -276,17 +284,17 @@ pub fn run_case_with(
 ) -> MethodCase {
     let mut tally = Tally::default();
     for seed in seeds {
-        let controller: Box<dyn BvController> = if method.regulated() {
-            let params = RegulatedBv::params_for(regulator, scenario, 0);
-            match RegulatedBv::new(params, scenario, 0) {
-                Ok(r) => Box::new(r),
-                Err(_) => {
-                    tally.add_failed();
-                    continue;
-                }
+        let params = RegulatedBv::params_for(regulator, scenario, 0);
+        let controller: Option<Box<dyn BvController>> = match (method.regulated(), cloud) {
+            (false, _) => Some(Box::new(ReferenceFollower::default())),
+            (true, None) => RegulatedBv::new(params, scenario, 0).ok().map(|r| Box::new(r) as Box<dyn BvController>),
+            (true, Some(net)) => {
+                CloudRegulatedBv::new(params, scenario, 0, net, seed).ok().map(|r| Box::new(r) as Box<dyn BvController>)
             }
-        } else {
-            Box::new(ReferenceFollower::default())
+        };
+        let Some(controller) = controller else {
+            tally.add_failed();
+            continue;
         };
         let mut bvs = vec![controller];
         match run(scenario, &mut bvs, model.driver().as_mut(), seed) {
@@ -489,7 +497,11 @@ pub fn markdown(rows: &[MethodSummary], labels: &[(String, f64)]) -> String {
         "| scenario | method | meanPET^min | PET^min_track | fidelity error | collisions | order as asked | runs | BV class | BV W₁ accel (m/s²) | BV W₁ jerk (m/s³) | BV jerk RMS (m/s³) | BV speed reversals |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
-        let label = labels.iter().find(|(n, _)| r.scenario.starts_with(n.as_str())).map(|(_, l)| *l);
+        // The scenario's own label: "left_turn (…)" is not "left_turn_vut (…)".
+        let label = labels
+            .iter()
+            .find(|(n, _)| r.scenario.strip_prefix(n.as_str()).is_some_and(|rest| rest.starts_with(" (")))
+            .map(|(_, l)| *l);
         let fidelity = match (r.pet_min_track_s, label) {
             (Some(p), Some(l)) if l > 0.0 => format!("{:.1} %", 100.0 * (p - l).abs() / l),
             _ => "–".into(),
@@ -536,6 +548,19 @@ mod tests {
                 vut_realism: None,
             },
         }
+    }
+
+    /// Each scenario is scored against its own label, never another's whose name it starts with.
+    #[test]
+    fn the_fidelity_error_takes_the_scenarios_own_label() {
+        let mut vut = case("a", 2.4, 2.34);
+        vut.scenario = "left_turn_vut (yield, τ 2.40 s)".into();
+        let mut bv = case("a", 2.9, 2.9);
+        bv.scenario = "left_turn (yield, τ 2.90 s)".into();
+        let labels = [("left_turn".to_owned(), 2.9), ("left_turn_vut".to_owned(), 2.4)];
+        let md = markdown(&summarize(&[vut, bv]), &labels);
+        assert!(md.contains("| left_turn_vut (yield, τ 2.40 s) | Video2Track | 2.34 s | 2.34 s | 2.5 % |"), "{md}");
+        assert!(md.contains("| left_turn (yield, τ 2.90 s) | Video2Track | 2.90 s | 2.90 s | 0.0 % |"), "{md}");
     }
 
     /// An overshoot against one model and an undershoot against another do not cancel.

@@ -1,6 +1,7 @@
 //! `video2track experiment tradeoff`: what the realism weight `w_real` of the regulator buys and
 //! costs. For each weight, the two regulated methods (TroubleMaker-like: the regulator around the
-//! constant-speed stand-in; Video2Track: around the diffusion prior) on the paper's scenarios,
+//! constant-speed stand-in, here onboard like Video2Track — the sweep is about the realism term, the
+//! network is `experiment latency`'s question; Video2Track: around the diffusion prior) on the paper's scenarios,
 //! rush and yield at every τ, against every VUT model; Diffusion-only (the prior followed, no
 //! regulator) once, as the end the realism term pulls toward.
 //!
@@ -119,7 +120,7 @@ pub fn sweep(
     }
     let cases = crate::parallel_map(&jobs, |(sc, method, m, w)| {
         let params = v2t_game::regulator::RegulatorParams { w_real: w.unwrap_or(0.0), ..setup.regulator };
-        TradeoffCase { w_real: *w, case: methods::run_case_with(setup, &params, sc, *method, *m, seeds.clone()) }
+        TradeoffCase { w_real: *w, case: methods::run_case_with(setup, &params, None, sc, *method, *m, seeds.clone()) }
     });
     let mut points = vec![point(&cases, None, Method::DiffusionOnly, scenarios)];
     for method in [Method::TroublemakerLike, Method::Video2track] {

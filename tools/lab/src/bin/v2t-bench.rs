@@ -3,6 +3,8 @@
 //! ```sh
 //! v2t-bench latency --json latency.json   # state-in → CAN-frame-out through the real processes
 //! v2t-bench game --json game.json         # the regulator's decision latency and allocations
+//! v2t-bench netdelay --listen 127.0.0.1:18830 --upstream 127.0.0.1:1883 --delay-ms 50
+//!                                         # a delaying TCP proxy (the network of `experiment latency`'s real-process check)
 //! ```
 //!
 //! Both run release builds on this machine; their figures go into `docs/BENCHMARKS.md` with the
@@ -77,6 +79,19 @@ enum Bench {
         #[arg(long)]
         json: Option<PathBuf>,
     },
+    /// A TCP proxy that delays every byte it forwards (put it between a BV and its broker): a
+    /// link with this one-way delay each way, order kept, nothing lost. Runs until killed.
+    Netdelay {
+        /// Where to listen (host:port).
+        #[arg(long)]
+        listen: std::net::SocketAddr,
+        /// Where to forward (the broker, host:port).
+        #[arg(long)]
+        upstream: std::net::SocketAddr,
+        /// One-way delay in each direction, ms (0–10,000).
+        #[arg(long, value_parser = clap::value_parser!(u64).range(0..=10_000))]
+        delay_ms: u64,
+    },
 }
 
 fn write_json(path: &Path, value: &impl serde::Serialize) -> anyhow::Result<()> {
@@ -95,6 +110,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             if let Some(path) = json {
                 write_json(&path, &report)?;
             }
+        }
+        Bench::Netdelay { listen, upstream, delay_ms } => {
+            let listener = std::net::TcpListener::bind(listen).with_context(|| format!("cannot listen on {listen}"))?;
+            println!("netdelay: {listen} -> {upstream}, {delay_ms} ms each way");
+            let delay = std::time::Duration::from_millis(delay_ms);
+            v2t_lab::netdelay::serve(&listener, upstream, delay, delay)?;
         }
         Bench::Game { json } => {
             let figures = v2t_lab::bench_game::run_bench(allocations).map_err(|e| anyhow::anyhow!("{e}"))?;

@@ -38,15 +38,7 @@ impl RegulatedBv {
         scenario: &v2t_sim::scenario::Scenario,
         bv_index: usize,
     ) -> Result<Self, QpError> {
-        let mut regulator = Regulator::new(params)?;
-        if let Some(profile) = scenario.realism_reference(bv_index) {
-            let period = REFERENCE_PERIOD_S.max(scenario.duration_s / (MAX_REFERENCE_SAMPLES - 1) as f64);
-            let samples = profile
-                .samples(scenario.duration_s, period, MAX_REFERENCE_SAMPLES)
-                .map(|[t_s, s_m, v]| ReferenceSample { t_s, s_m, v_mps: v.max(0.0) });
-            // A reference the regulator refuses leaves it without the realism term: it still regulates.
-            let _ = regulator.set_reference(samples);
-        }
+        let regulator = regulator_for(params, scenario, bv_index)?;
         Ok(Self { regulator, target: scenario.target, last_accel: 0.0, last: None, below_reach: Rc::default() })
     }
 
@@ -91,6 +83,26 @@ impl RegulatedBv {
     pub fn last_decision(&self) -> Option<&Decision> {
         self.last.as_ref()
     }
+}
+
+/// A regulator with `params` for BV `bv_index` of `scenario`, its realism term around the BV's
+/// prior or a card's speed profile re-timed for the target
+/// ([`v2t_sim::scenario::Scenario::realism_reference`]; sampled here, once).
+pub(crate) fn regulator_for(
+    params: RegulatorParams,
+    scenario: &v2t_sim::scenario::Scenario,
+    bv_index: usize,
+) -> Result<Regulator, QpError> {
+    let mut regulator = Regulator::new(params)?;
+    if let Some(profile) = scenario.realism_reference(bv_index) {
+        let period = REFERENCE_PERIOD_S.max(scenario.duration_s / (MAX_REFERENCE_SAMPLES - 1) as f64);
+        let samples = profile
+            .samples(scenario.duration_s, period, MAX_REFERENCE_SAMPLES)
+            .map(|[t_s, s_m, v]| ReferenceSample { t_s, s_m, v_mps: v.max(0.0) });
+        // A reference the regulator refuses leaves it without the realism term: it still regulates.
+        let _ = regulator.set_reference(samples);
+    }
+    Ok(regulator)
 }
 
 impl BvController for RegulatedBv {
