@@ -316,7 +316,11 @@ pub fn svg(rows: &[LatencyRow], networks: &[NetworkSettings], seeds: &RangeInclu
     vuts.dedup();
     let (w, h, pad) = (300.0, 240.0, 48.0);
     let x_max = DELAYS_MS.iter().copied().fold(0.0, f64::max).max(1.0);
-    let y_max = (rows.iter().map(|r| 100.0 * r.mean_error_rel).fold(0.0, f64::max) * 1.15).max(5.0);
+    // Ticks every 1, 2, 5, 10, … % (four or five of them), the axis up to the next tick.
+    let top = rows.iter().map(|r| 100.0 * r.mean_error_rel).fold(0.0, f64::max).max(1.0);
+    let step = [1.0, 2.0, 5.0, 10.0, 20.0, 50.0].into_iter().find(|s| top / s <= 5.0).unwrap_or(100.0);
+    let ticks = (top / step).ceil().max(1.0);
+    let y_max = step * ticks;
     let mut out = format!(
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{:.0}\" height=\"{:.0}\" font-family=\"sans-serif\" font-size=\"11\">\n<text x=\"8\" y=\"16\" font-size=\"13\">Mean steering error against the one-way network delay, per VUT model: the regulator onboard and in the cloud (simulated proving ground and network; seeds {}–{})</text>\n",
         w * vuts.len() as f64,
@@ -348,8 +352,8 @@ pub fn svg(rows: &[LatencyRow], networks: &[NetworkSettings], seeds: &RangeInclu
                 h - pad + 44.0
             ));
         }
-        for k in 0..=4 {
-            let e = y_max * f64::from(k) / 4.0;
+        for k in 0..=ticks as u32 {
+            let e = step * f64::from(k);
             out.push_str(&format!(
                 "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{e:.0}</text>\n",
                 x0 + pad - 4.0,

@@ -1,18 +1,21 @@
 //! The same regulator (`v2t-game`) in the cloud, as the paper and TroubleMaker run it: the BV
 //! reports its state and the VUT's over the link (real `v2t-wire::link` telemetry frames), the
-//! cloud regulates on what arrives and sends back a signed plan (a trajectory over the horizon),
-//! and the BV's longitudinal tracker follows the last plan it accepted while pure pursuit keeps
-//! it on its path, as [`super::RegulatedBv`] does. Both directions cross a simulated network
-//! ([`v2t_sim::network`]).
+//! cloud ([`CloudRegulator`]) regulates on what arrives and sends back a signed plan (the
+//! accelerations over its horizon from the instant it starts), and the BV applies the last plan it
+//! accepted at its own clock (the tracker's longitudinal loop, its limits, feed-forward only) while
+//! pure pursuit keeps it on its path, as [`super::RegulatedBv`] does. The link is a [`CloudLink`]:
+//! a simulated network with the cloud in the same process ([`SimulatedNetwork`],
+//! [`v2t_sim::network`]), or a real broker and a cloud process (`crate::cloud_mqtt`).
 //!
 //! **What differs from onboard, and only that.** The VUT's state reaches the BV as it does for the
 //! onboard regulator (the simulator's V2X delay); the BV forwards both states to the cloud. So at
 //! zero network delay the two methods see the same measurements, and what the comparison shows is
 //! the network inside the loop (and the BV tracking a plan instead of applying the decision).
 //!
-//! **When plans stop arriving** the BV falls back by the onboard rules: a plan older than
-//! `plan_timeout_s` after its arrival, or one the BV has driven past the end of, is not followed,
-//! and the BV brakes at the regulator's `fallback_decel_mps2` (the minimal-risk profile). The cloud
+//! **When plans stop arriving** the BV falls back by the onboard rules: it starts on its prior (the
+//! plan it holds when the test starts); a plan (or that prior) more than `plan_timeout_s` after its
+//! arrival, or one the BV has driven past the end of, is not followed, and the BV brakes at the
+//! regulator's `fallback_decel_mps2` (the minimal-risk profile). The cloud
 //! regulator judges its inputs by the onboard rule too: a state older than `max_input_age_s` when
 //! it decides is stale (its plan is the minimal-risk profile).
 
