@@ -164,6 +164,16 @@ fn every_configuration_file_loads_and_validates() {
                 assert!(driver.name.starts_with("sumo-"), "{rel}");
             }
             "vut" if rel.ends_with("README.md") => {}
+            // Networks between track and cloud: each validates, names where its figures come from,
+            // and the README's table lists it.
+            "network" if rel.ends_with(".toml") => {
+                let n = load_toml::<v2t_sim::network::NetworkSettings>(path).unwrap_or_else(|e| panic!("{e}"));
+                assert!(!n.source.trim().is_empty(), "{rel}: no source");
+                let readme = std::fs::read_to_string(path.with_file_name("README.md")).unwrap();
+                let file = path.file_name().unwrap().to_string_lossy();
+                assert!(readme.contains(&format!("`{file}`")), "{rel}: config/network/README.md does not list it");
+            }
+            "network" if rel.ends_with("README.md") => {}
             // The VLM prompt and the recorded exchanges: a cassette replays to its semantics.json.
             "vlm" => v2t_vlm::check_config_file(path).unwrap_or_else(|e| panic!("config/{rel}: {e}")),
             _ => panic!("config/{rel}: no validator knows this file; add one to tests/config_files.rs"),
