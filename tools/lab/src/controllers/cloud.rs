@@ -529,7 +529,9 @@ mod tests {
         let r = report.get();
         assert_eq!((r.up_lost, r.down_lost, r.plans_refused), (0, 0, 0));
         assert!(r.fallback_cycles <= 1, "{r:?}");
-        assert_eq!(r.decisions, r.plans_accepted);
+        // Every plan arrives, but the last one may still be on its way (2 ms of processing) when
+        // the run ends.
+        assert!(r.decisions - r.plans_accepted <= 1, "{r:?}");
 
         let dead = NetworkSettings::constant(0.0, 0.99);
         let cloud = CloudRegulatedBv::new(params, &sc, 0, &dead, 6).unwrap();
