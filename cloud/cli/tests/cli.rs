@@ -91,6 +91,26 @@ fn nan_is_rejected_with_the_field() {
     expect_input_error(&card, &["card.toml", "bvs[0].initial_speed_mps", "NaN"]);
 }
 
+/// A segment of 1e308 m once panicked (capacity overflow) and 1e9 m aborted on a 32 GB allocation:
+/// both are refused with the field and the bound before anything is sampled.
+#[test]
+fn an_absurd_segment_length_is_refused_with_its_bound() {
+    for length in ["1e308", "1e9"] {
+        let (_dir, card) = broken_card(
+            "length",
+            |t| {
+                t.replacen(
+                    "{ kind = \"line\", length_m = 150.0 }",
+                    &format!("{{ kind = \"line\", length_m = {length} }}"),
+                    1,
+                )
+            },
+            str::to_owned,
+        );
+        expect_input_error(&card, &["card.toml", "length_m", "10000"]);
+    }
+}
+
 #[test]
 fn negative_vehicle_dimension_names_the_vehicle_file() {
     let (_dir, card) = broken_card("negative", str::to_owned, |t| t.replace("width_m = 1.85", "width_m = -1.85"));
@@ -313,6 +333,13 @@ fn experiment_options_an_experiment_would_ignore_are_refused() {
             "--sumo-driver applies with --world sumo",
         ),
         (&["experiment", "latency", "--tau", "3"][..], "--methods and --tau do not apply"),
+        (&["generate", "nothing.json", "--variants", "100000"][..], "--variants must lie in [1, 1000], got 100000"),
+        (&["generate", "nothing.json", "--variants", "0"][..], "--variants must lie in [1, 1000], got 0"),
+        (
+            &["generate", "nothing.json", "--final-iterations", "4294967295"][..],
+            "--final-iterations must lie in [0, 10000], got 4294967295",
+        ),
+        (&["generate", "nothing.json", "--guidance-scale", "NaN"][..], "--guidance-scale must lie in [0, 100]"),
         (
             &["experiment", "fidelity", "--network", "config/network/lte.toml"][..],
             "--network and --svg apply to `experiment latency` only",

@@ -12,7 +12,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::{Point2, wrap_angle};
-use crate::validate::{Validate, ValidationError, finite, positive};
+use crate::validate::{Validate, ValidationError, finite, in_range, positive};
 
 /// A problem building a path.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -61,6 +61,20 @@ pub struct ReferencePath {
 
 /// Points closer than this are merged when a path is built.
 const MIN_SEGMENT_M: f64 = 1e-6;
+
+/// Longest primitive of a path specification (a line, a clothoid, a lane change), m: longer than
+/// any straight of a proving ground.
+pub const MAX_SEGMENT_LENGTH_M: f64 = 10_000.0;
+/// Largest arc radius of a path specification, m.
+pub const MAX_RADIUS_M: f64 = 10_000.0;
+/// Largest curvature of a clothoid, 1/m (a radius of 0.1 m: tighter than any vehicle turns).
+pub const MAX_CURVATURE_1PM: f64 = 10.0;
+/// Most primitives in one path specification.
+pub const MAX_SEGMENTS: usize = 1_000;
+/// Farthest a path may start from the map's origin, m (beyond projected coordinates on Earth).
+pub const MAX_COORDINATE_M: f64 = 1.0e8;
+/// Most points a path is sampled into (a 10 km path at 5 mm).
+pub const MAX_PATH_SAMPLES: usize = 2_000_000;
 
 impl ReferencePath {
     /// Builds a path through `points` (consecutive duplicates are dropped).
@@ -295,7 +309,14 @@ impl ReferencePath {
             });
         }
         let total = self.length();
-        let n = (total / ds_m).ceil().max(1.0) as usize;
+        let n = (total / ds_m).ceil().max(1.0);
+        if n > MAX_PATH_SAMPLES as f64 {
+            return Err(PathError::BadSegment {
+                index: 0,
+                problem: format!("{n:.0} samples at {ds_m} m spacing, at most {MAX_PATH_SAMPLES}"),
+            });
+        }
+        let n = n as usize;
         let pts: Vec<Point2> = (0..=n).map(|k| self.point_at(total * k as f64 / n as f64)).collect();
         Self::from_points(&pts)
     }
@@ -359,10 +380,24 @@ impl PathBuilder {
         if !(ds_m.is_finite() && ds_m > 0.0) {
             return Err(PathError::BadSegment { index: 0, problem: format!("sampling step must be > 0, got {ds_m}") });
         }
-        let mut pts = vec![self.start];
-        let mut pose = (self.start, self.start_heading);
+        let mut samples = 1.0;
         for (index, seg) in self.segments.iter().enumerate() {
             seg.validate().map_err(|e| PathError::BadSegment { index, problem: e.to_string() })?;
+            samples += (seg.arc_length_m() / ds_m).ceil().max(1.0);
+        }
+        // Checked before anything is allocated: the sizes come from a file.
+        if samples > MAX_PATH_SAMPLES as f64 {
+            return Err(PathError::BadSegment {
+                index: 0,
+                problem: format!(
+                    "{samples:.0} samples at {ds_m} m spacing, at most {MAX_PATH_SAMPLES} (a coarser step or a shorter path)"
+                ),
+            });
+        }
+        let mut pts = Vec::with_capacity(samples as usize);
+        pts.push(self.start);
+        let mut pose = (self.start, self.start_heading);
+        for seg in &self.segments {
             pose = seg.sample_into(pose, ds_m, &mut pts);
         }
         ReferencePath::from_points(&pts)
@@ -396,11 +431,17 @@ impl PathSpec {
 
 impl Validate for PathSpec {
     fn validate(&self) -> Result<(), ValidationError> {
-        finite("start_x_m", self.start_x_m)?;
-        finite("start_y_m", self.start_y_m)?;
-        finite("start_heading_deg", self.start_heading_deg)?;
+        in_range("start_x_m", self.start_x_m, -MAX_COORDINATE_M, MAX_COORDINATE_M)?;
+        in_range("start_y_m", self.start_y_m, -MAX_COORDINATE_M, MAX_COORDINATE_M)?;
+        in_range("start_heading_deg", self.start_heading_deg, -3600.0, 3600.0)?;
         if self.segments.is_empty() {
             return Err(ValidationError::new("segments", "a path needs at least one segment"));
+        }
+        if self.segments.len() > MAX_SEGMENTS {
+            return Err(ValidationError::new(
+                "segments",
+                format!("at most {MAX_SEGMENTS} segments, got {}", self.segments.len()),
+            ));
         }
         self.segments.validate().map_err(|e| e.within("segments"))
     }
@@ -443,9 +484,10 @@ pub enum SegmentSpec {
 impl Validate for SegmentSpec {
     fn validate(&self) -> Result<(), ValidationError> {
         match *self {
-            Self::Line { length_m } => positive("length_m", length_m),
+            Self::Line { length_m } => length("length_m", length_m),
             Self::Arc { radius_m, angle_deg } => {
                 positive("radius_m", radius_m)?;
+                in_range("radius_m", radius_m, 0.0, MAX_RADIUS_M)?;
                 finite("angle_deg", angle_deg)?;
                 if angle_deg.abs() > 0.0 && angle_deg.abs() <= 360.0 {
                     Ok(())
@@ -454,12 +496,12 @@ impl Validate for SegmentSpec {
                 }
             }
             Self::Clothoid { length_m, curvature_start_1pm, curvature_end_1pm } => {
-                positive("length_m", length_m)?;
-                finite("curvature_start_1pm", curvature_start_1pm)?;
-                finite("curvature_end_1pm", curvature_end_1pm)
+                length("length_m", length_m)?;
+                in_range("curvature_start_1pm", curvature_start_1pm, -MAX_CURVATURE_1PM, MAX_CURVATURE_1PM)?;
+                in_range("curvature_end_1pm", curvature_end_1pm, -MAX_CURVATURE_1PM, MAX_CURVATURE_1PM)
             }
             Self::LaneChange { length_m, offset_m } => {
-                positive("length_m", length_m)?;
+                length("length_m", length_m)?;
                 finite("offset_m", offset_m)?;
                 if offset_m.abs() < 0.5 * length_m {
                     Ok(())
@@ -474,7 +516,21 @@ impl Validate for SegmentSpec {
     }
 }
 
+/// A primitive's length: positive, at most [`MAX_SEGMENT_LENGTH_M`].
+fn length(field: &str, value: f64) -> Result<(), ValidationError> {
+    positive(field, value)?;
+    in_range(field, value, 0.0, MAX_SEGMENT_LENGTH_M)
+}
+
 impl SegmentSpec {
+    /// Length along the path, m (an arc's from its radius and angle).
+    fn arc_length_m(&self) -> f64 {
+        match *self {
+            Self::Line { length_m } | Self::Clothoid { length_m, .. } | Self::LaneChange { length_m, .. } => length_m,
+            Self::Arc { radius_m, angle_deg } => radius_m * angle_deg.to_radians().abs(),
+        }
+    }
+
     /// Appends samples (excluding the start point) and returns the end pose.
     fn sample_into(&self, (p0, h0): (Point2, f64), ds: f64, out: &mut Vec<Point2>) -> (Point2, f64) {
         let steps = |len: f64| (len / ds).ceil().max(1.0) as usize;

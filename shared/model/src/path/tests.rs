@@ -138,3 +138,42 @@ fn resampling_keeps_the_shape() {
         assert!(coarse.point_at(s).dist(path.point_at(s)) < 0.05);
     }
 }
+
+/// Sizes from a file are checked before anything is allocated: a line of 1e308 m or 1e9 m, a
+/// radius of 1e7 m, a curvature of 1e3, or a step that would make billions of samples.
+#[test]
+fn absurd_sizes_are_refused_with_the_field_and_the_bound() {
+    for (seg, field) in [
+        (SegmentSpec::Line { length_m: 1e308 }, "length_m"),
+        (SegmentSpec::Line { length_m: 1e9 }, "length_m"),
+        (SegmentSpec::Arc { radius_m: 1e7, angle_deg: 10.0 }, "radius_m"),
+        (
+            SegmentSpec::Clothoid { length_m: 10.0, curvature_start_1pm: 0.0, curvature_end_1pm: 1e3 },
+            "curvature_end_1pm",
+        ),
+        (SegmentSpec::LaneChange { length_m: f64::INFINITY, offset_m: 1.0 }, "length_m"),
+    ] {
+        let e = seg.validate().unwrap_err().to_string();
+        assert!(e.contains(field), "{seg:?}: {e}");
+        let spec = PathSpec { start_x_m: 0.0, start_y_m: 0.0, start_heading_deg: 0.0, segments: vec![seg.clone()] };
+        assert!(spec.builder().build(0.5).is_err(), "{seg:?}");
+    }
+    let e = SegmentSpec::Line { length_m: 1e9 }.validate().unwrap_err().to_string();
+    assert!(e.contains("10000"), "the bound is named: {e}");
+    let long = PathBuilder::new(0.0, 0.0, 0.0).line(9_000.0).line(9_000.0);
+    let e = long.build(1e-5).unwrap_err().to_string();
+    assert!(e.contains("samples") && e.contains("2000000"), "{e}");
+    assert!(long.build(1.0).is_ok());
+    let path = PathBuilder::new(0.0, 0.0, 0.0).line(100.0).build(1.0).unwrap();
+    assert!(path.resampled(1e-7).is_err());
+    let far = PathSpec {
+        start_x_m: 1e9,
+        start_y_m: 0.0,
+        start_heading_deg: 0.0,
+        segments: vec![SegmentSpec::Line { length_m: 1.0 }],
+    };
+    assert!(far.validate().unwrap_err().to_string().contains("start_x_m"));
+    let many =
+        PathSpec { start_x_m: 0.0, segments: vec![SegmentSpec::Line { length_m: 1.0 }; MAX_SEGMENTS + 1], ..far };
+    assert!(many.validate().unwrap_err().to_string().contains("at most 1000 segments"));
+}
