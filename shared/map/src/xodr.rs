@@ -293,18 +293,49 @@ fn line_of(node: Node<'_, '_>) -> u32 {
     node.document().text_pos_at(node.range().start).row
 }
 
+/// Largest magnitude any number of a map may have (coordinates, offsets, coefficients): beyond
+/// projected coordinates on Earth, so a number past it is a mistake, not a place.
+pub const MAX_MAGNITUDE: f64 = 1.0e8;
+/// Longest road, and longest geometry of a road, m.
+pub const MAX_ROAD_LENGTH_M: f64 = 100_000.0;
+/// Widest lane at the start of a `<width>` record, m.
+pub const MAX_LANE_WIDTH_M: f64 = 100.0;
+
 fn num(node: Node<'_, '_>, name: &str, context: &str) -> Result<f64, MapError> {
     let text = attr(node, name, context)?;
     let value: f64 = text.trim().parse().map_err(|_| MapError::Invalid {
         context: context.to_owned(),
         message: format!("<{}> {name}={text:?} is not a number (line {})", node.tag_name().name(), line_of(node)),
     })?;
-    if value.is_finite() {
-        Ok(value)
-    } else {
-        Err(MapError::Invalid {
+    if !value.is_finite() {
+        return Err(MapError::Invalid {
             context: context.to_owned(),
             message: format!("<{}> {name}={text:?} is not finite (line {})", node.tag_name().name(), line_of(node)),
+        });
+    }
+    if value.abs() > MAX_MAGNITUDE {
+        return Err(MapError::Invalid {
+            context: context.to_owned(),
+            message: format!(
+                "<{}> {name}={text:?} lies beyond ±{MAX_MAGNITUDE:e} (line {})",
+                node.tag_name().name(),
+                line_of(node)
+            ),
+        });
+    }
+    Ok(value)
+}
+
+/// A length from the map: positive (or 0 when `zero_ok`), at most [`MAX_ROAD_LENGTH_M`].
+fn length_within(length: f64, zero_ok: bool, context: &str) -> Result<f64, MapError> {
+    let low_ok = if zero_ok { length >= 0.0 } else { length > 0.0 };
+    if low_ok && length <= MAX_ROAD_LENGTH_M {
+        Ok(length)
+    } else {
+        let low = if zero_ok { "[0" } else { "(0" };
+        Err(MapError::Invalid {
+            context: context.to_owned(),
+            message: format!("length {length} must lie in {low}, {MAX_ROAD_LENGTH_M}] m"),
         })
     }
 }
@@ -415,10 +446,7 @@ pub fn parse(xml: &str) -> Result<(Document, Vec<MapWarning>), MapError> {
 fn road(node: Node<'_, '_>) -> Result<Road, MapError> {
     let id = attr(node, "id", "road")?.to_owned();
     let ctx = ctx_road(&id);
-    let length = num(node, "length", &ctx)?;
-    if length <= 0.0 {
-        return Err(MapError::Invalid { context: ctx, message: format!("length {length} must be positive") });
-    }
+    let length = length_within(num(node, "length", &ctx)?, false, &ctx)?;
     let junction = node.attribute("junction").map(str::trim).filter(|j| !j.is_empty() && *j != "-1").map(str::to_owned);
     let rule = match node.attribute("rule") {
         Some("LHT") => TrafficRule::Lht,
@@ -505,10 +533,7 @@ fn poly(node: Node<'_, '_>, s_name: &str, ctx: &str) -> Result<Poly3, MapError> 
 fn geometry(g: Node<'_, '_>, ctx: &str) -> Result<Geometry, MapError> {
     let s = num(g, "s", ctx)?;
     let gctx = format!("{ctx} geometry at s={s}");
-    let length = num(g, "length", &gctx)?;
-    if length < 0.0 {
-        return Err(MapError::Invalid { context: gctx, message: format!("length {length} must not be negative") });
-    }
+    let length = length_within(num(g, "length", &gctx)?, true, &gctx)?;
     let curve = g
         .children()
         .find(roxmltree::Node::is_element)
@@ -581,7 +606,18 @@ fn section(sec: Node<'_, '_>, ctx: &str) -> Result<LaneSection, MapError> {
             }
             let mut widths = Vec::new();
             for w in children(l, "width") {
-                widths.push(poly(w, "sOffset", &lctx)?);
+                let width = poly(w, "sOffset", &lctx)?;
+                if width.a.abs() > MAX_LANE_WIDTH_M {
+                    return Err(MapError::Invalid {
+                        context: lctx,
+                        message: format!(
+                            "<width> a={} m lies beyond ±{MAX_LANE_WIDTH_M} m (line {})",
+                            width.a,
+                            line_of(w)
+                        ),
+                    });
+                }
+                widths.push(width);
             }
             let border = widths.is_empty();
             if border {

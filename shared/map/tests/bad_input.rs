@@ -154,3 +154,29 @@ proptest! {
         }
     }
 }
+
+/// Sizes taken from the file are bounded before anything is sampled: a road of 1e9 m (a 176 GB
+/// allocation once), a coordinate of 1e308, a lane 1e5 m wide: the road is left out with a warning
+/// naming the field and the bound, the other road still loads.
+#[test]
+fn absurd_lengths_coordinates_and_widths_leave_out_their_road_with_the_bound() {
+    for (from, to, needle) in [
+        (r#"<road id="2" length="50""#, r#"<road id="2" length="1e9""#, "beyond ±1e8"),
+        (r#"<road id="2" length="50""#, r#"<road id="2" length="5e5""#, "100000] m"),
+        (r#"x="50" y="0""#, r#"x="50" y="1e308""#, "beyond ±1e8"),
+        (r#"length="50">"#, r#"length="2e5">"#, "100000] m"),
+    ] {
+        let mut roads = good_pair();
+        roads[1] = roads[1].replace(from, to);
+        assert_ne!(roads[1], good_pair()[1], "{from}");
+        let map = Map::parse(&doc(&roads), "t").unwrap();
+        assert_eq!(map.document.roads.len(), 1, "{to}");
+        let w = map.warnings.iter().find(|w| w.context.starts_with("road 2")).unwrap().to_string();
+        assert!(w.contains(needle), "{to}: {w}");
+    }
+    let mut roads = good_pair();
+    roads[1] = road("2", 50.0, "", "<line/>", "1e5");
+    let map = Map::parse(&doc(&roads), "t").unwrap();
+    let w = map.warnings.iter().find(|w| w.context.starts_with("road 2")).unwrap().to_string();
+    assert!(w.contains("a=100000") && w.contains("±100 m"), "{w}");
+}
