@@ -126,9 +126,6 @@ fn report(summary: &Summary, guidance: GuidanceArg) -> String {
 
 /// Generates the variants, prints their summary, writes what was asked.
 pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
-    let scenario = v2t_files::read_grounded(&a.grounded)?;
-    let model = v2t_diffusion::weights::load(&a.weights)?;
-    let map = v2t_map::Map::load(&a.map)?;
     let method = match a.ddim {
         Some(steps) => Method::Ddim { steps },
         None => Method::Ddpm { noise: true },
@@ -146,6 +143,11 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
         draws: a.draws,
         ..GenerateOptions::default()
     };
+    // Bounds before anything is loaded: bad input, exit 2.
+    options.check().map_err(|e| crate::Usage(format!("--{}", e.to_string().replace('_', "-"))))?;
+    let scenario = v2t_files::read_grounded(&a.grounded)?;
+    let model = v2t_diffusion::weights::load(&a.weights)?;
+    let map = v2t_map::Map::load(&a.map)?;
     let started = std::time::Instant::now();
     let (generated, redrawn) = generate(&model, &map, &scenario, &options)?;
     let summary = summarize(&generated, redrawn, started.elapsed().as_secs_f64());

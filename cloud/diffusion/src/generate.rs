@@ -69,6 +69,48 @@ pub enum GenerateError {
     /// No variant was generated (zero asked for).
     #[error("no variant generated")]
     NoVariant,
+    /// An option out of its bounds (checked before anything is allocated or sampled).
+    #[error("{field} must lie in {bound}, got {value}")]
+    Option {
+        /// The option.
+        field: &'static str,
+        /// Its bounds.
+        bound: &'static str,
+        /// What was asked.
+        value: String,
+    },
+}
+
+/// Most variants one call generates.
+pub const MAX_VARIANTS: usize = 1_000;
+/// Most draws per variant.
+pub const MAX_DRAWS: u64 = 100;
+/// Most guided corrections of the final sample (the default is 300).
+pub const MAX_FINAL_ITERATIONS: usize = 10_000;
+
+impl GenerateOptions {
+    /// Every option within its bounds: variants in [1, 1000], draws in [1, 100], final
+    /// corrections at most 10,000, a finite guidance scale in [0, 100], DDIM steps at least 1.
+    pub fn check(&self) -> Result<(), GenerateError> {
+        let bad = |field, bound, value: String| Err(GenerateError::Option { field, bound, value });
+        if !(1..=MAX_VARIANTS).contains(&self.variants) {
+            return bad("variants", "[1, 1000]", self.variants.to_string());
+        }
+        if !(1..=MAX_DRAWS).contains(&self.draws) {
+            return bad("draws", "[1, 100]", self.draws.to_string());
+        }
+        let g = &self.sampler.guidance;
+        if g.final_iterations > MAX_FINAL_ITERATIONS {
+            return bad("final_iterations", "[0, 10000]", g.final_iterations.to_string());
+        }
+        if !(g.scale.is_finite() && (0.0..=100.0).contains(&g.scale)) {
+            return bad("guidance_scale", "[0, 100]", g.scale.to_string());
+        }
+        if let crate::sample::Method::Ddim { steps: 0 } = self.sampler.method {
+            return bad("ddim", "[1, K]", "0".into());
+        }
+        Ok(())
+    }
 }
 
 /// The weights of full guidance: the kinematic term counts four times, so that guidance trades
@@ -580,6 +622,7 @@ pub fn generate(
     scenario: &GroundedScenario,
     options: &GenerateOptions,
 ) -> Result<(Vec<Generated>, usize), GenerateError> {
+    options.check()?;
     let setup = setup(model, map, scenario, options)?;
     let problem = Problem { condition: &setup.condition, guidance: Some(&setup.guidance), x0s: &setup.x0s };
     let mut out: Vec<Option<Generated>> = vec![None; options.variants.max(1)];
@@ -610,4 +653,28 @@ pub fn generate(
         todo = still;
     }
     Ok((out.into_iter().flatten().collect(), redrawn))
+}
+
+#[cfg(test)]
+mod option_tests {
+    #![allow(clippy::unwrap_used)]
+
+    use super::*;
+
+    /// Sizes that once aborted (100,000 variants) or hung (4,294,967,295 final corrections) are
+    /// refused before anything is allocated, naming the option and its bounds.
+    #[test]
+    fn options_out_of_bounds_are_refused_with_the_field() {
+        assert!(GenerateOptions::default().check().is_ok());
+        let e = GenerateOptions { variants: 100_000, ..GenerateOptions::default() }.check().unwrap_err();
+        assert_eq!(e.to_string(), "variants must lie in [1, 1000], got 100000");
+        let mut o = GenerateOptions::default();
+        o.sampler.guidance.final_iterations = 4_294_967_295;
+        assert!(o.check().unwrap_err().to_string().starts_with("final_iterations"));
+        o = GenerateOptions { draws: 0, ..GenerateOptions::default() };
+        assert!(o.check().unwrap_err().to_string().starts_with("draws"));
+        o = GenerateOptions::default();
+        o.sampler.guidance.scale = f64::NAN;
+        assert!(o.check().unwrap_err().to_string().starts_with("guidance_scale"));
+    }
 }
