@@ -56,6 +56,24 @@ fn recorded_runs_replay_to_the_same_metrics_and_altered_ones_do_not() {
     let o = video2track(&["replay", shifted.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stdout));
 
+    // One byte of a message changed inside a chunk: the chunk's CRC no longer matches, and the
+    // replay refuses the file (exit 2) naming the chunk, instead of measuring what the byte became.
+    let good = dir.join("good.mcap");
+    v2t_sim::recording::write(
+        &v2t_lab::sim::run_reference(&scenario, &v2t_lab::vut::Vut::Builtin(scenario.vut.default_model), 1).unwrap(),
+        &good,
+    )
+    .unwrap();
+    let mut bytes = std::fs::read(&good).unwrap();
+    let at = bytes.windows(7).position(|w| w == b"\"s_m\":1").expect("a truth message in the file") + 6;
+    bytes[at] = if bytes[at] == b'1' { b'2' } else { b'1' };
+    let corrupt = dir.join("corrupt.mcap");
+    std::fs::write(&corrupt, &bytes).unwrap();
+    let o = video2track(&["replay", corrupt.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("chunk ") && err.contains("is corrupt: CRC"), "{err}");
+
     let not_mcap = dir.join("not.mcap");
     std::fs::write(&not_mcap, b"hello").unwrap();
     let o = video2track(&["replay", not_mcap.to_str().unwrap()]);

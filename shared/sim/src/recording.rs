@@ -287,11 +287,29 @@ pub fn replay(path: &Path) -> Result<Replay, RecordingError> {
     let mc = |e: mcap::McapError| RecordingError::Mcap { path: path.to_owned(), message: e.to_string() };
     let bad = |message: String| RecordingError::Content { path: path.to_owned(), message };
     let mut meta = None;
+    let mut chunk = 0;
     for record in mcap::read::LinearReader::new(&bytes).map_err(mc)? {
-        if let mcap::records::Record::Metadata(m) = record.map_err(mc)?
-            && m.name == RUN_METADATA
-        {
-            meta = Some(m.metadata);
+        match record.map_err(mc)? {
+            mcap::records::Record::Metadata(m) if m.name == RUN_METADATA => meta = Some(m.metadata),
+            // Every chunk's CRC (0: none written), before a single message is read from it.
+            mcap::records::Record::Chunk { header, data } => {
+                chunk += 1;
+                if header.compression.is_empty() && header.uncompressed_crc != 0 {
+                    let computed = crc32fast::hash(&data);
+                    if computed != header.uncompressed_crc {
+                        return Err(RecordingError::Mcap {
+                            path: path.to_owned(),
+                            message: format!(
+                                "chunk {chunk} (messages {:.2}–{:.2} s) is corrupt: CRC 0x{:08x} written, 0x{computed:08x} read",
+                                header.message_start_time as f64 / 1e9,
+                                header.message_end_time as f64 / 1e9,
+                                header.uncompressed_crc
+                            ),
+                        });
+                    }
+                }
+            }
+            _ => {}
         }
     }
     let meta = meta.ok_or_else(|| bad(format!("no `{RUN_METADATA}` metadata: not a video2track recording")))?;
