@@ -174,25 +174,6 @@ impl CloudPlan {
         }
         Ok(())
     }
-
-    /// Arc length, speed and acceleration the plan sets at `t_ms` (before `t0_ms`: its start;
-    /// speed never below 0, a braking plan stops and stays). `None` past its last step.
-    pub fn at(&self, t_ms: u64) -> Option<(f64, f64, f64)> {
-        let mut t = t_ms.saturating_sub(self.t0_ms) as f64 / 1000.0;
-        let (mut s, mut v) = (self.s0_m, self.v0_mps.max(0.0));
-        for &a in &self.accel_mps2 {
-            let step = t.min(self.dt_s);
-            // A braking step ends where the speed reaches 0.
-            let moving = if a < 0.0 { step.min(v / -a) } else { step };
-            s += v * moving + 0.5 * a * moving * moving;
-            v = (v + a * moving).max(0.0);
-            if t < self.dt_s {
-                return Some((s, v, if v > 0.0 { a } else { 0.0 }));
-            }
-            t -= self.dt_s;
-        }
-        None
-    }
 }
 
 /// A prior for one BV: the generated trajectories of the scenario, which of them this BV drives,
@@ -647,21 +628,6 @@ mod tests {
             status: 1,
             predicted_pet_s: Some(2.0),
         }
-    }
-
-    #[test]
-    fn a_plan_is_read_at_the_bvs_instant_and_ends_with_its_last_step() {
-        let p = plan(vec![1.0, 1.0, -50.0, 0.0]);
-        let (s, v, a) = p.at(10_150).unwrap();
-        // 0.1 s at 1 m/s² from 4 m/s, then 0.05 s more.
-        let s1 = 20.0 + 0.4 + 0.005;
-        assert!((s - (s1 + 4.1 * 0.05 + 0.5 * 0.05 * 0.05)).abs() < 1e-9 && (v - 4.15).abs() < 1e-9 && a == 1.0);
-        // Before its start: its start.
-        assert_eq!(p.at(9_000), Some((20.0, 4.0, 1.0)));
-        // The braking step stops at 0 and stays.
-        let (_, v, a) = p.at(10_290).unwrap();
-        assert_eq!((v, a), (0.0, 0.0));
-        assert_eq!(p.at(10_400), None, "past its last step the plan says nothing");
     }
 
     #[test]

@@ -8,7 +8,7 @@
 //! Topics: the BV's telemetry topic carries its own state and the VUT's (telemetry of id
 //! [`crate::controllers::VUT_ID`]); plans go down on the BV's plan topic, signed like every cloud frame.
 
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::Duration;
 
 use v2t_sim::scenario::Scenario;
 use v2t_wire::link::topics;
@@ -16,10 +16,7 @@ use v2t_wire::mqtt::{LinkEvent, MqttLink, MqttSettings};
 
 use crate::controllers::{CloudLink, CloudLinkStats, CloudRegulator};
 
-/// Unix time now, ms.
-pub fn unix_ms() -> u64 {
-    SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_millis() as u64)
-}
+pub use v2t_edge::uplink::unix_ms;
 
 /// Why the link could not be set up.
 #[derive(Debug, thiserror::Error)]

@@ -213,7 +213,6 @@ pub struct LatencyRow {
 /// Per VUT model and network: the onboard row and the cloud's.
 pub fn summarize(cases: &[LatencyCase], networks: &[NetworkSettings]) -> Vec<LatencyRow> {
     let mut vuts: Vec<&str> = cases.iter().map(|c| c.vut.as_str()).collect();
-    vuts.dedup();
     vuts.sort_unstable();
     vuts.dedup();
     let mut out = Vec::new();
@@ -343,7 +342,7 @@ pub fn svg(rows: &[LatencyRow], networks: &[NetworkSettings], seeds: &RangeInclu
             w - 1.4 * pad,
             h - pad,
             x0 + pad + (w - 1.4 * pad) / 2.0,
-            escape(vut)
+            crate::svg_text(vut)
         ));
         for d in DELAYS_MS {
             out.push_str(&format!(
@@ -417,10 +416,6 @@ pub fn svg(rows: &[LatencyRow], networks: &[NetworkSettings], seeds: &RangeInclu
     }
     out.push_str("</svg>\n");
     out
-}
-
-fn escape(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
 }
 
 #[cfg(test)]

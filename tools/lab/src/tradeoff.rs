@@ -260,7 +260,7 @@ pub fn svg(r: &TradeoffReport, scenario: &str) -> Option<String> {
     );
     out.push_str(&format!(
         "<text x=\"10\" y=\"18\" font-size=\"13\">{}: the BV's realism (W₁ to recorded human driving) against the steering error, per w_real (simulated proving ground; seeds {}–{})</text>\n",
-        escape(scenario),
+        crate::svg_text(scenario),
         r.seeds[0],
         r.seeds[1]
     ));
@@ -342,7 +342,3 @@ pub fn svg(r: &TradeoffReport, scenario: &str) -> Option<String> {
 
 /// One realism quantity of a plot panel.
 type Quantity = fn(&RealismMeans) -> f64;
-
-fn escape(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
-}

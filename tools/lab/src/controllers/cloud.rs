@@ -23,7 +23,7 @@ use std::cell::Cell;
 use std::rc::Rc;
 
 use v2t_game::qp::QpError;
-use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams, curve_speed_limit};
+use v2t_game::regulator::{Regulator, RegulatorParams};
 use v2t_model::geometry::Point2;
 use v2t_model::path::ReferencePath;
 use v2t_sim::bv::BvController;
@@ -32,7 +32,7 @@ use v2t_sim::network::{Channel, NetworkSettings};
 use v2t_sim::observation::{BvObservation, Perceived};
 use v2t_sim::plant::ActuationRequest;
 use v2t_sim::scenario::Scenario;
-use v2t_track::{LongitudinalGains, LongitudinalInput, LongitudinalLimits, SpeedPid};
+use v2t_track::{LongitudinalGains, LongitudinalInput, LongitudinalLimits, PlanSample, SpeedPid};
 use v2t_wire::Code as _;
 use v2t_wire::link::{
     self, Arrival, CloudBody, CloudMessage, CloudPlan, EdgeReport, Receiver, SigningKey, Telemetry, VerifyingKey,
@@ -238,48 +238,57 @@ impl CloudRegulatedBv {
         Rc::clone(&self.report)
     }
 
-    fn telemetry(&mut self, id: &str, p: &Perceived, t_s: f64) -> Telemetry {
-        self.seq += 1;
-        Telemetry {
-            bv_id: id.to_owned(),
-            seq: self.seq,
-            stamp_ms: clock_ms(self.link.epoch_ms(), t_s - p.age_s),
-            prior_id: 0,
-            px_m: p.state.px,
-            py_m: p.state.py,
-            theta_rad: p.state.theta_rad,
-            speed_mps: p.state.speed_mps,
-            plan_status: 0,
-            predicted_pet_s: None,
-            below_reach: 0,
-            pet_bound_s: None,
-            gate_state: 0,
-            gate_reason: 0,
-        }
-    }
-
-    /// The reference (station, speed, acceleration) for this cycle: the station and speed at the
-    /// instant the measurement describes, the acceleration now. The BV starts on its prior (the
-    /// plan it holds when the test starts), then follows the last plan; either only while it is
-    /// fresh (`plan_timeout_s` since it arrived, the prior counting as arrived at the start).
-    /// `None`: the minimal-risk profile.
-    fn followed(&self, bv: &v2t_sim::scenario::BvSetup, t_s: f64, measured_at_s: f64) -> Option<(f64, f64, f64)> {
+    /// The acceleration to apply now: the BV starts on its prior (the plan it holds when the test
+    /// starts), then follows the last plan; either only while it is fresh (`plan_timeout_s` since
+    /// it arrived, the prior counting as arrived at the start). `None`: the minimal-risk profile.
+    fn followed(&self, bv: &v2t_sim::scenario::BvSetup, t_s: f64) -> Option<f64> {
         let arrived = self.plan.as_ref().map_or(self.started_s, |(_, at)| *at);
         if t_s - arrived > self.plan_timeout_s {
             return None;
         }
-        let Some((plan, _)) = self.plan.as_ref() else {
-            let r = &bv.reference;
-            return Some((r.distance_at(measured_at_s), r.speed_at(measured_at_s), r.accel_at(t_s)));
-        };
-        if plan.accel_mps2.is_empty() {
-            return None;
+        match self.plan.as_ref() {
+            None => Some(bv.reference.accel_at(t_s)),
+            Some((plan, _)) if plan.accel_mps2.is_empty() => None,
+            Some((plan, _)) => plan_at(plan, clock_ms(self.link.epoch_ms(), t_s)).map(|p| p.a_mps2),
         }
-        let epoch = self.link.epoch_ms();
-        let now = plan.at(clock_ms(epoch, t_s))?;
-        let then = plan.at(clock_ms(epoch, measured_at_s))?;
-        Some((then.0, then.1, now.2))
     }
+}
+
+/// A telemetry report of `p` (measured `p.age_s` before `t_s`) under `id`, on the link's clock.
+fn report(id: &str, seq: u64, epoch_ms: u64, p: &Perceived, t_s: f64) -> Telemetry {
+    Telemetry {
+        bv_id: id.to_owned(),
+        seq,
+        stamp_ms: clock_ms(epoch_ms, t_s - p.age_s),
+        prior_id: 0,
+        px_m: p.state.px,
+        py_m: p.state.py,
+        theta_rad: p.state.theta_rad,
+        speed_mps: p.state.speed_mps,
+        plan_status: 0,
+        predicted_pet_s: None,
+        below_reach: 0,
+        pet_bound_s: None,
+        gate_state: 0,
+        gate_reason: 0,
+    }
+}
+
+/// What `plan` sets at `t_ms` on its clock (before its start: its start), step by step at each
+/// step's acceleration as the tracker advances a plan ([`PlanSample::advanced`]: a braking step
+/// stops and stays). `None` past its last step.
+pub fn plan_at(plan: &CloudPlan, t_ms: u64) -> Option<PlanSample> {
+    let mut t = t_ms.saturating_sub(plan.t0_ms) as f64 / 1000.0;
+    let mut p = PlanSample { s_m: plan.s0_m, v_mps: plan.v0_mps.max(0.0), a_mps2: 0.0 };
+    for &a in &plan.accel_mps2 {
+        let step = PlanSample { a_mps2: a, ..p };
+        if t < plan.dt_s {
+            return Some(step.advanced(t));
+        }
+        p = step.advanced(plan.dt_s);
+        t -= plan.dt_s;
+    }
+    None
 }
 
 /// Why a cloud-regulated BV cannot be built.
@@ -371,23 +380,24 @@ impl CloudRegulator {
         self.bv_s = Some(bv_s);
         self.vut_s = Some(vut_s);
         let now_ms = clock_ms(epoch_ms, now_s);
-        let age = |t: &Telemetry| now_ms.saturating_sub(t.stamp_ms) as f64 / 1000.0;
-        let (bv_age, vut_age) = (age(bv), age(vut));
-        // Both brought to "now" at constant speed, as onboard.
-        let bv_now = bv_s + bv.speed_mps * bv_age;
-        let input = RegulatorInput {
-            t_s: now_s,
-            bv: PathState { s_m: bv_now, v_mps: bv.speed_mps, age_s: bv_age },
-            vut: PathState { s_m: vut_s + vut.speed_mps * vut_age, v_mps: vut.speed_mps, age_s: vut_age },
-            bv_accel_mps2: self.last_accel,
-            zone_bv: conflict.zone.bv,
-            zone_vut: conflict.zone.vut,
-            zone_kind: conflict.zone.kind,
-            target: sc.target,
-            reference_speed_mps: setup.reference.speed_at(now_s),
+        let measured = |t: &Telemetry, s_m: f64| super::regulated::Measured {
+            s_m,
+            v_mps: t.speed_mps,
+            age_s: now_ms.saturating_sub(t.stamp_ms) as f64 / 1000.0,
         };
-        let lat = setup.agent.vehicle.limits.max_lat_accel_mps2;
-        let d = self.regulator.decide_on_path(&input, &|s| curve_speed_limit(&setup.agent.route, s, lat));
+        let (own, them) = (measured(bv, bv_s), measured(vut, vut_s));
+        let d = super::regulated::decide(
+            &mut self.regulator,
+            setup,
+            conflict,
+            sc.target,
+            now_s,
+            own,
+            them,
+            self.last_accel,
+        );
+        // Where the plan starts: the BV brought to now, as the decision took it.
+        let bv_now = own.s_now_m();
         self.decisions += 1;
         if d.status == v2t_game::regulator::RegulatorStatus::Stale {
             self.stale_decisions += 1;
@@ -430,15 +440,14 @@ impl BvController for CloudRegulatedBv {
         self.stats.cycles += 1;
         // Up: this cycle's VUT and BV states, the VUT's first (the cloud decides when the BV's
         // arrives, on the newest of both); down: the plans that arrived.
-        let bv_id = self.bv_id.clone();
-        let reports: Vec<Vec<u8>> = [(VUT_ID, obs.vut), (bv_id.as_str(), obs.own)]
-            .into_iter()
-            .filter_map(|(id, p)| {
-                let report = self.telemetry(id, &p, t);
-                link::telemetry_frame(&report).ok()
-            })
-            .collect();
         let epoch = self.link.epoch_ms();
+        let mut reports = Vec::with_capacity(2);
+        for (id, p) in [(VUT_ID, &obs.vut), (self.bv_id.as_str(), &obs.own)] {
+            self.seq += 1;
+            if let Ok(frame) = link::telemetry_frame(&report(id, self.seq, epoch, p, t)) {
+                reports.push(frame);
+            }
+        }
         for (at, frame) in self.link.exchange(sc, obs.bv_index, t, reports, &mut self.stats) {
             match self.rx.open(&frame, Arrival::Plan, clock_ms(epoch, at)) {
                 Ok(CloudMessage { body: CloudBody::Plan(plan), .. }) => {
@@ -453,16 +462,16 @@ impl BvController for CloudRegulatedBv {
             return ActuationRequest { accel_mps2: -self.fallback_decel_mps2, steer_rad: 0.0 };
         };
         let steer_rad = pure_pursuit(&bv.agent.route, &obs.own.state, obs.own.s_m, &bv.agent.vehicle);
-        let measured_at = t - obs.own.age_s;
-        let tracked = self.followed(bv, t, measured_at).and_then(|(s_ref, v_ref, a_ref)| {
+        // Feed-forward only: the loop's limits and jerk bound on the plan's acceleration.
+        let tracked = self.followed(bv, t).and_then(|a_ref| {
             let mut pid = self.pid;
             let out = pid
                 .update(
                     &LongitudinalInput {
                         speed_mps: obs.own.state.speed_mps,
                         station_m: obs.own.s_m,
-                        ref_speed_mps: v_ref,
-                        ref_station_m: s_ref,
+                        ref_speed_mps: obs.own.state.speed_mps,
+                        ref_station_m: obs.own.s_m,
                         ref_accel_mps2: a_ref,
                     },
                     obs.dt_s,
@@ -512,6 +521,33 @@ mod tests {
         let out = run(sc, &mut bvs, VutModel::IdmNormal.driver().as_mut(), seed).unwrap();
         assert!(out.result.collision.is_none());
         out.result.pet_min_s
+    }
+
+    /// A plan is read at the BV's instant, step by step, a braking step stops and stays, and past
+    /// its last step it says nothing.
+    #[test]
+    fn a_plan_is_read_at_the_bvs_instant_and_ends_with_its_last_step() {
+        let p = CloudPlan {
+            state_seq: 3,
+            t0_ms: 10_000,
+            s0_m: 20.0,
+            v0_mps: 4.0,
+            dt_s: 0.1,
+            accel_mps2: vec![1.0, 1.0, -50.0, 0.0],
+            status: 1,
+            predicted_pet_s: Some(2.0),
+        };
+        let at = |t_ms| plan_at(&p, t_ms).map(|q| (q.s_m, q.v_mps, q.a_mps2));
+        let (s, v, a) = at(10_150).unwrap();
+        // 0.1 s at 1 m/s² from 4 m/s, then 0.05 s more.
+        let s1 = 20.0 + 0.4 + 0.005;
+        assert!((s - (s1 + 4.1 * 0.05 + 0.5 * 0.05 * 0.05)).abs() < 1e-9 && (v - 4.15).abs() < 1e-9 && a == 1.0);
+        // Before its start: its start.
+        assert_eq!(at(9_000), Some((20.0, 4.0, 1.0)));
+        // The braking step stops at 0 and stays.
+        let (_, v, a) = at(10_290).unwrap();
+        assert_eq!((v, a), (0.0, 0.0));
+        assert_eq!(at(10_400), None, "past its last step the plan says nothing");
     }
 
     /// With no network the cloud regulator lands where the onboard one does; with a network that

@@ -14,6 +14,7 @@ use v2t_sim::bv::BvController;
 use v2t_sim::control::pure_pursuit;
 use v2t_sim::observation::BvObservation;
 use v2t_sim::plant::ActuationRequest;
+use v2t_sim::scenario::{BvSetup, Conflict};
 
 /// A regulated BV.
 #[derive(Debug)]
@@ -105,6 +106,51 @@ pub(crate) fn regulator_for(
     Ok(regulator)
 }
 
+/// A vehicle as measured along its own path: arc length, speed and the measurement's age.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Measured {
+    pub s_m: f64,
+    pub v_mps: f64,
+    pub age_s: f64,
+}
+
+impl Measured {
+    /// Arc length brought to now, at constant speed.
+    pub fn s_now_m(&self) -> f64 {
+        self.s_m + self.v_mps * self.age_s
+    }
+}
+
+/// One decision of `regulator` for BV `bv` in `conflict` at time `t_s`: both measurements brought
+/// to `t_s` at constant speed, the BV's curves capping its plan. The one recipe of the onboard
+/// BV and the cloud's.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn decide(
+    regulator: &mut Regulator,
+    bv: &BvSetup,
+    conflict: &Conflict,
+    target: Target,
+    t_s: f64,
+    own: Measured,
+    vut: Measured,
+    bv_accel_mps2: f64,
+) -> Decision {
+    let now = |m: Measured| PathState { s_m: m.s_now_m(), v_mps: m.v_mps, age_s: m.age_s };
+    let input = RegulatorInput {
+        t_s,
+        bv: now(own),
+        vut: now(vut),
+        bv_accel_mps2,
+        zone_bv: conflict.zone.bv,
+        zone_vut: conflict.zone.vut,
+        zone_kind: conflict.zone.kind,
+        target,
+        reference_speed_mps: bv.reference.speed_at(t_s),
+    };
+    let lat = bv.agent.vehicle.limits.max_lat_accel_mps2;
+    regulator.decide_on_path(&input, &|s| curve_speed_limit(&bv.agent.route, s, lat))
+}
+
 impl BvController for RegulatedBv {
     fn name(&self) -> &str {
         "regulator"
@@ -116,22 +162,9 @@ impl BvController for RegulatedBv {
             return ActuationRequest { accel_mps2: -2.0, steer_rad: 0.0 };
         };
         let vehicle = &bv.agent.vehicle;
-        // Bring both measurements to "now" at constant speed.
-        let own_s = obs.own.s_m + obs.own.state.speed_mps * obs.own.age_s;
-        let vut_s = obs.vut.s_m + obs.vut.state.speed_mps * obs.vut.age_s;
-        let input = RegulatorInput {
-            t_s: obs.t_s,
-            bv: PathState { s_m: own_s, v_mps: obs.own.state.speed_mps, age_s: obs.own.age_s },
-            vut: PathState { s_m: vut_s, v_mps: obs.vut.state.speed_mps, age_s: obs.vut.age_s },
-            bv_accel_mps2: self.last_accel,
-            zone_bv: conflict.zone.bv,
-            zone_vut: conflict.zone.vut,
-            zone_kind: conflict.zone.kind,
-            target: self.target,
-            reference_speed_mps: bv.reference.speed_at(obs.t_s),
-        };
-        let lat = vehicle.limits.max_lat_accel_mps2;
-        let d = self.regulator.decide_on_path(&input, &|s| curve_speed_limit(&bv.agent.route, s, lat));
+        let own = Measured { s_m: obs.own.s_m, v_mps: obs.own.state.speed_mps, age_s: obs.own.age_s };
+        let vut = Measured { s_m: obs.vut.s_m, v_mps: obs.vut.state.speed_mps, age_s: obs.vut.age_s };
+        let d = decide(&mut self.regulator, bv, conflict, self.target, obs.t_s, own, vut, self.last_accel);
         self.last_accel = d.accel_mps2;
         self.last = Some(d);
         if d.below_reach.is_some() {
