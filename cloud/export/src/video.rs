@@ -22,6 +22,7 @@ use std::process::{Command, Stdio};
 use crate::runfile::RunFile;
 use v2t_model::geometry::Point2;
 use v2t_model::kinematics::State;
+use v2t_model::validate::plausible;
 use v2t_sim::files::CardError;
 use v2t_sim::scenario::Scenario;
 
@@ -205,8 +206,12 @@ impl Scene {
         if run.trace.is_empty() {
             return Err(invalid("the trace is empty".into()));
         }
-        if run.agent_ids.is_empty() {
-            return Err(invalid("no agent_ids".into()));
+        if run.agent_ids.is_empty() || run.agent_ids.len() > plausible::MAX_AGENTS {
+            return Err(invalid(format!(
+                "agent_ids names {} agents, 1 to {} are accepted",
+                run.agent_ids.len(),
+                plausible::MAX_AGENTS
+            )));
         }
         let mut vehicles: Vec<Vehicle> = run
             .agent_ids
@@ -241,6 +246,10 @@ impl Scene {
                 v.poses.push(a.state);
             }
             times.push(t);
+        }
+        for v in &vehicles {
+            let samples = times.iter().zip(&v.poses).map(|(t, p)| (*t, p.px, p.py));
+            plausible::motion(&format!("trace (vehicle `{}`)", v.id), samples).map_err(|e| invalid(e.to_string()))?;
         }
         Ok(Self { name: run.result.scenario, times, vehicles, lanes: Vec::new() })
     }

@@ -276,6 +276,11 @@ fn check(s: &ExportScenario) -> Result<(), XoscError> {
         if let Some(k) = a.route.iter().position(|p| !p.is_finite()) {
             return Err(invalid(format!("agents[{i}].route[{k}]"), "must be finite"));
         }
+        let samples = a.times_s.iter().zip(&a.states).map(|(t, x)| (*t, x.px, x.py));
+        v2t_model::validate::plausible::motion(&format!("agents[{i}].states"), samples)?;
+        for (k, p) in a.route.iter().enumerate() {
+            v2t_model::validate::plausible::coordinates(&format!("agents[{i}].route[{k}]"), p.x, p.y)?;
+        }
     }
     let vuts = s.agents.iter().filter(|a| a.role == AgentRole::Vut).count();
     if vuts > 1 {

@@ -43,7 +43,7 @@
 //! finite and within the BV's limits.
 
 use v2t_model::metrics::{ConflictKind, OccupancyInterval};
-use v2t_model::validate::{Validate, ValidationError, in_range, positive};
+use v2t_model::validate::{Validate, ValidationError, in_range};
 use v2t_model::{Style, Target};
 
 use crate::qp::{EventKind, LongitudinalQp, QpError, QpInput, QpShape, QpStatus};
@@ -139,11 +139,13 @@ impl Validate for RegulatorParams {
             return Err(ValidationError::new("horizon", format!("must lie in [5, 200], got {}", self.horizon)));
         }
         in_range("dt_s", self.dt_s, 0.01, 0.5)?;
-        positive("w_adv", self.w_adv)?;
+        // The weights stay within six decades of each other and of 1 (the QP's scaling); an input
+        // older than 5 s is no measurement; the fallback brakes like a vehicle can.
+        in_range("w_adv", self.w_adv, 1e-6, 1e6)?;
         in_range("w_real", self.w_real, 0.0, 1e6)?;
         in_range("safety_margin_s", self.safety_margin_s, 0.0, 5.0)?;
-        positive("max_input_age_s", self.max_input_age_s)?;
-        positive("fallback_decel_mps2", self.fallback_decel_mps2)?;
+        in_range("max_input_age_s", self.max_input_age_s, 0.01, 5.0)?;
+        in_range("fallback_decel_mps2", self.fallback_decel_mps2, 0.5, 12.0)?;
         in_range("vut_headway_s", self.vut_headway_s, 0.0, 5.0)?;
         self.bv.validate().map_err(|e| e.within("bv"))?;
         self.vut.validate().map_err(|e| e.within("vut"))

@@ -446,11 +446,18 @@ mod tests {
         let mut u = up.clone();
         u.prior.agents[1].controls[50].yaw_rate_radps = 2.0;
         assert!(refused(&u, &checks, 2_000).contains("lateral acceleration"));
+        // A 40 m jump between two states is no motion at all: refused before any other check.
         let mut u = up.clone();
         for x in &mut u.prior.agents[1].states[60..] {
             x.px += 40.0;
         }
-        assert!(refused(&u, &checks, 2_000).contains("leaves the drivable area at t = 6.0 s"));
+        assert!(refused(&u, &checks, 2_000).contains("from the state before it"));
+        // The same offset driven over 2 s leaves the track.
+        let mut u = up.clone();
+        for (k, x) in u.prior.agents[1].states.iter_mut().enumerate().skip(60) {
+            x.px += 40.0 * ((k - 60) as f64 / 20.0).min(1.0);
+        }
+        assert!(refused(&u, &checks, 2_000).contains("leaves the drivable area at t = 6."));
         let mut u = up.clone();
         for x in &mut u.prior.agents[0].states {
             x.px += 500.0;

@@ -39,6 +39,9 @@ use std::path::Path;
 pub use error::{MapError, MapWarning};
 pub use inspect::{Inspection, inspect};
 
+/// How far outside a map's lanes a scenario's coordinates may lie, m ([`Map::check_scenario`]).
+pub const EXTENT_MARGIN_M: f64 = 500.0;
+
 /// A parsed map with its lane graph.
 #[derive(Debug, Clone)]
 pub struct Map {
@@ -59,6 +62,49 @@ impl Map {
         let graph = graph::LaneGraph::build(&document, &mut warnings);
         let name = if document.name.trim().is_empty() { name.to_owned() } else { document.name.clone() };
         Ok(Self { name, document, graph, warnings })
+    }
+
+    /// The smallest axis-aligned box holding every lane's outline, `(min, max)`; `None` for a map
+    /// without lanes.
+    pub fn extent(&self) -> Option<(v2t_model::geometry::Point2, v2t_model::geometry::Point2)> {
+        use v2t_model::geometry::Point2;
+        let mut points = self.graph.lanes.iter().flat_map(|l| l.samples.iter()).flat_map(|q| [q.left, q.right]);
+        let first = points.next()?;
+        Some(points.fold((first, first), |(lo, hi), p| {
+            (Point2 { x: lo.x.min(p.x), y: lo.y.min(p.y) }, Point2 { x: hi.x.max(p.x), y: hi.y.max(p.y) })
+        }))
+    }
+
+    /// Checks that a grounded scenario lies on this map: every route point, anchor and conflict
+    /// point within the map's [`extent`](Self::extent) plus [`EXTENT_MARGIN_M`]. A scenario for
+    /// another map, or a hand-edited one, is refused here with the first point outside, before any
+    /// loop runs along its routes.
+    pub fn check_scenario(&self, g: &v2t_model::grounded::GroundedScenario) -> Result<(), MapError> {
+        let Some((lo, hi)) = self.extent() else {
+            return Err(MapError::Invalid { context: self.name.clone(), message: "the map has no lanes".into() });
+        };
+        let m = EXTENT_MARGIN_M;
+        let inside = |p: v2t_model::geometry::Point2| {
+            p.x >= lo.x - m && p.x <= hi.x + m && p.y >= lo.y - m && p.y <= hi.y + m
+        };
+        let mut points = Vec::new();
+        for (i, a) in g.agents.iter().enumerate() {
+            points.push((format!("agents[{i}].start.position"), a.start.position));
+            points.push((format!("agents[{i}].goal.position"), a.goal.position));
+            points.extend(a.route.iter().enumerate().map(|(k, p)| (format!("agents[{i}].route[{k}]"), *p)));
+        }
+        points.extend(g.conflicts.iter().enumerate().map(|(i, c)| (format!("conflicts[{i}].point"), c.point)));
+        match points.into_iter().find(|(_, p)| !inside(*p)) {
+            None => Ok(()),
+            Some((field, p)) => Err(MapError::Invalid {
+                context: format!("the scenario on map `{}`", self.name),
+                message: format!(
+                    "field `{field}` = ({:.1}, {:.1}) lies more than {m} m outside the map's lanes \
+                     (x {:.1} to {:.1}, y {:.1} to {:.1})",
+                    p.x, p.y, lo.x, hi.x, lo.y, hi.y
+                ),
+            }),
+        }
     }
 
     /// Reads and parses an `.xodr` file.

@@ -8,7 +8,8 @@ use crate::Style;
 use crate::geometry::Point2;
 use crate::metrics::{ConflictKind, OccupancyInterval};
 use crate::semantics::InteractionType;
-use crate::validate::{Validate, ValidationError, finite, in_range, non_negative};
+use crate::validate::plausible::{self, MAX_AGENTS, MAX_ROUTE_LENGTH_M, MAX_ROUTE_POINTS, MAX_SCENARIO_TIME_S};
+use crate::validate::{Validate, ValidationError, finite, in_range};
 
 /// The vehicle under test or a background vehicle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -41,12 +42,11 @@ impl Validate for AnchorState {
         if self.anchor_id.trim().is_empty() {
             return Err(ValidationError::new("anchor_id", "must not be empty"));
         }
-        finite("position.x", self.position.x)?;
-        finite("position.y", self.position.y)?;
+        plausible::coordinates("position", self.position.x, self.position.y)?;
         finite("heading_rad", self.heading_rad)?;
         in_range("speed_mps", self.speed_mps, 0.0, 70.0)?;
         if let Some(t) = self.time_s {
-            non_negative("time_s", t)?;
+            in_range("time_s", t, 0.0, MAX_SCENARIO_TIME_S)?;
         }
         Ok(())
     }
@@ -122,8 +122,8 @@ impl GroundedScenario {
 }
 
 fn check_interval(field: &str, i: &OccupancyInterval) -> Result<(), ValidationError> {
-    finite(&format!("{field}.enter_s_m"), i.enter_s_m)?;
-    finite(&format!("{field}.exit_s_m"), i.exit_s_m)?;
+    in_range(&format!("{field}.enter_s_m"), i.enter_s_m, -MAX_ROUTE_LENGTH_M, MAX_ROUTE_LENGTH_M)?;
+    in_range(&format!("{field}.exit_s_m"), i.exit_s_m, -MAX_ROUTE_LENGTH_M, MAX_ROUTE_LENGTH_M)?;
     if i.exit_s_m > i.enter_s_m {
         Ok(())
     } else {
@@ -139,8 +139,21 @@ impl Validate for GroundedAgent {
         if self.route.len() < 2 {
             return Err(ValidationError::new("route", format!("needs at least 2 points, got {}", self.route.len())));
         }
-        if let Some(i) = self.route.iter().position(|p| !p.is_finite()) {
-            return Err(ValidationError::new(format!("route[{i}]"), "must be finite"));
+        if self.route.len() > MAX_ROUTE_POINTS {
+            return Err(ValidationError::new(
+                "route",
+                format!("has {} points, at most {MAX_ROUTE_POINTS} are accepted", self.route.len()),
+            ));
+        }
+        for (i, p) in self.route.iter().enumerate() {
+            plausible::coordinates(&format!("route[{i}]"), p.x, p.y)?;
+        }
+        let length: f64 = self.route.windows(2).map(|w| w.first().zip(w.get(1)).map_or(0.0, |(p, q)| p.dist(*q))).sum();
+        if length > MAX_ROUTE_LENGTH_M {
+            return Err(ValidationError::new(
+                "route",
+                format!("is {length:.0} m long, at most {MAX_ROUTE_LENGTH_M} m are accepted"),
+            ));
         }
         self.start.validate().map_err(|e| e.within("start"))?;
         self.goal.validate().map_err(|e| e.within("goal"))
@@ -149,8 +162,7 @@ impl Validate for GroundedAgent {
 
 impl Validate for GroundedConflict {
     fn validate(&self) -> Result<(), ValidationError> {
-        finite("point.x", self.point.x)?;
-        finite("point.y", self.point.y)?;
+        plausible::coordinates("point", self.point.x, self.point.y)?;
         check_interval("vut_interval", &self.vut_interval)?;
         check_interval("bv_interval", &self.bv_interval)
     }
@@ -160,6 +172,12 @@ impl Validate for GroundedScenario {
     fn validate(&self) -> Result<(), ValidationError> {
         if self.fragment_id.trim().is_empty() {
             return Err(ValidationError::new("fragment_id", "must not be empty"));
+        }
+        if self.agents.len() > MAX_AGENTS {
+            return Err(ValidationError::new(
+                "agents",
+                format!("has {} agents, at most {MAX_AGENTS} are accepted", self.agents.len()),
+            ));
         }
         self.agents.validate().map_err(|e| e.within("agents"))?;
         let vuts = self.agents.iter().filter(|a| a.role == AgentRole::Vut).count();
@@ -188,5 +206,69 @@ impl Validate for GroundedScenario {
             return Err(ValidationError::new("conflicts", "needs at least one conflict"));
         }
         crate::Target::check_tau("tau_s", self.tau_s)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+    use super::*;
+
+    fn anchor(x: f64) -> AnchorState {
+        AnchorState {
+            anchor_id: "a".into(),
+            position: Point2 { x, y: 0.0 },
+            heading_rad: 0.0,
+            speed_mps: 10.0,
+            time_s: Some(0.0),
+        }
+    }
+
+    fn agent(id: &str, role: AgentRole) -> GroundedAgent {
+        let route = (0..=100).map(|i| Point2 { x: f64::from(i), y: 0.0 }).collect();
+        GroundedAgent { id: id.into(), role, route, start: anchor(0.0), goal: anchor(100.0) }
+    }
+
+    fn scenario() -> GroundedScenario {
+        let interval = OccupancyInterval { enter_s_m: 40.0, exit_s_m: 45.0 };
+        GroundedScenario {
+            fragment_id: "f".into(),
+            interaction_type: InteractionType::CutIn,
+            agents: vec![agent("vut", AgentRole::Vut), agent("bv1", AgentRole::Bv)],
+            conflicts: vec![GroundedConflict {
+                bv_id: "bv1".into(),
+                kind: ConflictKind::Merge,
+                anchor_id: "c".into(),
+                point: Point2 { x: 42.0, y: 0.0 },
+                vut_interval: interval,
+                bv_interval: interval,
+            }],
+            tau_s: 2.0,
+            style: Style::Rush,
+        }
+    }
+
+    #[test]
+    fn implausible_scenarios_are_refused_with_the_bound() {
+        scenario().validate().unwrap();
+        // One route point far away (it hung `generate` and aborted `export xosc`).
+        let mut g = scenario();
+        g.agents[1].route[50].x = 1e9;
+        let e = g.validate().unwrap_err();
+        assert_eq!(e.field, "agents[1].route[50].x");
+        assert!(e.problem.contains("100000000"), "{e}");
+        // A route within the bound of coordinates but longer than any test drives.
+        let mut long = scenario();
+        long.agents[0].route = vec![Point2 { x: 0.0, y: 0.0 }, Point2 { x: 6e4, y: 0.0 }];
+        let e = long.validate().unwrap_err();
+        assert!(e.field == "agents[0].route" && e.problem.contains("at most 50000 m"), "{e}");
+        // A start an age after the scenario's (it exported a BV at x = 1.1e10 m).
+        let mut late = scenario();
+        late.agents[1].start.time_s = Some(1e9);
+        assert_eq!(late.validate().unwrap_err().field, "agents[1].start.time_s");
+        // A conflict interval beyond any route.
+        let mut far = scenario();
+        far.conflicts[0].vut_interval.exit_s_m = 1e12;
+        assert_eq!(far.validate().unwrap_err().field, "conflicts[0].vut_interval.exit_s_m");
     }
 }

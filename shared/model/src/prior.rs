@@ -7,6 +7,7 @@ use crate::Style;
 use crate::grounded::{AgentRole, GroundedConflict, GroundedScenario};
 use crate::kinematics::{Control, State, step};
 use crate::path::ReferencePath;
+use crate::validate::plausible::{self, MAX_ACCEL_MPS2, MAX_AGENTS, MAX_SCENARIO_TIME_S, MAX_SPEED_MPS, MAX_YAW_RATE_RADPS};
 use crate::validate::{Validate, ValidationError, in_range};
 
 /// One agent's reference: `states[k]` at `t = k·dt`, `controls[k]` applied over `[k·dt, (k+1)·dt)`.
@@ -191,7 +192,28 @@ impl Validate for AgentTrajectory {
         if let Some(i) = self.controls.iter().position(|u| !u.is_finite()) {
             return Err(ValidationError::new(format!("controls[{i}]"), "must be finite"));
         }
+        for (i, s) in self.states.iter().enumerate() {
+            let field = format!("states[{i}]");
+            plausible::coordinates(&field, s.px, s.py)?;
+            in_range(&format!("{field}.speed_mps"), s.speed_mps, -MAX_SPEED_MPS, MAX_SPEED_MPS)?;
+        }
+        for (i, u) in self.controls.iter().enumerate() {
+            in_range(&format!("controls[{i}].accel_mps2"), u.accel_mps2, -MAX_ACCEL_MPS2, MAX_ACCEL_MPS2)?;
+            let field = format!("controls[{i}].yaw_rate_radps");
+            in_range(&field, u.yaw_rate_radps, -MAX_YAW_RATE_RADPS, MAX_YAW_RATE_RADPS)?;
+        }
         Ok(())
+    }
+}
+
+impl AgentTrajectory {
+    /// The first step between two states longer than a vehicle drives in `dt_s`
+    /// ([`plausible::teleported`]): `(index of the later state, distance, m)`.
+    pub fn first_jump(&self, dt_s: f64) -> Option<(usize, f64)> {
+        self.states.windows(2).enumerate().find_map(|(i, w)| {
+            let d = w.first().zip(w.get(1)).map_or(0.0, |(a, b)| a.position().dist(b.position()));
+            plausible::teleported(d, dt_s).then_some((i + 1, d))
+        })
     }
 }
 
@@ -201,10 +223,35 @@ impl Validate for TrajectoryPrior {
         if self.agents.is_empty() {
             return Err(ValidationError::new("agents", "needs at least one trajectory"));
         }
+        if self.agents.len() > MAX_AGENTS {
+            return Err(ValidationError::new(
+                "agents",
+                format!("has {} trajectories, at most {MAX_AGENTS} are accepted", self.agents.len()),
+            ));
+        }
         self.agents.validate().map_err(|e| e.within("agents"))?;
         let n = self.agents.first().map(|a| a.controls.len()).unwrap_or(0);
         if let Some(i) = self.agents.iter().position(|a| a.controls.len() != n) {
             return Err(ValidationError::new(format!("agents[{i}].controls"), "every agent must share one time grid"));
+        }
+        let horizon_s = n as f64 * self.dt_s;
+        if horizon_s > MAX_SCENARIO_TIME_S {
+            return Err(ValidationError::new(
+                "agents[0].controls",
+                format!("cover {horizon_s:.0} s, at most {MAX_SCENARIO_TIME_S} s are accepted"),
+            ));
+        }
+        for (i, a) in self.agents.iter().enumerate() {
+            if let Some((k, d)) = a.first_jump(self.dt_s) {
+                return Err(ValidationError::new(
+                    format!("agents[{i}].states[{k}]"),
+                    format!(
+                        "lies {d:.1} m from the state before it, {:.1} m is the most a vehicle drives in dt_s = {} s",
+                        MAX_SPEED_MPS * self.dt_s + plausible::STEP_SLACK_M,
+                        self.dt_s
+                    ),
+                ));
+            }
         }
         self.conflicts.validate().map_err(|e| e.within("conflicts"))?;
         crate::Target::check_tau("tau_s", self.tau_s)
@@ -250,5 +297,43 @@ mod tests {
         let mut r = prior();
         r.dt_s = -0.1;
         assert_eq!(r.validate().unwrap_err().field, "dt_s");
+    }
+
+    #[test]
+    fn implausible_priors_are_refused_with_the_bound() {
+        // A state far out (a hostile or broken file; it hung the route loops downstream).
+        let mut p = prior();
+        p.agents[0].states[5].px = 1e300;
+        let e = p.validate().unwrap_err();
+        assert_eq!(e.field, "agents[0].states[5].x");
+        assert!(e.problem.contains("100000000"), "{e}");
+        // A jump no vehicle drives in one step.
+        let mut q = prior();
+        q.agents[0].states[7].py += 50.0;
+        let e = q.validate().unwrap_err();
+        assert_eq!(e.field, "agents[0].states[7]");
+        assert!(e.problem.contains("11.0 m is the most"), "{e}");
+        // Speeds, accelerations and yaw rates beyond any vehicle's.
+        let mut r = prior();
+        r.agents[0].states[2].speed_mps = 150.0;
+        assert_eq!(r.validate().unwrap_err().field, "agents[0].states[2].speed_mps");
+        let mut a = prior();
+        a.agents[0].controls[0].accel_mps2 = -31.0;
+        assert_eq!(a.validate().unwrap_err().field, "agents[0].controls[0].accel_mps2");
+        let mut w = prior();
+        w.agents[0].controls[1].yaw_rate_radps = 9.0;
+        assert_eq!(w.validate().unwrap_err().field, "agents[0].controls[1].yaw_rate_radps");
+        // A horizon of more than an hour.
+        let mut h = prior();
+        h.dt_s = 1.0;
+        let controls = vec![Control { accel_mps2: 0.0, yaw_rate_radps: 0.0 }; 3601];
+        h.agents[0].states = rollout(State { px: 0.0, py: 0.0, theta_rad: 0.0, speed_mps: 1.0 }, &controls, 1.0);
+        h.agents[0].controls = controls;
+        let e = h.validate().unwrap_err();
+        assert!(e.problem.contains("3601 s, at most 3600 s"), "{e}");
+        // More agents than any scenario has.
+        let mut many = prior();
+        many.agents = vec![many.agents[0].clone(); MAX_AGENTS + 1];
+        assert_eq!(many.validate().unwrap_err().field, "agents");
     }
 }

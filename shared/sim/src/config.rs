@@ -4,7 +4,8 @@
 use serde::{Deserialize, Serialize};
 use v2t_model::Style;
 use v2t_model::path::PathSpec;
-use v2t_model::validate::{Validate, ValidationError, in_range, non_negative, positive};
+use v2t_model::validate::plausible::MAX_SCENARIO_TIME_S;
+use v2t_model::validate::{Validate, ValidationError, in_range, positive};
 
 /// Global settings of the simulated proving ground.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -111,6 +112,9 @@ pub struct BvCard {
     pub speed_profile: Vec<[f64; 2]>,
 }
 
+/// Most points of a BV's speed profile.
+pub const MAX_PROFILE_POINTS: usize = 10_000;
+
 impl Validate for VutCard {
     fn validate(&self) -> Result<(), ValidationError> {
         if self.vehicle.trim().is_empty() {
@@ -141,9 +145,15 @@ impl Validate for BvCard {
         if self.speed_profile.is_empty() {
             return Err(ValidationError::new("speed_profile", "needs at least one [t_s, speed_mps] point"));
         }
+        if self.speed_profile.len() > MAX_PROFILE_POINTS {
+            return Err(ValidationError::new(
+                "speed_profile",
+                format!("has {} points, at most {MAX_PROFILE_POINTS} are accepted", self.speed_profile.len()),
+            ));
+        }
         let mut last_t = f64::NEG_INFINITY;
         for (i, [t, v]) in self.speed_profile.iter().enumerate() {
-            non_negative(&format!("speed_profile[{i}][0]"), *t)?;
+            in_range(&format!("speed_profile[{i}][0]"), *t, 0.0, MAX_SCENARIO_TIME_S)?;
             in_range(&format!("speed_profile[{i}][1]"), *v, 0.0, 70.0)?;
             if *t <= last_t {
                 return Err(ValidationError::new(format!("speed_profile[{i}][0]"), "times must increase"));

@@ -390,3 +390,20 @@ fn what_earlier_runs_showed_is_reported_and_changes_no_plan() {
         assert_eq!(told.decide(&input(style, 1.5)).below_reach, Some(known));
     }
 }
+
+#[test]
+fn settings_beyond_their_bounds_are_refused_naming_the_field() {
+    use v2t_model::validate::Validate as _;
+    RegulatorParams::default().validate().unwrap();
+    for (params, field, bound) in [
+        (RegulatorParams { max_input_age_s: 1e-320, ..RegulatorParams::default() }, "max_input_age_s", "[0.01, 5]"),
+        (RegulatorParams { w_adv: 9.2e18, ..RegulatorParams::default() }, "w_adv", "[0.000001, 1000000]"),
+        (RegulatorParams { fallback_decel_mps2: 1e20, ..RegulatorParams::default() }, "fallback_decel_mps2", "[0.5, 12]"),
+        (RegulatorParams { w_adv: f64::NAN, ..RegulatorParams::default() }, "w_adv", "NaN"),
+    ] {
+        let e = params.validate().unwrap_err();
+        assert_eq!(e.field, field);
+        assert!(e.to_string().contains(bound), "{e}");
+        assert!(Regulator::new(params).is_err(), "{field}: a regulator is built from refused settings");
+    }
+}
