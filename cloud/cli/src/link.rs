@@ -42,7 +42,7 @@ pub struct LinkArgs {
 
 impl LinkArgs {
     fn signer(&self) -> anyhow::Result<Signer> {
-        let key = v2t_supervisor::link::load_signing_key(&self.key)?;
+        let key = v2t_supervisor::link::load_signing_key(&self.key).map_err(crate::BadFile::of)?;
         if v2t_supervisor::link::is_demo_key(&key) {
             eprintln!(
                 "warning: signing with the public demo key {}: for simulated BVs only; make your own with `video2track keygen`",

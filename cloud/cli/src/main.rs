@@ -109,6 +109,19 @@ enum Command {
 #[error("{0}")]
 pub(crate) struct Usage(pub(crate) String);
 
+/// An input file the user named is unreadable or not what it should be (a directory, missing,
+/// damaged): bad input (exit 2), whatever error type the reader that found it uses.
+#[derive(Debug, thiserror::Error)]
+#[error(transparent)]
+pub(crate) struct BadFile(pub(crate) Box<dyn std::error::Error + Send + Sync + 'static>);
+
+impl BadFile {
+    /// Marks a reader's error as the user's input at fault.
+    pub(crate) fn of(e: impl std::error::Error + Send + Sync + 'static) -> Self {
+        Self(Box::new(e))
+    }
+}
+
 fn execute(command: Command) -> anyhow::Result<()> {
     match command {
         Command::Demo(a) => demo::run(a),
@@ -138,6 +151,7 @@ fn bad_input(err: &anyhow::Error) -> bool {
     use v2t_supervisor::link::LinkError;
     err.chain().any(|e| {
         e.is::<Usage>()
+            || e.is::<BadFile>()
             || e.is::<v2t_files::InputError>()
             || e.is::<v2t_sim::files::CardError>()
             || e.is::<v2t_map::MapError>()
@@ -169,7 +183,7 @@ fn main() -> ExitCode {
     match execute(Cli::parse().command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("error: {err:#}");
+            eprintln!("error: {}", v2t_files::error_chain(err.as_ref()));
             ExitCode::from(if bad_input(&err) { 2 } else { 1 })
         }
     }

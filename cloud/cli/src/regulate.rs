@@ -157,7 +157,7 @@ pub fn run(a: RegulateArgs) -> anyhow::Result<()> {
     let scenario = v2t_sim::files::load_scenario(&a.card)?;
     one_bv(&scenario)?;
     let params = regulator_params(&a.regulator, &scenario)?;
-    let key: SigningKey = v2t_supervisor::link::load_signing_key(&a.key)?;
+    let key: SigningKey = v2t_supervisor::link::load_signing_key(&a.key).map_err(crate::BadFile::of)?;
     let mut cloud = CloudRegulator::new(params, &scenario, 0, key, &a.fleet, &a.bv_id)?;
     let s = settings(&a.broker, format!("v2t-regulate-{}-{}", a.bv_id, std::process::id()))?;
     let mqtt = cloud_mqtt::connect(&s, topics::bv(&a.fleet, &a.bv_id, topics::TELEMETRY), Duration::from_secs(10))?;

@@ -187,7 +187,7 @@ pub struct ReplayArgs {
 
 /// Measures the recording again; an error when anything differs.
 pub fn replay(a: ReplayArgs) -> anyhow::Result<()> {
-    let r = recording::replay(&a.recording)?;
+    let r = recording::replay(&a.recording).map_err(crate::BadFile::of)?;
     print!("{}", recording::report(&a.recording, &r));
     if let Some(path) = a.json {
         write_json(&path, &r.recomputed)?;

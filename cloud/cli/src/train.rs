@@ -205,7 +205,7 @@ impl Corpora {
 }
 
 fn read_recorded(path: &std::path::Path) -> anyhow::Result<RecordedCorpus> {
-    recorded::read_file(path).map_err(|e| Usage(format!("{}: {e}", path.display())).into())
+    recorded::read_file(path).map_err(|e| crate::BadFile::of(e).into())
 }
 
 fn load_corpora(args: &CorpusSource, map: &v2t_map::Map) -> anyhow::Result<Corpora> {
@@ -407,7 +407,7 @@ struct RealismArgs {
 fn realism_rows(args: &RealismArgs) -> anyhow::Result<Vec<v2t_diffusion::realism::RealismRow>> {
     use v2t_diffusion::guidance::GuidanceWeights;
     use v2t_diffusion::train::{TrainingEpisode, Window, episode_windows, recorded_episodes};
-    let model = weights::load(&args.weights)?;
+    let model = weights::load(&args.weights).map_err(crate::BadFile::of)?;
     let map = v2t_map::Map::load(&args.corpus.map)?;
     let library = v2t_map::library::TopologyLibrary::build(&map);
     let corpora = load_corpora(&args.corpus, &map)?;

@@ -773,3 +773,58 @@ fn sim_runs_a_card_with_sumo_driving_the_vut() {
     assert_eq!(v["result"]["vut_model"], "sumo-impatient");
     assert!(v["result"]["collision"].is_null(), "{}", v["result"]);
 }
+
+/// One exit-code rule for every command (README, "Exit codes"): 0 done, 1 the work failed, 2 bad
+/// input or usage. Every command that reads a file the user names answers a missing one with 2 and
+/// the file's name, before it starts anything; every command answers an unknown option with 2.
+#[test]
+fn every_command_follows_one_exit_code_rule() {
+    let scratch = tempdir("exit-codes");
+    let dir = scratch.path();
+    let missing = dir.join("missing.file");
+    let m = s(&missing);
+    let out = |name: &str| dir.join(name).to_str().unwrap().to_owned();
+    let (mp4, xosc, jsonl) = (out("x.mp4"), out("x.xosc"), out("x.jsonl"));
+    let key = "config/keys/demo_cloud.key";
+    let commands: Vec<Vec<&str>> = vec![
+        vec!["sim", m],
+        vec!["replay", m],
+        vec!["render", m, "--out", &mp4],
+        vec!["experiment", "steerability", "--card", m],
+        vec!["experiment", "latency", "--network", m],
+        vec!["campaign", "show", m],
+        vec!["generate", m],
+        vec!["realism", "--weights", m],
+        vec!["corpus", "import", m, "--dataset", "d", "--licence", "l", "-o", &jsonl],
+        vec!["corpus", "stats", m],
+        vec!["train", "--data", m],
+        vec!["ground", m],
+        vec!["export", "xosc", m, "-o", &xosc],
+        vec!["map", "inspect", m],
+        vec!["serve", "--key", m],
+        vec!["upload", m, "--bv", "bv1"],
+        vec!["send", "abort", "--key", m],
+        vec!["regulate", m, "--broker", "mqtt://127.0.0.1:1", "--key", key, "--start-unix-ms", "1"],
+    ];
+    for args in &commands {
+        let o = video2track(args);
+        let (_, err) = text(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        // `regulate` checks its start time first: a usage error, also 2.
+        assert!(err.contains("missing.file") || args[0] == "regulate", "{args:?} does not name the file: {err}");
+    }
+    let usage: [&str; 19] = [
+        "demo", "sim", "replay", "render", "experiment", "campaign", "abstract", "generate", "realism", "corpus",
+        "train", "ground", "export", "map", "keygen", "serve", "upload", "send", "regulate",
+    ];
+    for command in usage {
+        let o = video2track(&[command, "--no-such-option"]);
+        assert_eq!(o.status.code(), Some(2), "{command}: {}", text(&o).1);
+    }
+    // A failure of the work is 1: a key pair that exists already is not overwritten.
+    let keys = out("keys");
+    ok(&["keygen", "--out", &keys]);
+    let o = video2track(&["keygen", "--out", &keys]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o).1);
+    assert!(text(&o).1.contains("exists already"), "{}", text(&o).1);
+}

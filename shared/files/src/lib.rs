@@ -23,6 +23,24 @@
 
 mod documents;
 
+/// An error and its causes as one line, `outer: cause: cause`, for a binary's last words: a cause
+/// whose text its parent already shows (an error that prints its source) is not repeated.
+pub fn error_chain(err: &(dyn std::error::Error + 'static)) -> String {
+    let mut line = err.to_string();
+    let mut shown = line.clone();
+    let mut cause = err.source();
+    while let Some(c) = cause {
+        let text = c.to_string();
+        if !shown.contains(&text) {
+            line.push_str(": ");
+            line.push_str(&text);
+        }
+        shown = text;
+        cause = c.source();
+    }
+    line
+}
+
 use std::path::{Path, PathBuf};
 
 use serde::de::DeserializeOwned;

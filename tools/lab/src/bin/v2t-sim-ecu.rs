@@ -168,7 +168,7 @@ fn main() -> ExitCode {
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("v2t-sim-ecu: {e:#}");
+            eprintln!("v2t-sim-ecu: {}", v2t_files::error_chain(e.as_ref()));
             let bad_input = e.chain().any(|c| c.downcast_ref::<EcuError>().is_some_and(EcuError::is_input));
             ExitCode::from(if bad_input { 2 } else { 1 })
         }
