@@ -86,6 +86,56 @@ pub struct GenerateArgs {
     /// drawn again up to this many times in all (1: no redraw, for ablations).
     #[arg(long, default_value_t = GenerateOptions::default().draws)]
     draws: u64,
+    /// Write `--out` and `--all` even when no variant meets the criteria (the passing order,
+    /// no solid boundary crossed, the vehicle limits, every anchor within 5 m); without it such a
+    /// run writes no prior and exits 1 with the reasons.
+    #[arg(long)]
+    write_failing: bool,
+}
+
+/// No variant met the criteria of a prior that may be handed on: a failure of the work (exit 1).
+#[derive(Debug, thiserror::Error)]
+#[error("none of the {variants} variants meets the criteria of a prior ({reasons})")]
+struct NoAcceptablePrior {
+    variants: usize,
+    reasons: String,
+}
+
+/// How many variants miss each criterion, in words (`generated` has no variant that meets them all).
+fn refusal(generated: &[v2t_diffusion::generate::Generated]) -> NoAcceptablePrior {
+    let mut counts: Vec<(String, usize)> = Vec::new();
+    for g in generated {
+        for reason in v2t_diffusion::generate::shortfalls(&g.metrics) {
+            // Group by the criterion (the words before the first digit-free split are per variant).
+            let key = criterion(&reason);
+            match counts.iter_mut().find(|(k, _)| *k == key) {
+                Some((_, n)) => *n += 1,
+                None => counts.push((key, 1)),
+            }
+        }
+    }
+    let best = v2t_diffusion::generate::best(generated)
+        .map(|b| v2t_diffusion::generate::shortfalls(&b.metrics).join(", "))
+        .unwrap_or_default();
+    let all = generated.len();
+    let mut reasons: Vec<String> = counts.iter().map(|(k, n)| format!("{k} in {n} of {all}")).collect();
+    if !best.is_empty() {
+        reasons.push(format!("the best has {best}"));
+    }
+    NoAcceptablePrior { variants: generated.len(), reasons: reasons.join("; ") }
+}
+
+/// The criterion a shortfall of [`v2t_diffusion::generate::shortfalls`] is about.
+fn criterion(reason: &str) -> String {
+    if reason.contains("order") {
+        "passing order missed".into()
+    } else if reason.contains("boundary") {
+        "solid boundary crossed".into()
+    } else if reason.contains("limits") {
+        "vehicle limits left".into()
+    } else {
+        format!("anchor error above {} m", v2t_diffusion::generate::ANCHOR_TOLERANCE_M)
+    }
 }
 
 /// The metrics file.
@@ -146,12 +196,35 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
     // Bounds before anything is loaded: bad input, exit 2.
     options.check().map_err(|e| crate::Usage(format!("--{}", e.to_string().replace('_', "-"))))?;
     let scenario = v2t_files::read_grounded(&a.grounded)?;
-    let model = v2t_diffusion::weights::load(&a.weights)?;
+    let model = v2t_diffusion::weights::load(&a.weights).map_err(crate::BadFile::of)?;
     let map = v2t_map::Map::load(&a.map)?;
+    map.check_scenario(&scenario).map_err(|e| anyhow::Error::new(e).context(a.grounded.display().to_string()))?;
     let started = std::time::Instant::now();
     let (generated, redrawn) = generate(&model, &map, &scenario, &options)?;
     let summary = summarize(&generated, redrawn, started.elapsed().as_secs_f64());
     print!("{REPORT_HEADER}{}", report(&summary, a.guidance));
+    let none_meets = !generated.iter().any(|g| v2t_diffusion::generate::shortfalls(&g.metrics).is_empty());
+    let writes_prior = a.out.is_some() || a.all.is_some();
+    if let Some(path) = &a.json_metrics {
+        let file = MetricsFile {
+            fragment_id: scenario.fragment_id.clone(),
+            guidance: a.guidance.name().to_owned(),
+            sampler: format!("{method:?}"),
+            weights: format!("{} ({})", a.weights.display(), model.meta.training.command),
+            summary,
+            variants: generated.iter().map(|v| v.metrics.clone()).collect(),
+        };
+        write_json(path, &file)?;
+    }
+    if writes_prior && none_meets {
+        let why = refusal(&generated);
+        if !a.write_failing {
+            return Err(anyhow::Error::new(why).context(
+                "no prior written (more --variants or --draws may find one; --write-failing writes the best anyway)",
+            ));
+        }
+        eprintln!("warning: writing the best anyway (--write-failing): {why}");
+    }
     if let Some(dir) = &a.all {
         std::fs::create_dir_all(dir)?;
         for (i, v) in generated.iter().enumerate() {
@@ -163,17 +236,6 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
         let chosen = best(&generated).ok_or_else(|| anyhow::anyhow!("no variant generated"))?;
         write_prior(path, &chosen.prior)?;
         println!("wrote {}", path.display());
-    }
-    if let Some(path) = &a.json_metrics {
-        let file = MetricsFile {
-            fragment_id: scenario.fragment_id.clone(),
-            guidance: a.guidance.name().to_owned(),
-            sampler: format!("{method:?}"),
-            weights: format!("{} ({})", a.weights.display(), model.meta.training.command),
-            summary,
-            variants: generated.iter().map(|v| v.metrics.clone()).collect(),
-        };
-        write_json(path, &file)?;
     }
     Ok(())
 }

@@ -80,6 +80,30 @@ fn ablation_switches_change_the_result() {
     assert!(err(&none) > 3.0 * err(&full), "guidance brings the anchors: none {} full {}", err(&none), err(&full));
 }
 
+/// A prior that meets none of its criteria is not written (exit 1, the reasons named) unless asked
+/// for with `--write-failing`; the metrics are written either way.
+#[test]
+fn a_prior_that_meets_no_criterion_is_refused_unless_asked_for() {
+    let dir_scratch = tempdir("refuse");
+    let dir = dir_scratch.path();
+    let g = grounded(dir, "cut_in");
+    let (prior, metrics) = (dir.join("prior.json"), dir.join("metrics.json"));
+    // The bare denoiser, no redraw: seed 1 crosses a solid boundary and misses its anchors by 15 m.
+    let args = ["generate", s(&g), "--guidance", "none", "--draws", "1", "--out", s(&prior), "--json-metrics", s(&metrics)];
+    let o = video2track(&args);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("no prior written") && err.contains("anchor error above 5 m"), "{err}");
+    assert!(!prior.exists(), "a refused prior was written");
+    assert!(metrics.exists(), "the metrics say why");
+    let mut forced = args.to_vec();
+    forced.push("--write-failing");
+    let o = video2track(&forced);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("writing the best anyway"));
+    assert!(prior.exists());
+}
+
 #[test]
 fn bad_input_is_a_clear_error() {
     let dir_scratch = tempdir("bad");
@@ -141,7 +165,8 @@ fn a_small_training_run_writes_weights_that_generate_and_realism_read() {
     let weights = out.join("denoiser.safetensors");
     let g = grounded(dir, "cut_in");
     let prior = dir.join("prior.json");
-    ok(&["generate", s(&g), "--weights", s(&weights), "--out", s(&prior)]);
+    // Weights trained for seconds meet no criterion: written anyway, on request.
+    ok(&["generate", s(&g), "--weights", s(&weights), "--out", s(&prior), "--write-failing"]);
     let p: TrajectoryPrior = serde_json::from_str(&std::fs::read_to_string(&prior).unwrap()).unwrap();
     p.validate().unwrap();
     let table = ok(&["realism", "--weights", s(&weights), "--episodes", "40", "--windows", "3"]);

@@ -563,6 +563,31 @@ pub fn acceptable(m: &PriorMetrics) -> bool {
     m.boundary_crossings == 0 && m.agents_within_limits == m.agents && m.order_ok == m.conflicts
 }
 
+/// The largest anchor error a prior may have and still be handed on, m: a vehicle this far from
+/// where the grounded scenario puts it at the anchor's time is about half a second off the
+/// grounded timing at 10 m/s (the shipped weights stay below 1 m).
+pub const ANCHOR_TOLERANCE_M: f64 = 5.0;
+
+/// Why a generated prior may not be handed on: each criterion it misses ([`acceptable`], and every
+/// anchor within [`ANCHOR_TOLERANCE_M`]), in words; empty when it meets them all.
+pub fn shortfalls(m: &PriorMetrics) -> Vec<String> {
+    let mut out = Vec::new();
+    if m.order_ok != m.conflicts {
+        out.push(format!("{} of {} conflicts in the asked order", m.order_ok, m.conflicts));
+    }
+    if m.boundary_crossings > 0 {
+        out.push(format!("{} of {} agents cross a solid boundary", m.boundary_crossings, m.agents));
+    }
+    if m.agents_within_limits != m.agents {
+        out.push(format!("{} of {} agents within the vehicle limits", m.agents_within_limits, m.agents));
+    }
+    let worst = m.anchor_errors_m.iter().copied().fold(0.0, f64::max);
+    if worst.is_nan() || worst > ANCHOR_TOLERANCE_M {
+        out.push(format!("worst anchor error {worst:.1} m (at most {ANCHOR_TOLERANCE_M} m)"));
+    }
+    out
+}
+
 /// The variant to hand on: the one with the smallest worst anchor error among the [`acceptable`]
 /// ones (else the smallest overall).
 pub fn best(generated: &[Generated]) -> Option<&Generated> {
