@@ -46,6 +46,10 @@ pub struct EdgeConfig {
 pub struct Timing {
     /// The regulator decides this often.
     pub regulator_period_s: f64,
+    /// A decision that takes longer than this overran its deadline: it is counted in the
+    /// regulator's heartbeat (`deadline_misses`) and the monitor reports it. Default: the period.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub regulator_budget_s: Option<f64>,
     /// The gateway transmits commands this often (also when nothing new arrived).
     pub gateway_period_s: f64,
     /// The monitor checks this often.
@@ -88,11 +92,17 @@ pub struct Launch {
     /// The monitor engages the gate once every node is healthy for the first time. After any
     /// stop, engaging again takes an explicit request (`v2t-edge engage`).
     pub auto_engage: bool,
+    /// Real-time scheduling of the launcher and each node (off without the section).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub realtime: Option<crate::realtime::Realtime>,
 }
 
 impl Validate for Timing {
     fn validate(&self) -> Result<(), ValidationError> {
         in_range("regulator_period_s", self.regulator_period_s, 0.01, 1.0)?;
+        if let Some(budget) = self.regulator_budget_s {
+            in_range("regulator_budget_s", budget, 0.001, self.regulator_period_s)?;
+        }
         in_range("gateway_period_s", self.gateway_period_s, 0.001, 0.1)?;
         in_range("monitor_period_s", self.monitor_period_s, 0.001, 0.1)?;
         in_range("heartbeat_period_s", self.heartbeat_period_s, 0.001, 0.5)?;
@@ -103,6 +113,13 @@ impl Validate for Timing {
         in_range("state_timeout_s", self.state_timeout_s, 0.01, 2.0)?;
         in_range("vut_timeout_s", self.vut_timeout_s, 0.01, 5.0)?;
         in_range("plan_timeout_s", self.plan_timeout_s, 0.01, 5.0)
+    }
+}
+
+impl Timing {
+    /// The regulator's budget for one decision, ns: `regulator_budget_s`, or the period.
+    pub fn regulator_budget_ns(&self) -> u64 {
+        (self.regulator_budget_s.unwrap_or(self.regulator_period_s) * 1e9) as u64
     }
 }
 
@@ -122,6 +139,9 @@ impl Validate for EdgeConfig {
         in_range("launch.restart_delay_s", self.launch.restart_delay_s, 0.0, 60.0)?;
         if self.launch.nodes.is_empty() {
             return Err(ValidationError::new("launch.nodes", "must name at least one node"));
+        }
+        if let Some(rt) = &self.launch.realtime {
+            rt.validate().map_err(|e| e.within("launch.realtime"))?;
         }
         if let Some(u) = &self.uplink {
             u.validate().map_err(|e| e.within("uplink"))?;
@@ -207,4 +227,39 @@ pub fn load_for_process(path: &Path, overrides: Overrides<'_>) -> Result<Loaded,
     cfg.edge.validate().map_err(|e| input(path, format!("with the command line's options: {e}")))?;
     crate::ports::use_iceoryx2_config(&cfg.iceoryx2)?;
     Ok(cfg)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bv1() -> EdgeConfig {
+        load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/edge/bv1.toml")).unwrap().edge
+    }
+
+    #[test]
+    fn the_regulator_budget_lies_within_its_period() {
+        let mut cfg = bv1();
+        assert_eq!(cfg.timing.regulator_budget_s, None);
+        cfg.timing.regulator_budget_s = Some(0.05);
+        assert!(cfg.validate().is_ok());
+        for bad in [0.2, 0.0, f64::NAN] {
+            cfg.timing.regulator_budget_s = Some(bad);
+            let e = cfg.validate().unwrap_err().to_string();
+            assert!(e.contains("timing.regulator_budget_s") && e.contains("[0.001, 0.1]"), "{e}");
+        }
+    }
+
+    #[test]
+    fn a_realtime_section_is_checked_with_the_rest_of_the_launch() {
+        let text =
+            std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/edge/bv1.toml")).unwrap();
+        let with = |section: &str| toml::from_str::<EdgeConfig>(&format!("{text}\n[launch.realtime]\n{section}"));
+        let cfg = with("lock_memory = true\ngateway = { priority = 80 }").unwrap();
+        assert!(cfg.validate().is_ok());
+        assert_eq!(bv1().launch.realtime, None, "off without the section");
+        let e = with("lock_memory = true\nregulator = { priority = 120 }").unwrap().validate().unwrap_err();
+        assert_eq!(e.field, "launch.realtime.regulator.priority");
+        assert!(with("lock_memory = true\nswap = false").is_err(), "unknown fields are refused");
+    }
 }

@@ -1,5 +1,7 @@
 //! The launcher: starts every configured node as its own process (`v2t-edge node <role>`),
-//! restarts one that exits or dies, and shuts them all down cleanly on SIGINT/SIGTERM.
+//! restarts one that exits or dies, and shuts them all down cleanly on SIGINT/SIGTERM. A node that
+//! exits with code 2 (a configuration that does not fit this machine, e.g. real-time scheduling it
+//! may not use) is not restarted: the launcher stops the others and fails with code 2.
 
 use std::path::Path;
 use std::process::{Child, Command};
@@ -69,8 +71,13 @@ fn stop(child: &mut Child) {
     let _ = child.wait();
 }
 
-/// Supervises the nodes of `cfg` until SIGINT/SIGTERM, or until a node used up its restarts.
+/// Exit code of a node whose configuration does not fit (restarting it cannot help).
+const BAD_CONFIGURATION: i32 = 2;
+
+/// Supervises the nodes of `cfg` until SIGINT/SIGTERM, or until a node used up its restarts or
+/// exited for a bad configuration. The launcher takes its own `[launch.realtime]` entry first.
 pub fn run<S: Service>(cfg: &Loaded, exe: &Path) -> Result<(), EdgeError> {
+    crate::realtime::apply_configured(cfg, crate::realtime::Process::Launcher)?;
     let bus = Bus::<S>::new("launcher", &cfg.edge.namespace)?;
     let cleaned = clean_dead_nodes::<S>();
     if cleaned > 0 {
@@ -91,7 +98,12 @@ pub fn run<S: Service>(cfg: &Loaded, exe: &Path) -> Result<(), EdgeError> {
             {
                 eprintln!("launcher: {} exited ({status})", n.role.as_str());
                 n.child = None;
-                if n.restarts >= cfg.edge.launch.max_restarts {
+                if status.code() == Some(BAD_CONFIGURATION) {
+                    failure = Some(format!(
+                        "{} exited with code 2: its configuration does not fit this machine (its message is above); not restarted",
+                        n.role.as_str()
+                    ));
+                } else if n.restarts >= cfg.edge.launch.max_restarts {
                     failure = Some(format!("{} exited {} times", n.role.as_str(), n.restarts + 1));
                 } else {
                     n.restart_at = Some(Instant::now() + delay);

@@ -20,7 +20,8 @@
 //!   the track's drivable area and a conflict zone with the VUT), telemetry at 10 Hz, heartbeats
 //!   at 5 Hz and every verdict out, and the link-loss policy;
 //! - [`launch`]: starts every configured node as a process, restarts a failed one, stops all on
-//!   SIGINT/SIGTERM; [`operator`]: engage, stop, reset, disengage, emergency stop by hand;
+//!   SIGINT/SIGTERM; [`realtime`]: opt-in `SCHED_FIFO`, CPU sets and locked memory per process;
+//!   [`operator`]: engage, stop, reset, disengage, emergency stop by hand;
 //! - [`config`]: `config/edge/<bv>.toml` and the files it names, checked before anything starts.
 
 use serde::{Deserialize, Serialize};
@@ -37,6 +38,7 @@ pub mod monitor;
 pub mod operator;
 pub mod ports;
 pub mod prior;
+pub mod realtime;
 pub mod regulate;
 pub mod state;
 pub mod track;

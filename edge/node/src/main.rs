@@ -75,6 +75,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Cmd::Node { role, common } => {
             let cfg = loaded(&common)?;
+            v2t_edge::realtime::apply_configured(&cfg, v2t_edge::realtime::Process::Node(role))?;
             match role {
                 NodeRole::State => v2t_edge::state::run::<ipc::Service>(&cfg)?,
                 NodeRole::Regulator => v2t_edge::regulate::run::<ipc::Service>(&cfg)?,
@@ -97,7 +98,7 @@ fn main() -> ExitCode {
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("v2t-edge: {e:#}");
+            eprintln!("v2t-edge: {}", v2t_files::error_chain(e.as_ref()));
             // Bad configuration is bad input (2); anything else is a failure of the work (1).
             let bad_input = e.chain().any(|c| {
                 c.downcast_ref::<EdgeError>().is_some_and(EdgeError::is_input)

@@ -3,6 +3,9 @@
 //! asking while the fault lasts); the first time everything is healthy it may engage the gate.
 //! Engaging again after a stop takes an explicit request: a restarted node resumes its work, but
 //! the BV only moves again when the operator says so.
+//!
+//! It also reports, at most once a second per node, the cycles a node counted as over its budget
+//! (the heartbeat's `deadline_misses`; the regulator's budget is `timing.regulator_budget_s`).
 
 use std::time::Duration;
 
@@ -20,11 +23,35 @@ use crate::ports::{Bus, latest, send};
 /// While unhealthy, the stop request is repeated this often, ns.
 const REPEAT_NS: u64 = 100_000_000;
 
+/// Deadline misses of one node are reported at most this often, ns.
+const OVERRUN_REPORT_NS: u64 = 1_000_000_000;
+
+/// A node counted cycles over its budget since the last report.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Overruns {
+    /// The node.
+    pub node: NodeKind,
+    /// Misses since the last report.
+    pub new: u64,
+    /// Misses since the node started.
+    pub total: u64,
+    /// Its longest cycle so far, ns.
+    pub max_cycle_ns: u64,
+}
+
+/// The deadline misses of one node already reported, and when.
+#[derive(Debug, Clone, Copy, Default)]
+struct MissesSeen {
+    reported: u64,
+    at_ns: Option<u64>,
+}
+
 /// The watchdog's judgement. Pure: time comes in as arguments.
 #[derive(Debug, Clone)]
 pub struct Watchdog {
     expected: Vec<NodeKind>,
     last_beat_ns: Vec<Option<u64>>,
+    misses: Vec<MissesSeen>,
     heartbeat_timeout_ns: u64,
     state_timeout_ns: u64,
     last_state_ns: Option<u64>,
@@ -45,6 +72,7 @@ impl Watchdog {
         Self {
             expected,
             last_beat_ns: vec![None; n],
+            misses: vec![MissesSeen::default(); n],
             heartbeat_timeout_ns: (heartbeat_timeout_s * 1e9) as u64,
             state_timeout_ns: (state_timeout_s * 1e9) as u64,
             last_state_ns: None,
@@ -58,14 +86,26 @@ impl Watchdog {
         }
     }
 
-    /// A heartbeat arrived at `now_ns`.
-    pub fn heartbeat(&mut self, beat: &Heartbeat, now_ns: u64) {
-        let Ok(kind) = NodeKind::from_code(beat.node) else { return };
-        if let Some(i) = self.expected.iter().position(|k| *k == kind)
-            && let Some(slot) = self.last_beat_ns.get_mut(i)
-        {
+    /// A heartbeat arrived at `now_ns`. Returns the node's new deadline misses when they are due
+    /// to be reported.
+    pub fn heartbeat(&mut self, beat: &Heartbeat, now_ns: u64) -> Option<Overruns> {
+        let kind = NodeKind::from_code(beat.node).ok()?;
+        let i = self.expected.iter().position(|k| *k == kind)?;
+        if let Some(slot) = self.last_beat_ns.get_mut(i) {
             *slot = Some(now_ns);
         }
+        let seen = self.misses.get_mut(i)?;
+        if beat.deadline_misses < seen.reported {
+            // The node restarted: its count did too.
+            seen.reported = 0;
+        }
+        let due = seen.at_ns.is_none_or(|t| now_ns.saturating_sub(t) >= OVERRUN_REPORT_NS);
+        if beat.deadline_misses == seen.reported || !due {
+            return None;
+        }
+        let new = beat.deadline_misses - seen.reported;
+        *seen = MissesSeen { reported: beat.deadline_misses, at_ns: Some(now_ns) };
+        Some(Overruns { node: kind, new, total: beat.deadline_misses, max_cycle_ns: beat.max_cycle_ns })
     }
 
     /// A BV state valid at `stamp_ns` arrived.
@@ -153,7 +193,15 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
     loop {
         let now = now_ns();
         while let Some(beat) = beats.receive().map_err(|e| EdgeError::ipc("receive", services::HEARTBEAT, e))? {
-            dog.heartbeat(&beat, now);
+            if let Some(o) = dog.heartbeat(&beat, now) {
+                eprintln!(
+                    "monitor: {:?} overran its cycle budget {} more time(s), {} in all (longest cycle {:.1} ms)",
+                    o.node,
+                    o.new,
+                    o.total,
+                    o.max_cycle_ns as f64 * 1e-6
+                );
+            }
         }
         if let Some(s) = latest(&states)? {
             // Judge the state by its own stamp: a state that arrives late is as stale as none.
@@ -224,6 +272,23 @@ mod tests {
         all_beat(&mut dog, 500 * MS);
         assert_eq!(dog.check(500 * MS), None);
         assert!(!dog.is_unhealthy());
+    }
+
+    #[test]
+    fn deadline_misses_are_reported_at_most_once_a_second_and_a_restart_starts_over() {
+        let mut dog = Watchdog::new(vec![NodeKind::State, NodeKind::Regulator], 0.06, 0.2, true);
+        let reg =
+            |misses: u64| Heartbeat { deadline_misses: misses, max_cycle_ns: 120 * MS, ..beat(NodeKind::Regulator) };
+        assert_eq!(dog.heartbeat(&reg(0), 0), None, "none missed");
+        let o = dog.heartbeat(&reg(1), 20 * MS).unwrap();
+        assert_eq!((o.node, o.new, o.total, o.max_cycle_ns), (NodeKind::Regulator, 1, 1, 120 * MS));
+        assert_eq!(dog.heartbeat(&reg(3), 40 * MS), None, "not again within a second");
+        let o = dog.heartbeat(&reg(4), 1_020 * MS).unwrap();
+        assert_eq!((o.new, o.total), (3, 4), "what came meanwhile is in the next report");
+        assert_eq!(dog.heartbeat(&reg(4), 3_000 * MS), None, "nothing new");
+        let o = dog.heartbeat(&reg(2), 3_020 * MS).unwrap();
+        assert_eq!((o.new, o.total), (2, 2), "a restarted node counts from zero");
+        assert_eq!(dog.fault(3_020 * MS), Some(NodeKind::State), "the beats still count as beats");
     }
 
     #[test]

@@ -1,5 +1,10 @@
 //! The regulator node: every `timing.regulator_period_s` it turns the newest BV and VUT states and
 //! the active prior into a [`RegulatedPlan`] with the Stackelberg regulator of `v2t-game`.
+//!
+//! Its deadline is watched: a decision (inputs read, decided, published) that takes longer than
+//! `timing.regulator_budget_s` (default: the period) is counted in the regulator's heartbeat
+//! (`deadline_misses`, with `max_cycle_ns`), which the monitor reports; every plan carries its
+//! `solve_ns`. An overrun is not a fault by itself: a late plan is caught by `plan_timeout_s`.
 
 use std::time::Duration;
 
@@ -194,6 +199,7 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
     let mut reg = Regulation::new(cfg.regulator, cfg.vehicle.limits.max_lat_accel_mps2)?;
     let (mut bv, mut vut): (Option<BvState>, Option<VutState>) = (None, None);
     let period_ns = (t.regulator_period_s * 1e9) as u64;
+    let budget_ns = t.regulator_budget_ns();
     let mut next_ns = now_ns();
     let mut last_status = 0;
     loop {
@@ -235,7 +241,7 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
                 }
                 plan.solve_ns = done - now;
                 send(&out, None, plan)?;
-                heart.cycle(done - now, period_ns);
+                heart.cycle(done - now, budget_ns);
             }
         }
         let inputs_ok = bv.is_some_and(|s| secs_between(s.header.stamp_ns, now) <= t.state_timeout_s);
@@ -260,6 +266,30 @@ mod tests {
     fn bv_at(prior: &ActivePrior, i: usize, stamp_ns: u64) -> BvState {
         let p = prior.bv_path[i];
         BvState { header: Header { seq: 1, stamp_ns }, px_m: p.x_m, py_m: p.y_m, speed_mps: 8.0, ..BvState::default() }
+    }
+
+    #[test]
+    fn a_decision_over_its_budget_is_counted_in_the_heartbeat() {
+        use iceoryx2::prelude::local;
+        let mut timing =
+            crate::config::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/edge/bv1.toml"))
+                .unwrap()
+                .edge
+                .timing;
+        assert_eq!(timing.regulator_budget_ns(), 100_000_000, "default: the period");
+        timing.regulator_budget_s = Some(0.02);
+        let budget_ns = timing.regulator_budget_ns();
+        assert_eq!(budget_ns, 20_000_000);
+        let bus = Bus::<local::Service>::new("regulator", "test/deadline").unwrap();
+        let beats = bus.subscriber::<v2t_wire::Heartbeat>(services::HEARTBEAT).unwrap();
+        let mut heart = Heart::new(&bus, NodeKind::Regulator, 0.02).unwrap();
+        // Start and end stamps of three decisions: on budget, 1 ns over, far over.
+        for (start, done) in [(0, budget_ns), (1_000, 1_001 + budget_ns), (5_000, 5_000 + 3 * budget_ns)] {
+            heart.cycle(done - start, budget_ns);
+        }
+        heart.tick(1_000_000_000, true).unwrap();
+        let beat = latest(&beats).unwrap().unwrap();
+        assert_eq!((beat.cycles, beat.deadline_misses, beat.max_cycle_ns), (3, 2, 3 * budget_ns));
     }
 
     #[test]

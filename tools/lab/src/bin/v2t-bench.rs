@@ -2,6 +2,8 @@
 //!
 //! ```sh
 //! v2t-bench latency --json latency.json   # state-in → CAN-frame-out through the real processes
+//! v2t-bench latency --load 2 --config config/edge/bv1_realtime.toml
+//!                                         # the same beside 2 busy processes, under SCHED_FIFO
 //! v2t-bench game --json game.json         # the regulator's decision latency and allocations
 //! v2t-bench netdelay --listen 127.0.0.1:18830 --upstream 127.0.0.1:1883 --delay-ms 50
 //!                                         # a delaying TCP proxy (the network of `experiment latency`'s real-process check)
@@ -72,6 +74,19 @@ enum Bench {
         /// Write the figures (JSON) here.
         #[arg(long)]
         json: Option<PathBuf>,
+        /// Busy processes (one CPU each, pinned nowhere) beside the runtime while it is measured.
+        #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u16).range(0..=256))]
+        load: u16,
+        /// Run the scenario again until the path has this many samples (at most 100 runs).
+        #[arg(long, default_value_t = 5_000)]
+        min_samples: usize,
+    },
+    /// Spins on one CPU until the process PARENT is gone (the load of `latency --load`).
+    #[command(hide = true)]
+    Spin {
+        /// The bench that started it.
+        #[arg(long)]
+        parent: u32,
     },
     /// The regulator's decision latency and allocations (one thread, warm; N = 30 and 50).
     Game {
@@ -101,16 +116,25 @@ fn write_json(path: &Path, value: &impl serde::Serialize) -> anyhow::Result<()> 
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        Bench::Latency { config, scenario, json } => {
+        Bench::Latency { config, scenario, json, load, min_samples } => {
+            use v2t_lab::bench_latency::{LatencyOptions, Load, Programs, latency};
             let cfg = load_for_process(&config, Overrides::default())?;
+            // The scenario is the ECU's to read; read it here first, before anything starts.
+            v2t_sim::files::load_scenario(&scenario)?;
             let (edge, ecu) = (v2t_lab::demo::beside_me("v2t-edge"), v2t_lab::demo::beside_me("v2t-sim-ecu"));
-            let programs = v2t_lab::bench_latency::Programs { edge: &edge, ecu: &ecu };
-            let report = v2t_lab::bench_latency::latency(&cfg, programs, &scenario)?;
+            let programs = Programs { edge: &edge, ecu: &ecu };
+            let me = std::env::current_exe().context("cannot find the v2t-bench executable")?;
+            let parent = std::process::id().to_string();
+            let load = Load::start(usize::from(load), &me, &["spin", "--parent", &parent])?;
+            let opts = LatencyOptions { scenario: &scenario, min_samples, load: &load };
+            let report = latency(&cfg, programs, &opts)?;
+            drop(load);
             println!("{}", report.table());
             if let Some(path) = json {
                 write_json(&path, &report)?;
             }
         }
+        Bench::Spin { parent } => v2t_lab::bench_latency::spin(parent),
         Bench::Netdelay { listen, upstream, delay_ms } => {
             let listener = std::net::TcpListener::bind(listen).with_context(|| format!("cannot listen on {listen}"))?;
             println!("netdelay: {listen} -> {upstream}, {delay_ms} ms each way");
@@ -132,8 +156,14 @@ fn main() -> ExitCode {
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("v2t-bench: {e:#}");
-            ExitCode::FAILURE
+            eprintln!("v2t-bench: {}", v2t_files::error_chain(e.as_ref()));
+            // A configuration or scenario file at fault is bad input (2); the rest failed work (1).
+            let bad_input = e.chain().any(|c| {
+                c.downcast_ref::<v2t_edge::error::EdgeError>().is_some_and(v2t_edge::error::EdgeError::is_input)
+                    || c.is::<v2t_files::InputError>()
+                    || c.is::<v2t_sim::files::CardError>()
+            });
+            ExitCode::from(if bad_input { 2 } else { 1 })
         }
     }
 }
