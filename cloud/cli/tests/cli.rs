@@ -814,8 +814,25 @@ fn every_command_follows_one_exit_code_rule() {
         assert!(err.contains("missing.file") || args[0] == "regulate", "{args:?} does not name the file: {err}");
     }
     let usage: [&str; 19] = [
-        "demo", "sim", "replay", "render", "experiment", "campaign", "abstract", "generate", "realism", "corpus",
-        "train", "ground", "export", "map", "keygen", "serve", "upload", "send", "regulate",
+        "demo",
+        "sim",
+        "replay",
+        "render",
+        "experiment",
+        "campaign",
+        "abstract",
+        "generate",
+        "realism",
+        "corpus",
+        "train",
+        "ground",
+        "export",
+        "map",
+        "keygen",
+        "serve",
+        "upload",
+        "send",
+        "regulate",
     ];
     for command in usage {
         let o = video2track(&[command, "--no-such-option"]);

@@ -89,7 +89,8 @@ fn a_prior_that_meets_no_criterion_is_refused_unless_asked_for() {
     let g = grounded(dir, "cut_in");
     let (prior, metrics) = (dir.join("prior.json"), dir.join("metrics.json"));
     // The bare denoiser, no redraw: seed 1 crosses a solid boundary and misses its anchors by 15 m.
-    let args = ["generate", s(&g), "--guidance", "none", "--draws", "1", "--out", s(&prior), "--json-metrics", s(&metrics)];
+    let args =
+        ["generate", s(&g), "--guidance", "none", "--draws", "1", "--out", s(&prior), "--json-metrics", s(&metrics)];
     let o = video2track(&args);
     let err = String::from_utf8_lossy(&o.stderr).into_owned();
     assert_eq!(o.status.code(), Some(1), "{err}");

@@ -84,9 +84,8 @@ impl Map {
             return Err(MapError::Invalid { context: self.name.clone(), message: "the map has no lanes".into() });
         };
         let m = EXTENT_MARGIN_M;
-        let inside = |p: v2t_model::geometry::Point2| {
-            p.x >= lo.x - m && p.x <= hi.x + m && p.y >= lo.y - m && p.y <= hi.y + m
-        };
+        let inside =
+            |p: v2t_model::geometry::Point2| p.x >= lo.x - m && p.x <= hi.x + m && p.y >= lo.y - m && p.y <= hi.y + m;
         let mut points = Vec::new();
         for (i, a) in g.agents.iter().enumerate() {
             points.push((format!("agents[{i}].start.position"), a.start.position));

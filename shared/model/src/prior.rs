@@ -7,7 +7,9 @@ use crate::Style;
 use crate::grounded::{AgentRole, GroundedConflict, GroundedScenario};
 use crate::kinematics::{Control, State, step};
 use crate::path::ReferencePath;
-use crate::validate::plausible::{self, MAX_ACCEL_MPS2, MAX_AGENTS, MAX_SCENARIO_TIME_S, MAX_SPEED_MPS, MAX_YAW_RATE_RADPS};
+use crate::validate::plausible::{
+    self, MAX_ACCEL_MPS2, MAX_AGENTS, MAX_SCENARIO_TIME_S, MAX_SPEED_MPS, MAX_YAW_RATE_RADPS,
+};
 use crate::validate::{Validate, ValidationError, in_range};
 
 /// One agent's reference: `states[k]` at `t = k·dt`, `controls[k]` applied over `[k·dt, (k+1)·dt)`.

@@ -134,7 +134,10 @@ pub mod plausible {
     /// One vehicle's samples `(t_s, x, y)` in time order, as a run trace or an export holds them:
     /// every coordinate within bounds, no step faster than [`MAX_SPEED_MPS`] ([`teleported`]), at
     /// most [`MAX_SCENARIO_TIME_S`] from the first to the last. The error names `field[k]`.
-    pub fn motion(field: &str, samples: impl IntoIterator<Item = (f64, f64, f64)>) -> Result<(), super::ValidationError> {
+    pub fn motion(
+        field: &str,
+        samples: impl IntoIterator<Item = (f64, f64, f64)>,
+    ) -> Result<(), super::ValidationError> {
         let mut first: Option<f64> = None;
         let mut last: Option<(f64, f64, f64)> = None;
         for (k, (t, x, y)) in samples.into_iter().enumerate() {
@@ -144,7 +147,10 @@ pub mod plausible {
                 if teleported(jump, t - t0) {
                     return Err(super::ValidationError::new(
                         format!("{field}[{k}]"),
-                        format!("lies {jump:.1} m from the sample {:.3} s before: faster than {MAX_SPEED_MPS} m/s", t - t0),
+                        format!(
+                            "lies {jump:.1} m from the sample {:.3} s before: faster than {MAX_SPEED_MPS} m/s",
+                            t - t0
+                        ),
                     ));
                 }
             }
@@ -152,7 +158,10 @@ pub mod plausible {
             if t - t0 > MAX_SCENARIO_TIME_S {
                 return Err(super::ValidationError::new(
                     format!("{field}[{k}]"),
-                    format!("lies {:.0} s after the first sample, at most {MAX_SCENARIO_TIME_S} s are accepted", t - t0),
+                    format!(
+                        "lies {:.0} s after the first sample, at most {MAX_SCENARIO_TIME_S} s are accepted",
+                        t - t0
+                    ),
                 ));
             }
             last = Some((t, x, y));

@@ -398,7 +398,11 @@ fn settings_beyond_their_bounds_are_refused_naming_the_field() {
     for (params, field, bound) in [
         (RegulatorParams { max_input_age_s: 1e-320, ..RegulatorParams::default() }, "max_input_age_s", "[0.01, 5]"),
         (RegulatorParams { w_adv: 9.2e18, ..RegulatorParams::default() }, "w_adv", "[0.000001, 1000000]"),
-        (RegulatorParams { fallback_decel_mps2: 1e20, ..RegulatorParams::default() }, "fallback_decel_mps2", "[0.5, 12]"),
+        (
+            RegulatorParams { fallback_decel_mps2: 1e20, ..RegulatorParams::default() },
+            "fallback_decel_mps2",
+            "[0.5, 12]",
+        ),
         (RegulatorParams { w_adv: f64::NAN, ..RegulatorParams::default() }, "w_adv", "NaN"),
     ] {
         let e = params.validate().unwrap_err();
