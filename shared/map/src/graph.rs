@@ -184,6 +184,8 @@ impl LaneGraph {
                     format!("its plan view jumps {gap:.3} m at s = {s:.2}"),
                 ));
             }
+            let mut lanes = Vec::new();
+            let mut beyond = None;
             for (k, sec) in road.sections.iter().enumerate() {
                 let end = road.sections.get(k + 1).map_or(road.length, |n| n.s);
                 if end <= sec.s + 1e-6 {
@@ -194,10 +196,27 @@ impl LaneGraph {
                     continue;
                 }
                 for lane in sec.left.iter().chain(&sec.right) {
-                    let info = sample_lane(road, &line, sec, k, end, lane);
-                    graph.index.insert(info.key.clone(), graph.lanes.len());
-                    graph.lanes.push(info);
+                    let (info, reach) = sample_lane(road, &line, sec, k, end, lane);
+                    let width = info.samples.iter().map(|q| q.width).fold(0.0, f64::max);
+                    if !(width <= MAX_LANE_WIDTH_M && reach <= MAX_LANE_REACH_M) && beyond.is_none() {
+                        beyond = Some(format!(
+                            "lane {} of laneSection {k} reaches a width of {} m and {} m off the reference \
+                             line (bounds: {MAX_LANE_WIDTH_M} m, {MAX_LANE_REACH_M} m): the road is left out",
+                            lane.id,
+                            v2t_model::validate::shown(width),
+                            v2t_model::validate::shown(reach)
+                        ));
+                    }
+                    lanes.push(info);
                 }
+            }
+            if let Some(message) = beyond {
+                warnings.push(MapWarning::new(format!("road {}", road.id), message));
+                continue;
+            }
+            for info in lanes {
+                graph.index.insert(info.key.clone(), graph.lanes.len());
+                graph.lanes.push(info);
             }
         }
         graph.neighbours(doc);
@@ -305,7 +324,21 @@ fn side_edges(lanes: &[Lane], offset: f64, ds: f64, sign: f64) -> Vec<(f64, f64)
     out
 }
 
-fn sample_lane(road: &Road, line: &ReferenceLine<'_>, sec: &LaneSection, k: usize, end: f64, lane: &Lane) -> LaneInfo {
+/// Widest a sampled lane may become (the width polynomials' `b`, `c`, `d` can make a lane that
+/// starts 3.5 m wide a kilometre wide at its end), m.
+pub const MAX_LANE_WIDTH_M: f64 = crate::xodr::MAX_LANE_WIDTH_M;
+/// Farthest a lane's edge may lie from its road's reference line (lane offsets, many wide lanes), m.
+pub const MAX_LANE_REACH_M: f64 = 1_000.0;
+
+/// The lane's samples, and how far its edges reach from the reference line at most, m.
+fn sample_lane(
+    road: &Road,
+    line: &ReferenceLine<'_>,
+    sec: &LaneSection,
+    k: usize,
+    end: f64,
+    lane: &Lane,
+) -> (LaneInfo, f64) {
     let forward = (lane.id < 0) == (road.rule == TrafficRule::Rht);
     let left_side = lane.id > 0;
     let side = if left_side { &sec.left } else { &sec.right };
@@ -318,6 +351,7 @@ fn sample_lane(road: &Road, line: &ReferenceLine<'_>, sec: &LaneSection, k: usiz
     let mut samples = Vec::with_capacity(n as usize + 1);
     let mut i = 0.0;
     let mut max_width = 0.0_f64;
+    let mut reach = 0.0_f64;
     while i <= n {
         let s_road = sec.s + (end - sec.s) * i / n;
         i += 1.0;
@@ -337,6 +371,10 @@ fn sample_lane(road: &Road, line: &ReferenceLine<'_>, sec: &LaneSection, k: usiz
         };
         let width = (outer - inner).abs();
         max_width = max_width.max(width);
+        reach = reach.max(inner.abs()).max(outer.abs());
+        if reach.is_nan() {
+            reach = f64::INFINITY;
+        }
         let sample = if forward {
             LaneSample {
                 p: centre,
@@ -377,7 +415,7 @@ fn sample_lane(road: &Road, line: &ReferenceLine<'_>, sec: &LaneSection, k: usiz
         prev = Some(q.p);
     }
     let speed_limit_mps = road.speed_limits.iter().rev().find(|(s, _)| *s <= sec.s + 1e-9).map(|(_, v)| *v);
-    LaneInfo {
+    let info = LaneInfo {
         key: LaneKey { road: road.id.clone(), section: k, lane: lane.id },
         kind: lane.kind.clone(),
         drivable: lane.is_drivable() && max_width >= 1.0,
@@ -390,7 +428,8 @@ fn sample_lane(road: &Road, line: &ReferenceLine<'_>, sec: &LaneSection, k: usiz
         left: None,
         right: None,
         speed_limit_mps,
-    }
+    };
+    (info, reach)
 }
 
 fn section_at(road: &Road, contact: ContactPoint) -> usize {

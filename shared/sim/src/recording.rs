@@ -14,6 +14,8 @@
 //! Metadata `video2track.run` holds the measurement setup (conflict zones, style, τ, seed, models)
 //! and the result the run reported.
 
+mod layout;
+
 use std::collections::BTreeMap;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
@@ -284,6 +286,8 @@ fn sample_messages(
 /// Reads a recording and measures it again.
 pub fn replay(path: &Path) -> Result<Replay, RecordingError> {
     let bytes = std::fs::read(path).map_err(|source| RecordingError::Io { path: path.to_owned(), source })?;
+    // The layout first: the reader allocates what a length prefix claims.
+    layout::check(&bytes).map_err(|message| RecordingError::Mcap { path: path.to_owned(), message })?;
     let mc = |e: mcap::McapError| RecordingError::Mcap { path: path.to_owned(), message: e.to_string() };
     let bad = |message: String| RecordingError::Content { path: path.to_owned(), message };
     let mut meta = None;
