@@ -22,12 +22,14 @@
 //! - [`launch`]: starts every configured node as a process, restarts a failed one, stops all on
 //!   SIGINT/SIGTERM; [`realtime`]: opt-in `SCHED_FIFO`, CPU sets and locked memory per process;
 //!   [`operator`]: engage, stop, reset, disengage, emergency stop by hand;
-//! - [`config`]: `config/edge/<bv>.toml` and the files it names, checked before anything starts.
+//! - [`config`]: `config/edge/<bv>.toml` and the files it names, checked before anything starts;
+//!   [`check`]: all of it, and how it fits this machine, one line per check (`v2t-edge check`).
 
 use serde::{Deserialize, Serialize};
 use v2t_wire::NodeKind;
 
 pub mod canbus;
+pub mod check;
 pub mod clock;
 pub mod config;
 pub mod error;

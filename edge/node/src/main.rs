@@ -4,6 +4,7 @@
 //! v2t-edge launch --config config/edge/bv1.toml          # start and supervise every node
 //! v2t-edge node regulator --config config/edge/bv1.toml  # one node (what the launcher runs)
 //! v2t-edge reset|engage|stop|disengage|estop --config config/edge/bv1.toml
+//! v2t-edge check --config config/edge/bv1.toml           # before a test day: every check, exit 2 on a FAIL
 //! ```
 //!
 //! Without a vehicle, the lab's simulated drive-by-wire ECU closes the loop (`v2t-sim-ecu`).
@@ -60,14 +61,20 @@ enum Cmd {
     Disengage(Common),
     /// Emergency stop.
     Estop(Common),
+    /// Check the configuration, every file it names and how it fits this machine (CAN interface,
+    /// real-time allowances), one line per check; exit 2 if any fails. Starts nothing.
+    Check(Common),
+}
+
+fn overrides(c: &Common) -> Overrides<'_> {
+    Overrides { namespace: c.namespace.as_deref(), can_iface: c.can_iface.as_deref() }
 }
 
 fn loaded(c: &Common) -> anyhow::Result<Loaded> {
-    let overrides = Overrides { namespace: c.namespace.as_deref(), can_iface: c.can_iface.as_deref() };
-    Ok(load_for_process(&c.config, overrides)?)
+    Ok(load_for_process(&c.config, overrides(c))?)
 }
 
-fn run(cli: Cli) -> anyhow::Result<()> {
+fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Cmd::Launch(c) => {
             let exe = std::env::current_exe().context("cannot find the v2t-edge executable")?;
@@ -90,13 +97,19 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Cmd::Stop(c) => v2t_edge::operator::request::<ipc::Service>(&loaded(&c)?, SafetyAction::MinimalRiskStop)?,
         Cmd::Disengage(c) => v2t_edge::operator::request::<ipc::Service>(&loaded(&c)?, SafetyAction::Disengage)?,
         Cmd::Estop(c) => v2t_edge::operator::request::<ipc::Service>(&loaded(&c)?, SafetyAction::EStop)?,
+        Cmd::Check(c) => {
+            let report = v2t_edge::check::run(&c.config, overrides(&c), &v2t_edge::check::Machine::this_one());
+            print!("{report}");
+            // A failed check is bad input, like a configuration the runtime refuses (2).
+            return Ok(if report.failed() { ExitCode::from(2) } else { ExitCode::SUCCESS });
+        }
     }
-    Ok(())
+    Ok(ExitCode::SUCCESS)
 }
 
 fn main() -> ExitCode {
     match run(Cli::parse()) {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(code) => code,
         Err(e) => {
             eprintln!("v2t-edge: {}", v2t_files::error_chain(e.as_ref()));
             // Bad configuration is bad input (2); anything else is a failure of the work (1).

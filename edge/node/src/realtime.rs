@@ -249,9 +249,20 @@ pub fn apply_configured(cfg: &Loaded, process: Process) -> Result<(), EdgeError>
     Ok(())
 }
 
-/// The system calls, each returning the errno on failure.
+/// A soft resource limit of this process.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Rlimit {
+    /// `RLIM_INFINITY`.
+    Unlimited,
+    /// This much (a priority, or bytes).
+    Of(u64),
+}
+
+/// The system calls, each returning the errno on failure (also what `v2t-edge check` reads).
 #[allow(unsafe_code)]
-mod sys {
+pub(crate) mod sys {
+    use super::Rlimit;
+
     fn errno() -> i32 {
         std::io::Error::last_os_error().raw_os_error().unwrap_or(libc::EINVAL)
     }
@@ -286,6 +297,24 @@ mod sys {
         // SAFETY: mlockall takes flags only and touches no memory of ours.
         let rc = unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) };
         if rc == 0 { Ok(()) } else { Err(errno()) }
+    }
+
+    /// The soft `RLIMIT_RTPRIO` and `RLIMIT_MEMLOCK` of this process (`None`: unreadable).
+    pub fn limits() -> (Option<Rlimit>, Option<Rlimit>) {
+        let soft = |rc: i32, l: libc::rlimit| {
+            (rc == 0).then_some(if l.rlim_cur == libc::RLIM_INFINITY {
+                Rlimit::Unlimited
+            } else {
+                Rlimit::Of(l.rlim_cur)
+            })
+        };
+        let mut rtprio = libc::rlimit { rlim_cur: 0, rlim_max: 0 };
+        let mut memlock = libc::rlimit { rlim_cur: 0, rlim_max: 0 };
+        // SAFETY: each `rlimit` is valid and outlives its call, which only writes into it.
+        let rc_rtprio = unsafe { libc::getrlimit(libc::RLIMIT_RTPRIO, &mut rtprio) };
+        // SAFETY: as above.
+        let rc_memlock = unsafe { libc::getrlimit(libc::RLIMIT_MEMLOCK, &mut memlock) };
+        (soft(rc_rtprio, rtprio), soft(rc_memlock, memlock))
     }
 
     /// Puts the calling thread under SCHED_FIFO at `priority`; what it starts later begins under

@@ -17,20 +17,46 @@ fn config_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config")
 }
 
-/// `config/edge/bv1.toml` with its file references made absolute and `from` replaced by `to`,
+/// `config/edge/<name>` with its file references made absolute and each `(from, to)` replaced,
 /// written into `dir`.
-fn bv1_with(dir: &Path, from: &str, to: &str) -> PathBuf {
-    let text = std::fs::read_to_string(config_dir().join("edge/bv1.toml")).unwrap();
-    assert!(text.contains(from), "bv1.toml no longer has `{from}`");
+fn edge_config_with(dir: &Path, name: &str, replacements: &[(&str, &str)]) -> PathBuf {
+    let text = std::fs::read_to_string(config_dir().join("edge").join(name)).unwrap();
     let absolute = format!("\"{}/", config_dir().display());
-    let text = text.replace("\"../", &absolute).replace(from, to);
-    let path = dir.join("bv1.toml");
+    let mut text = text.replace("\"../", &absolute);
+    for (from, to) in replacements {
+        assert!(text.contains(from), "{name} no longer has `{from}`");
+        text = text.replace(from, to);
+    }
+    let path = dir.join(name);
     std::fs::write(&path, text).unwrap();
     path
 }
 
+/// `config/edge/bv1.toml` with its file references made absolute and `from` replaced by `to`,
+/// written into `dir`.
+fn bv1_with(dir: &Path, from: &str, to: &str) -> PathBuf {
+    edge_config_with(dir, "bv1.toml", &[(from, to)])
+}
+
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// `v2t-edge check --config <config> <more>`: its exit code and its report.
+fn check(config: &Path, more: &[&str]) -> (Option<i32>, String) {
+    let mut args = vec!["check", "--config", config.to_str().unwrap()];
+    args.extend_from_slice(more);
+    let o = edge(&args);
+    (o.status.code(), format!("{}{}", stdout(&o), stderr(&o)))
+}
+
+/// The line of `report` that starts with `prefix` (`"FAIL can nonexistent0:"`).
+fn line<'a>(report: &'a str, prefix: &str) -> &'a str {
+    report.lines().find(|l| l.starts_with(prefix)).unwrap_or_else(|| panic!("no `{prefix}` line:\n{report}"))
 }
 
 #[test]
@@ -74,7 +100,107 @@ fn a_usage_error_is_exit_2_and_help_names_every_command() {
     let o = edge(&["--help"]);
     assert!(o.status.success());
     let help = String::from_utf8_lossy(&o.stdout);
-    for command in ["launch", "node", "engage", "reset", "stop", "disengage", "estop"] {
+    for command in ["launch", "node", "engage", "reset", "stop", "disengage", "estop", "check"] {
         assert!(help.contains(command), "--help lacks `{command}`: {help}");
+    }
+}
+
+#[test]
+fn check_passes_the_shipped_configuration() {
+    let (code, report) = check(&config_dir().join("edge/bv1.toml"), &[]);
+    assert_eq!(code, Some(0), "{report}");
+    for prefix in [
+        "ok   config:",
+        "ok   vehicle:",
+        "ok   gate:",
+        "ok   iceoryx2:",
+        "ok   gate/vehicle:",
+        "ok   regulator/vehicles:",
+    ] {
+        line(&report, prefix);
+    }
+    // The bench's transport, and no map without a cloud link: allowed, worth knowing.
+    assert!(line(&report, "warn can:").contains("ipc"), "{report}");
+    line(&report, "warn geofence:");
+    assert!(!report.contains("FAIL "), "{report}");
+    assert!(report.lines().last().unwrap().starts_with("summary: ") && report.contains(" 0 FAIL"), "{report}");
+}
+
+#[test]
+fn check_warns_about_the_demo_key_of_a_cloud_link() {
+    let (code, report) = check(&config_dir().join("edge/bv1_link.toml"), &[]);
+    assert_eq!(code, Some(0), "{report}");
+    let demo = report.lines().find(|l| l.starts_with("warn uplink.cloud_key:") && l.contains("demo key"));
+    assert!(demo.is_some_and(|l| l.contains("demo_cloud.pub") && l.contains("never on a vehicle")), "{report}");
+    assert!(line(&report, "ok   uplink.map:").contains("proving_ground.xodr"), "{report}");
+    line(&report, "ok   uplink.broker:");
+}
+
+#[test]
+fn check_fails_on_a_can_interface_this_machine_lacks_and_says_how_to_bring_one_up() {
+    let (code, report) = check(&config_dir().join("edge/bv1.toml"), &["--can-iface", "nonexistent0"]);
+    assert_eq!(code, Some(2), "{report}");
+    let fail = line(&report, "FAIL can nonexistent0:");
+    for hint in
+        ["--can-iface", "ip link set nonexistent0 up type can bitrate", "ip link add dev nonexistent0 type vcan"]
+    {
+        assert!(fail.contains(hint), "{hint}: {fail}");
+    }
+    assert!(report.lines().last().unwrap().contains("1 FAIL"), "{report}");
+}
+
+#[test]
+fn check_names_every_broken_file_not_only_the_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let gate = std::fs::read_to_string(config_dir().join("can/gate.toml")).unwrap();
+    let gate_file = dir.path().join("gate.toml");
+    std::fs::write(&gate_file, gate.replace("command_timeout_s = 0.25", "command_timeout_s = 50")).unwrap();
+    let cfg = edge_config_with(
+        dir.path(),
+        "bv1.toml",
+        &[
+            ("vehicles/bv_sedan.toml", "vehicles/no_such_vehicle.toml"),
+            (&format!("{}/can/gate.toml", config_dir().display()), gate_file.to_str().unwrap()),
+        ],
+    );
+    let (code, report) = check(&cfg, &[]);
+    assert_eq!(code, Some(2), "{report}");
+    let vehicle = line(&report, "FAIL vehicle:");
+    assert!(vehicle.contains("no_such_vehicle.toml") && vehicle.contains("cannot read"), "{report}");
+    let gate = line(&report, "FAIL gate:");
+    assert!(
+        gate.contains("gate.toml") && gate.contains("command_timeout_s") && gate.contains("[0.001, 5]"),
+        "{report}"
+    );
+    assert!(line(&report, "ok   tracker:").contains("track/default.toml"), "the others are still checked: {report}");
+    assert!(report.lines().last().unwrap().contains("2 FAIL"), "{report}");
+}
+
+#[test]
+fn check_fails_on_a_missing_configuration() {
+    let dir = tempfile::tempdir().unwrap();
+    let (code, report) = check(&dir.path().join("nowhere.toml"), &[]);
+    assert_eq!(code, Some(2), "{report}");
+    assert!(line(&report, "FAIL config:").contains("nowhere.toml: cannot read"), "{report}");
+}
+
+#[test]
+fn the_uplink_does_not_start_without_a_valid_cloud_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let key = dir.path().join("cloud.pub");
+    let key_line = format!("\"{}/keys/demo_cloud.pub\"", config_dir().display());
+    let cfg = edge_config_with(dir.path(), "bv1_link.toml", &[(&key_line, &format!("\"{}\"", key.display()))]);
+    for (content, expected) in
+        [(None, "cloud.pub: No such file"), (Some("not a key"), "cloud_key: expected 64 hex digits")]
+    {
+        if let Some(content) = content {
+            std::fs::write(&key, content).unwrap();
+        }
+        let o = edge(&["node", "uplink", "--config", cfg.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains(expected), "{expected}: {}", stderr(&o));
+        let (code, report) = check(&cfg, &[]);
+        assert_eq!(code, Some(2), "{report}");
+        assert!(line(&report, "FAIL uplink.cloud_key:").contains("the uplink does not start without it"), "{report}");
     }
 }
