@@ -79,7 +79,7 @@ marker="V2T_GUEST_EXIT_$$_$RANDOM"
   echo 'ip link set up vcan0 || fail "ip link set up vcan0"'
   echo 'ip link set lo up'
   printf 'cd %q || fail "cd"\n' "$PWD"
-  for var in HOME USER CARGO_HOME RUST_BACKTRACE RUST_LOG V2T_TRACE_PLANS V2T_EDGE_CONFIG; do
+  for var in HOME USER CARGO_HOME RUST_BACKTRACE RUST_LOG V2T_TRACE_PLANS V2T_EDGE_CONFIG V2T_EDGE_BIN; do
     if [ -n "${!var:-}" ]; then printf 'export %s=%q\n' "$var" "${!var}"; fi
   done
   echo 'export V2T_CAN_IFACE=vcan0'

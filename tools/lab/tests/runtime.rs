@@ -42,8 +42,16 @@ fn can_args() -> Vec<String> {
 }
 
 /// The onboard runtime's binary, which `cargo test --workspace` builds beside this test's
-/// (`cargo build -p v2t-edge` alone does too).
+/// (`cargo build -p v2t-edge` alone does too), or the one `V2T_EDGE_BIN` names (the installed
+/// package's, `tests/package/check.sh`).
 fn edge_bin() -> PathBuf {
+    if let Ok(path) = std::env::var("V2T_EDGE_BIN")
+        && !path.is_empty()
+    {
+        assert!(Path::new(&path).is_file(), "V2T_EDGE_BIN={path} is no file");
+        eprintln!("the onboard runtime: {path} (V2T_EDGE_BIN)");
+        return PathBuf::from(path);
+    }
     let exe = std::env::current_exe().unwrap();
     let p = exe.parent().and_then(Path::parent).unwrap().join("v2t-edge");
     assert!(p.exists(), "{} is not built: run `cargo build -p v2t-edge` (or the whole workspace's tests)", p.display());
