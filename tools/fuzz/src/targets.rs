@@ -190,7 +190,11 @@ impl Context {
     /// The seeds of `kind`: the shipped files, or what the pipeline makes of them.
     pub fn seeds(&self, kind: &Kind) -> anyhow::Result<Vec<Seed>> {
         Ok(match kind.name {
-            "opendrive" => self.files("config/maps", "xodr")?,
+            "opendrive" => {
+                let mut maps = self.files("config/maps", "xodr")?;
+                maps.extend(self.files("tests/data/maps", "xodr")?);
+                maps
+            }
             "annotations" => self.files("config/maps", "toml")?,
             "semantics" => self.files("config/examples", "json")?,
             "vlm-reply" => self.vlm_replies()?,

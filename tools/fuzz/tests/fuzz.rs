@@ -67,8 +67,13 @@ fn every_input_kind_survives_its_budgeted_mutants() {
         let mutants: u64 = row.split('|').nth(4).unwrap().trim().parse().unwrap();
         assert!(mutants >= 10, "{}: {mutants} mutants in its share: {row}", kind.name);
     }
-    let regressions = std::fs::read_dir(repo().join("tests/fuzz/regressions/opendrive")).unwrap().count();
-    assert!(out.contains(&format!("| opendrive | 1 | {regressions} |")), "{out}");
+    // Every regression seed was read first.
+    for kind in ["opendrive", "card", "grounded", "prior", "run", "mcap"] {
+        let files = std::fs::read_dir(repo().join("tests/fuzz/regressions").join(kind)).unwrap().count();
+        let row = out.lines().find(|l| l.starts_with(&format!("| {kind} |"))).unwrap();
+        let read: usize = row.split('|').nth(3).unwrap().trim().parse().unwrap();
+        assert_eq!(read, files, "{kind}: {row}");
+    }
     eprintln!("v2t-fuzz budgeted share took {took:?}");
 }
 
