@@ -76,6 +76,23 @@ set -e
 [ "$rc" = 2 ] || fail "check with a missing CAN interface exited $rc, not 2: $out"
 grep -q nonexistent0 <<<"$out" || fail "check does not name the missing interface: $out"
 
+# 7. (CI only: V2T_PACKAGE_INSTALL=1, as root, on a throw-away machine) the package installs with
+#    dpkg for real (its maintainer scripts create the v2t user and /var/lib/video2track), the
+#    installed check passes, and a purge removes it again.
+if [ "${V2T_PACKAGE_INSTALL:-0}" = 1 ]; then
+  echo "== dpkg -i, check, purge (V2T_PACKAGE_INSTALL=1)"
+  [ "$(id -u)" = 0 ] || fail "V2T_PACKAGE_INSTALL=1 needs root"
+  # A run that died between install and purge left it: this is a throw-away machine.
+  if dpkg -s v2t-edge >/dev/null 2>&1; then dpkg --purge v2t-edge; fi
+  dpkg -i "$deb"
+  getent passwd v2t >/dev/null || fail "postinst made no v2t user"
+  [ "$(stat -c %U /var/lib/video2track)" = v2t ] || fail "/var/lib/video2track is not the v2t user's"
+  /usr/bin/v2t-edge check --config /etc/video2track/edge/bv1.toml
+  dpkg --purge v2t-edge
+  [ ! -e /usr/bin/v2t-edge ] && [ ! -e /etc/video2track/edge/bv1.toml ] && [ ! -e /var/lib/video2track ] \
+    || fail "purge left files behind"
+fi
+
 echo "== the installed launcher on vcan0 in the User-Mode-Linux guest"
 runtime="$(cargo test -p v2t-lab --test runtime --no-run 2>&1 | sed -n 's|^ *Executable tests/runtime\.rs (\(.*\))$|\1|p' | tail -n 1)"
 [ -x "$runtime" ] || fail "could not build the runtime test"
