@@ -96,7 +96,7 @@ fn reference(a: ReferenceArgs) -> anyhow::Result<()> {
     let mut sources: Vec<String> = Vec::new();
     let mut dt: Option<f64> = None;
     for path in &a.corpora {
-        let c = recorded::read_file(path).map_err(crate::BadFile::of)?;
+        let c = recorded::read_file(path).map_err(|e| crate::named(path, e))?;
         for s in &c.sources {
             let tag = format!("{} [{}]", s.dataset, s.licence);
             if !sources.contains(&tag) {
@@ -279,7 +279,7 @@ fn read_recording(
 fn stats(a: StatsArgs) -> anyhow::Result<()> {
     let mut all = RecordedCorpus::default();
     for path in &a.corpora {
-        let c = recorded::read_file(path).map_err(crate::BadFile::of)?;
+        let c = recorded::read_file(path).map_err(|e| crate::named(path, e))?;
         all.sources.extend(c.sources);
         all.episodes.extend(c.episodes);
     }

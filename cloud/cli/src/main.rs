@@ -122,6 +122,13 @@ impl BadFile {
     }
 }
 
+/// A reader's error about the file at `path`, as bad input: the path first, once (some readers
+/// name it themselves).
+pub(crate) fn named(path: &std::path::Path, e: impl std::fmt::Display) -> Usage {
+    let (path, e) = (path.display().to_string(), e.to_string());
+    Usage(if e.starts_with(&path) { e } else { format!("{path}: {e}") })
+}
+
 fn execute(command: Command) -> anyhow::Result<()> {
     match command {
         Command::Demo(a) => demo::run(a),

@@ -205,7 +205,7 @@ impl Corpora {
 }
 
 fn read_recorded(path: &std::path::Path) -> anyhow::Result<RecordedCorpus> {
-    recorded::read_file(path).map_err(|e| crate::BadFile::of(e).into())
+    recorded::read_file(path).map_err(|e| crate::named(path, e).into())
 }
 
 fn load_corpora(args: &CorpusSource, map: &v2t_map::Map) -> anyhow::Result<Corpora> {
