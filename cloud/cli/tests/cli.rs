@@ -138,6 +138,29 @@ fn paths_that_never_meet_are_refused() {
     expect_input_error(&card, &["never comes into conflict"]);
 }
 
+/// Every command of `video2track`, in the order `--help` lists them.
+const COMMANDS: [&str; 19] = [
+    "demo",
+    "sim",
+    "replay",
+    "render",
+    "experiment",
+    "campaign",
+    "abstract",
+    "generate",
+    "realism",
+    "corpus",
+    "train",
+    "ground",
+    "export",
+    "map",
+    "keygen",
+    "serve",
+    "upload",
+    "send",
+    "regulate",
+];
+
 #[test]
 fn help_lists_only_real_commands() {
     let o = video2track(&["--help"]);
@@ -149,32 +172,9 @@ fn help_lists_only_real_commands() {
         .take_while(|l| !l.trim().is_empty())
         .filter_map(|l| l.split_whitespace().next())
         .collect();
-    assert_eq!(
-        commands,
-        [
-            "demo",
-            "sim",
-            "replay",
-            "render",
-            "experiment",
-            "campaign",
-            "abstract",
-            "generate",
-            "realism",
-            "corpus",
-            "train",
-            "ground",
-            "export",
-            "map",
-            "keygen",
-            "serve",
-            "upload",
-            "send",
-            "regulate",
-            "help"
-        ],
-        "{out}"
-    );
+    let mut expected = COMMANDS.to_vec();
+    expected.push("help");
+    assert_eq!(commands, expected, "{out}");
 }
 
 #[test]
@@ -813,28 +813,7 @@ fn every_command_follows_one_exit_code_rule() {
         // `regulate` checks its start time first: a usage error, also 2.
         assert!(err.contains("missing.file") || args[0] == "regulate", "{args:?} does not name the file: {err}");
     }
-    let usage: [&str; 19] = [
-        "demo",
-        "sim",
-        "replay",
-        "render",
-        "experiment",
-        "campaign",
-        "abstract",
-        "generate",
-        "realism",
-        "corpus",
-        "train",
-        "ground",
-        "export",
-        "map",
-        "keygen",
-        "serve",
-        "upload",
-        "send",
-        "regulate",
-    ];
-    for command in usage {
+    for command in COMMANDS {
         let o = video2track(&[command, "--no-such-option"]);
         assert_eq!(o.status.code(), Some(2), "{command}: {}", text(&o).1);
     }
