@@ -56,7 +56,14 @@ enum Cmd {
     /// Leave a stop: the gate goes back to disengaged (engaging again is `engage`).
     Reset(Common),
     /// Ask the gateway for the minimal-risk stop.
-    Stop(Common),
+    Stop {
+        #[command(flatten)]
+        common: Common,
+        /// Wait up to this long (s, 0 to 600) until the BV stands with its gate stopped; exit 1 if
+        /// it still moves then. 0: do not wait.
+        #[arg(long, default_value_t = 0.0, value_parser = wait_seconds)]
+        wait_s: f64,
+    },
     /// Ask the gateway to disengage.
     Disengage(Common),
     /// Emergency stop.
@@ -68,6 +75,14 @@ enum Cmd {
 
 fn overrides(c: &Common) -> Overrides<'_> {
     Overrides { namespace: c.namespace.as_deref(), can_iface: c.can_iface.as_deref() }
+}
+
+/// `--wait-s`: 0 to 600 s.
+fn wait_seconds(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(s) if (0.0..=600.0).contains(&s) => Ok(s),
+        _ => Err(format!("must be a number of seconds in [0, 600], got {text}")),
+    }
 }
 
 fn loaded(c: &Common) -> anyhow::Result<Loaded> {
@@ -94,7 +109,23 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         }
         Cmd::Engage(c) => v2t_edge::operator::request::<ipc::Service>(&loaded(&c)?, SafetyAction::Engage)?,
         Cmd::Reset(c) => v2t_edge::operator::request::<ipc::Service>(&loaded(&c)?, SafetyAction::Reset)?,
-        Cmd::Stop(c) => v2t_edge::operator::request::<ipc::Service>(&loaded(&c)?, SafetyAction::MinimalRiskStop)?,
+        Cmd::Stop { common, wait_s } if wait_s > 0.0 => {
+            use v2t_edge::operator::{StopWait, stop_and_wait};
+            match stop_and_wait::<ipc::Service>(&loaded(&common)?, std::time::Duration::from_secs_f64(wait_s))? {
+                StopWait::Stopped { after_s } => {
+                    println!("stopped: the BV stands, its gate stopped, {after_s:.1} s after the request")
+                }
+                StopWait::NoRuntime => {
+                    println!("no BV state within 1 s: no runtime is running here, nothing to wait for")
+                }
+                StopWait::TimedOut { speed_mps, gate } => anyhow::bail!(
+                    "the BV still moves at {speed_mps:.2} m/s (gate {gate:?}) {wait_s} s after the minimal-risk stop was requested"
+                ),
+            }
+        }
+        Cmd::Stop { common, .. } => {
+            v2t_edge::operator::request::<ipc::Service>(&loaded(&common)?, SafetyAction::MinimalRiskStop)?;
+        }
         Cmd::Disengage(c) => v2t_edge::operator::request::<ipc::Service>(&loaded(&c)?, SafetyAction::Disengage)?,
         Cmd::Estop(c) => v2t_edge::operator::request::<ipc::Service>(&loaded(&c)?, SafetyAction::EStop)?,
         Cmd::Check(c) => {

@@ -276,6 +276,38 @@ fn a_stale_state_brings_the_minimal_risk_stop() {
     assert!(after_ms <= 300.0, "{after_ms:.1} ms");
 }
 
+/// `v2t-edge stop --wait-s` (the service's `ExecStop`): returns once the BV stands with its gate
+/// stopped, while the runtime still runs; with no runtime there is nothing to wait for.
+#[test]
+fn an_operator_stop_waits_until_the_bv_stands() {
+    let ns = namespace("stopwait");
+    let cfg = config();
+    let watch = GateWatch::new(&ns);
+    let _launcher = Proc::start(&edge_bin(), &["launch", "--config", &cfg, "--namespace", &ns]);
+    let card = root().join("config/scenarios/left_turn_basic.toml").display().to_string();
+    let _ecu = Proc::start(&ecu_bin(), &["--config", &cfg, "--namespace", &ns, "--scenario", &card]);
+    watch.until(GateState::Engaged, Duration::from_secs(20));
+    std::thread::sleep(Duration::from_millis(1000));
+    let stop = |ns: &str| {
+        Command::new(edge_bin())
+            .args(["stop", "--config", &cfg, "--namespace", ns, "--wait-s", "15"])
+            .current_dir(root())
+            .output()
+            .unwrap()
+    };
+    let o = stop(&ns);
+    let out = String::from_utf8_lossy(&o.stdout);
+    eprintln!("{out}{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success() && out.contains("stopped: the BV stands"), "{out}");
+    assert_eq!(
+        watch.until(GateState::MinimalRiskStop, Duration::from_secs(1)).state,
+        GateState::MinimalRiskStop.code()
+    );
+    let o = stop(&namespace("nobody"));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && out.contains("no runtime is running"), "{out}");
+}
+
 #[test]
 fn the_vut_turning_left_runs_through_the_processes_with_sumo_driving_it() {
     let found = v2t_sumo::SumoBinaries::find().is_ok();
