@@ -290,14 +290,12 @@ fn training_episodes<'a>(
     out
 }
 
-fn progress(m: &TrainMetrics, total: usize) {
-    let width = 30;
-    let done = (m.step * width / total.max(1)).min(width);
+fn progress(bar: &mut v2t_lab::progress::Progress<std::io::Stderr>, m: &TrainMetrics, total: usize) {
+    let frac = m.step as f64 / total.max(1) as f64;
     let eta = if m.step > 0 { m.elapsed_s / m.step as f64 * (total - m.step.min(total)) as f64 } else { 0.0 };
-    eprint!(
-        "\r[{}{}] {}/{} train {:.4} held-out {} lr {:.1e} {:.0} s, eta {:.0} s   ",
-        "#".repeat(done),
-        ".".repeat(width - done),
+    let line = format!(
+        "{} {}/{} train {:.4} held-out {} lr {:.1e} {:.0} s, eta {:.0} s   ",
+        v2t_lab::progress::bar(frac, 30),
         m.step,
         total,
         m.train_loss,
@@ -306,7 +304,7 @@ fn progress(m: &TrainMetrics, total: usize) {
         m.elapsed_s,
         eta
     );
-    let _ = std::io::stderr().flush();
+    bar.update(frac, &line);
 }
 
 /// Trains and writes the weights, checkpoints and metrics under `args.out`.
@@ -353,8 +351,9 @@ fn run_training(args: &TrainArgs) -> anyhow::Result<TrainOutcome> {
     let parameters = trainer.parameters();
     eprintln!("denoiser: {parameters} parameters, {config:?}");
     let mut io_error: Option<anyhow::Error> = None;
+    let mut bar = v2t_lab::progress::Progress::stderr();
     let heldout = trainer.run(&data, |t, m| {
-        progress(m, args.options.steps);
+        progress(&mut bar, m, args.options.steps);
         let line = serde_json::to_string(m).map_err(anyhow::Error::from);
         let written = line.and_then(|l| writeln!(metrics_file, "{l}").map_err(anyhow::Error::from));
         let checkpoint = if args.checkpoint_every > 0 && m.step % args.checkpoint_every == 0 {
@@ -369,7 +368,7 @@ fn run_training(args: &TrainArgs) -> anyhow::Result<TrainOutcome> {
             io_error.get_or_insert(e);
         }
     })?;
-    eprintln!();
+    bar.finish("training done");
     if let Some(e) = io_error {
         return Err(e.context("writing metrics or a checkpoint"));
     }

@@ -8,7 +8,6 @@
 //! (`config/diffusion/denoiser.safetensors`): the best of [`VARIANTS`] variants (no solid boundary
 //! crossed, within the limits, the style's order, the smallest anchor error).
 
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -388,14 +387,13 @@ fn closed_loop(
         }
     };
     let t0 = Instant::now();
+    let mut progress = crate::progress::Progress::stdout();
     let status = loop {
         if let Ok(Some(s)) = ecu.try_wait() {
             break s;
         }
         let frac = (t0.elapsed().as_secs_f64() / (expected_s + 1.0)).min(0.99);
-        let done = (frac * 30.0) as usize;
-        print!("\r  closed loop [{}{}] {:>4.1} s", "#".repeat(done), ".".repeat(30 - done), t0.elapsed().as_secs_f64());
-        let _ = std::io::stdout().flush();
+        progress.update(frac, &format!("  closed loop {} {:>4.1} s", crate::progress::bar(frac, 30), t0.elapsed().as_secs_f64()));
         if t0.elapsed() > Duration::from_secs_f64(expected_s + 60.0) {
             let _ = ecu.kill();
             terminate(&mut launcher);
@@ -403,7 +401,7 @@ fn closed_loop(
         }
         std::thread::sleep(Duration::from_millis(200));
     };
-    println!("\r  closed loop [{}] {:>4.1} s", "#".repeat(30), t0.elapsed().as_secs_f64());
+    progress.finish(&format!("  closed loop {} {:>4.1} s", crate::progress::bar(1.0, 30), t0.elapsed().as_secs_f64()));
     terminate(&mut launcher);
     if !status.success() {
         return Err(format!("the simulated ECU failed ({status}); see {}", out.with_extension("log").display()));

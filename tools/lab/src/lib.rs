@@ -43,6 +43,7 @@ pub mod ecu;
 pub mod latency;
 pub mod methods;
 pub mod netdelay;
+pub mod progress;
 pub mod reach;
 pub mod sim;
 pub mod stats;
