@@ -105,9 +105,10 @@ fn priors_and_commands_cross_the_broker(kind: BrokerKind) {
     let arm = cloud.frame("bv1", CloudBody::Command(CloudCommand::Arm));
     counted(&cloud, arm, "wrong topic");
     refused(&cloud, good, "replay");
+    // Driven off the road over 3 s (a jump would be refused as no motion at all, before the area).
     let mut off = left_turn_upload(43);
-    for x in &mut off.prior.agents[1].states[50..] {
-        x.px += 60.0;
+    for (k, x) in off.prior.agents[1].states.iter_mut().enumerate().skip(50) {
+        x.px += 60.0 * ((k - 50) as f64 / 30.0).min(1.0);
     }
     let off = cloud.frame("bv1", CloudBody::Prior(off));
     refused(&cloud, off, "drivable area");
