@@ -67,6 +67,12 @@ pub const KINDS: &[Kind] = &[
         ext: "json",
     },
     Kind { name: "run", what: "run file (JSON): video scene, OpenSCENARIO", form: Form::Text, ext: "json" },
+    Kind {
+        name: "campaign",
+        what: "campaign memory (JSON): a test's learned aim and reach",
+        form: Form::Text,
+        ext: "json",
+    },
     Kind { name: "mcap", what: "MCAP recording, replayed to its metrics", form: Form::Binary, ext: "mcap" },
     Kind { name: "can-frame", what: "CAN frames through the DBC decoder", form: Form::Binary, ext: "can" },
     Kind {
@@ -227,6 +233,7 @@ impl Context {
                 .map(|(n, p)| Ok((n, serde_json::to_vec_pretty(&p)?)))
                 .collect::<anyhow::Result<_>>()?,
             "run" | "mcap" => self.runs(kind.name == "mcap")?,
+            "campaign" => campaign_memory()?,
             "can-frame" => can_frames()?,
             "link-cloud" => self.cloud_frames()?,
             "link-report" => report_frames()?,
@@ -374,6 +381,15 @@ impl Context {
                 self.xosc(&text())
             }
             "mcap" => v2t_sim::recording::replay(path).map(drop).map_err(|e| s(&e)),
+            "campaign" => {
+                let memory = v2t_lab::campaign::memory_from_json(&text())?;
+                // What the next run asks of it: the aim and the reach of every case it holds.
+                for target in [2.0, 4.0].map(|tau| v2t_model::Target::new(tau, v2t_model::Style::Rush)) {
+                    let target = target.map_err(|e| s(&e))?;
+                    let _ = memory.aim("left_turn_basic", 0, target);
+                }
+                Ok(())
+            }
             "can-frame" => {
                 // 13 bytes a frame: id (LE), DLC, 8 data bytes; the decoder keeps its counters
                 // across the frames, as on the bus. Accepted: every frame decoded.
@@ -437,6 +453,18 @@ fn settings(text: &str) -> Result<(), String> {
     } else {
         Err(results.into_iter().filter_map(Result::err).map(|e| e.to_string()).next().unwrap_or_default())
     }
+}
+
+/// A memory of four runs of one test, as `sim --campaign` writes it.
+fn campaign_memory() -> anyhow::Result<Vec<Seed>> {
+    use v2t_game::campaign::{CampaignMemory, RunRecord};
+    let mut memory = CampaignMemory::new("idm-normal", "builtin");
+    let target = v2t_model::Target::new(2.0, v2t_model::Style::Rush)?;
+    for (aim_s, pet_s) in [(2.0, 2.6), (1.6, 2.3), (1.3, 2.05), (1.25, 2.0)] {
+        let run = RunRecord { aim_s, pet_s: Some(pet_s), order_ok: true, collision: false };
+        memory.case_mut("left_turn_basic", 0, target).record(target, run);
+    }
+    Ok(vec![("left_turn_basic rush τ 2 s, four runs".into(), serde_json::to_vec_pretty(&memory)?)])
 }
 
 fn can_frames() -> anyhow::Result<Vec<Seed>> {

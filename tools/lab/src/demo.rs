@@ -393,7 +393,10 @@ fn closed_loop(
             break s;
         }
         let frac = (t0.elapsed().as_secs_f64() / (expected_s + 1.0)).min(0.99);
-        progress.update(frac, &format!("  closed loop {} {:>4.1} s", crate::progress::bar(frac, 30), t0.elapsed().as_secs_f64()));
+        progress.update(
+            frac,
+            &format!("  closed loop {} {:>4.1} s", crate::progress::bar(frac, 30), t0.elapsed().as_secs_f64()),
+        );
         if t0.elapsed() > Duration::from_secs_f64(expected_s + 60.0) {
             let _ = ecu.kill();
             terminate(&mut launcher);
