@@ -103,39 +103,21 @@ struct NoAcceptablePrior {
 
 /// How many variants miss each criterion, in words (`generated` has no variant that meets them all).
 fn refusal(generated: &[v2t_diffusion::generate::Generated]) -> NoAcceptablePrior {
-    let mut counts: Vec<(String, usize)> = Vec::new();
-    for g in generated {
-        for reason in v2t_diffusion::generate::shortfalls(&g.metrics) {
-            // Group by the criterion (the words before the first digit-free split are per variant).
-            let key = criterion(&reason);
-            match counts.iter_mut().find(|(k, _)| *k == key) {
-                Some((_, n)) => *n += 1,
-                None => counts.push((key, 1)),
-            }
+    use v2t_diffusion::generate::shortfalls;
+    let mut counts: Vec<(&'static str, usize)> = Vec::new();
+    for shortfall in generated.iter().flat_map(|g| shortfalls(&g.metrics)) {
+        match counts.iter_mut().find(|(k, _)| *k == shortfall.criterion()) {
+            Some((_, n)) => *n += 1,
+            None => counts.push((shortfall.criterion(), 1)),
         }
     }
-    let best = v2t_diffusion::generate::best(generated)
-        .map(|b| v2t_diffusion::generate::shortfalls(&b.metrics).join(", "))
-        .unwrap_or_default();
     let all = generated.len();
     let mut reasons: Vec<String> = counts.iter().map(|(k, n)| format!("{k} in {n} of {all}")).collect();
-    if !best.is_empty() {
-        reasons.push(format!("the best has {best}"));
+    if let Some(b) = v2t_diffusion::generate::best(generated) {
+        let best: Vec<String> = shortfalls(&b.metrics).iter().map(ToString::to_string).collect();
+        reasons.push(format!("the best has {}", best.join(", ")));
     }
-    NoAcceptablePrior { variants: generated.len(), reasons: reasons.join("; ") }
-}
-
-/// The criterion a shortfall of [`v2t_diffusion::generate::shortfalls`] is about.
-fn criterion(reason: &str) -> String {
-    if reason.contains("order") {
-        "passing order missed".into()
-    } else if reason.contains("boundary") {
-        "solid boundary crossed".into()
-    } else if reason.contains("limits") {
-        "vehicle limits left".into()
-    } else {
-        format!("anchor error above {} m", v2t_diffusion::generate::ANCHOR_TOLERANCE_M)
-    }
+    NoAcceptablePrior { variants: all, reasons: reasons.join("; ") }
 }
 
 /// The metrics file.

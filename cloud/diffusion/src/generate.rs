@@ -568,22 +568,76 @@ pub fn acceptable(m: &PriorMetrics) -> bool {
 /// grounded timing at 10 m/s (the shipped weights stay below 1 m).
 pub const ANCHOR_TOLERANCE_M: f64 = 5.0;
 
+/// A criterion a generated prior misses ([`shortfalls`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Shortfall {
+    /// Conflicts passed in the style's order, of all.
+    Order {
+        /// In order.
+        ok: usize,
+        /// All.
+        of: usize,
+    },
+    /// Agents crossing a solid boundary, of all.
+    Boundary {
+        /// Crossing.
+        crossing: usize,
+        /// All.
+        of: usize,
+    },
+    /// Agents within the vehicle limits, of all.
+    Limits {
+        /// Within.
+        ok: usize,
+        /// All.
+        of: usize,
+    },
+    /// The worst anchor error, beyond [`ANCHOR_TOLERANCE_M`], m.
+    Anchor {
+        /// The worst error.
+        worst_m: f64,
+    },
+}
+
+impl Shortfall {
+    /// The criterion, in words (the same for every variant that misses it).
+    pub fn criterion(&self) -> &'static str {
+        match self {
+            Self::Order { .. } => "passing order missed",
+            Self::Boundary { .. } => "solid boundary crossed",
+            Self::Limits { .. } => "vehicle limits left",
+            Self::Anchor { .. } => "anchor error above 5 m",
+        }
+    }
+}
+
+impl std::fmt::Display for Shortfall {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Order { ok, of } => write!(f, "{ok} of {of} conflicts in the asked order"),
+            Self::Boundary { crossing, of } => write!(f, "{crossing} of {of} agents cross a solid boundary"),
+            Self::Limits { ok, of } => write!(f, "{ok} of {of} agents within the vehicle limits"),
+            Self::Anchor { worst_m } => write!(f, "worst anchor error {worst_m:.1} m (at most {ANCHOR_TOLERANCE_M} m)"),
+        }
+    }
+}
+
 /// Why a generated prior may not be handed on: each criterion it misses ([`acceptable`], and every
-/// anchor within [`ANCHOR_TOLERANCE_M`]), in words; empty when it meets them all.
-pub fn shortfalls(m: &PriorMetrics) -> Vec<String> {
+/// anchor within [`ANCHOR_TOLERANCE_M`]); empty when it meets them all.
+pub fn shortfalls(m: &PriorMetrics) -> Vec<Shortfall> {
     let mut out = Vec::new();
     if m.order_ok != m.conflicts {
-        out.push(format!("{} of {} conflicts in the asked order", m.order_ok, m.conflicts));
+        out.push(Shortfall::Order { ok: m.order_ok, of: m.conflicts });
     }
     if m.boundary_crossings > 0 {
-        out.push(format!("{} of {} agents cross a solid boundary", m.boundary_crossings, m.agents));
+        out.push(Shortfall::Boundary { crossing: m.boundary_crossings, of: m.agents });
     }
     if m.agents_within_limits != m.agents {
-        out.push(format!("{} of {} agents within the vehicle limits", m.agents_within_limits, m.agents));
+        out.push(Shortfall::Limits { ok: m.agents_within_limits, of: m.agents });
     }
-    let worst = m.anchor_errors_m.iter().copied().fold(0.0, f64::max);
-    if worst.is_nan() || worst > ANCHOR_TOLERANCE_M {
-        out.push(format!("worst anchor error {worst:.1} m (at most {ANCHOR_TOLERANCE_M} m)"));
+    let worst_m = m.anchor_errors_m.iter().copied().fold(0.0, f64::max);
+    if worst_m.is_nan() || worst_m > ANCHOR_TOLERANCE_M {
+        out.push(Shortfall::Anchor { worst_m });
     }
     out
 }
