@@ -111,9 +111,7 @@ pub fn load_signing_key(path: &Path) -> Result<SigningKey, LinkError> {
     key_from_hex(&text).map(|seed| SigningKey::from_bytes(&seed)).map_err(bad)
 }
 
-/// The public key of the demo key pair in `config/keys/` (public on purpose, for the simulated
-/// session only).
-pub const DEMO_PUBLIC_KEY: &str = "2e99bfa75838d24cc111c8688e17019fd96f84f169011257821a70a0a2af7e1e";
+pub use v2t_wire::link::DEMO_PUBLIC_KEY;
 
 /// Whether `key` is the committed demo key, which must never sign for a real vehicle.
 pub fn is_demo_key(key: &SigningKey) -> bool {

@@ -35,12 +35,6 @@ use crate::config::{CanLink, EdgeConfig, Overrides};
 use crate::realtime::{Process, Realtime, Step, check_cpus, failure_message, sys};
 use crate::uplink::UplinkConfig;
 
-/// The public half of the committed demo key pair, `config/keys/demo_cloud.pub` (the supervisor's
-/// `DEMO_PUBLIC_KEY`; the edge does not link the supervisor, so it is written here and a test keeps
-/// it equal to the file). Its secret half is public: a BV that trusts it accepts priors and
-/// commands from anyone, so it is for simulated sessions only.
-pub const DEMO_CLOUD_PUBLIC_KEY: &str = "2e99bfa75838d24cc111c8688e17019fd96f84f169011257821a70a0a2af7e1e";
-
 /// How one check came out.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Status {
@@ -436,7 +430,7 @@ fn cloud_key(r: &mut Report, config: &Path, written: &str) {
         });
     match key {
         Err(e) => r.fail("uplink.cloud_key", format!("{}: {e}: {install}", path.display())),
-        Ok(bytes) if link::key_to_hex(&bytes) == DEMO_CLOUD_PUBLIC_KEY => r.warn(
+        Ok(bytes) if link::key_to_hex(&bytes) == link::DEMO_PUBLIC_KEY => r.warn(
             "uplink.cloud_key",
             format!(
                 "{}: the committed demo key, whose secret half is public: anyone can sign priors and commands for \
@@ -705,7 +699,7 @@ mod tests {
     #[test]
     fn the_demo_key_is_the_committed_one() {
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/keys/demo_cloud.pub");
-        assert_eq!(std::fs::read_to_string(root).unwrap().trim(), DEMO_CLOUD_PUBLIC_KEY);
+        assert_eq!(std::fs::read_to_string(root).unwrap().trim(), link::DEMO_PUBLIC_KEY);
     }
 
     #[test]

@@ -567,6 +567,12 @@ pub fn key_from_hex(text: &str) -> Result<[u8; 32], String> {
     Ok(out)
 }
 
+/// The public half of the committed demo key pair, `config/keys/demo_cloud.pub`. Its secret half
+/// is public on purpose: a BV that trusts it accepts priors and commands from anyone, so it is for
+/// simulated sessions only (the supervisor refuses to sign for a real vehicle with it, `v2t-edge
+/// check` warns about it).
+pub const DEMO_PUBLIC_KEY: &str = "2e99bfa75838d24cc111c8688e17019fd96f84f169011257821a70a0a2af7e1e";
+
 /// A key as 64 hex digits.
 pub fn key_to_hex(key: &[u8; 32]) -> String {
     key.iter().map(|b| format!("{b:02x}")).collect()
