@@ -86,14 +86,20 @@ impl Map {
         let m = EXTENT_MARGIN_M;
         let inside =
             |p: v2t_model::geometry::Point2| p.x >= lo.x - m && p.x <= hi.x + m && p.y >= lo.y - m && p.y <= hi.y + m;
-        let mut points = Vec::new();
-        for (i, a) in g.agents.iter().enumerate() {
-            points.push((format!("agents[{i}].start.position"), a.start.position));
-            points.push((format!("agents[{i}].goal.position"), a.goal.position));
-            points.extend(a.route.iter().enumerate().map(|(k, p)| (format!("agents[{i}].route[{k}]"), *p)));
-        }
-        points.extend(g.conflicts.iter().enumerate().map(|(i, c)| (format!("conflicts[{i}].point"), c.point)));
-        match points.into_iter().find(|(_, p)| !inside(*p)) {
+        // The first point outside, named only when there is one (routes hold up to 200,000 points).
+        let outside = g.agents.iter().enumerate().find_map(|(i, a)| {
+            let at =
+                |what: &str, p: v2t_model::geometry::Point2| (!inside(p)).then(|| (format!("agents[{i}].{what}"), p));
+            at("start.position", a.start.position).or_else(|| at("goal.position", a.goal.position)).or_else(|| {
+                let (k, p) = a.route.iter().enumerate().find(|(_, p)| !inside(**p))?;
+                Some((format!("agents[{i}].route[{k}]"), *p))
+            })
+        });
+        let outside = outside.or_else(|| {
+            let (i, c) = g.conflicts.iter().enumerate().find(|(_, c)| !inside(c.point))?;
+            Some((format!("conflicts[{i}].point"), c.point))
+        });
+        match outside {
             None => Ok(()),
             Some((field, p)) => Err(MapError::Invalid {
                 context: format!("the scenario on map `{}`", self.name),

@@ -180,3 +180,45 @@ fn absurd_lengths_coordinates_and_widths_leave_out_their_road_with_the_bound() {
     let w = map.warnings.iter().find(|w| w.context.starts_with("road 2")).unwrap().to_string();
     assert!(w.contains("a=100000") && w.contains("±100 m"), "{w}");
 }
+
+/// A lane whose width polynomial grows without bound (found by the mutation harness: `d = 1e6`
+/// made a 3.5 m lane 10¹² m wide and hung the topology library) leaves its road out, named.
+#[test]
+fn a_lane_growing_past_its_bound_leaves_its_road_out() {
+    let mut roads = good_pair();
+    roads.push(road("3", 200.0, "", "<line/>", "3.5").replace("d=\"0\"/>", "d=\"1e6\"/>"));
+    let map = Map::parse(&doc(&roads), "t").unwrap();
+    let w = map.warnings.iter().find(|w| w.context == "road 3").unwrap().to_string();
+    assert!(w.contains("the road is left out") && w.contains("100 m"), "{w}");
+    assert!(map.graph.lanes.iter().all(|l| l.key.road != "3"));
+    assert!(map.graph.lanes.iter().any(|l| l.key.road == "1"), "the good roads stay");
+    let _ = TopologyLibrary::build(&map);
+}
+
+/// A grounded scenario must lie on the map it is generated for: the first point outside the
+/// lanes' extent plus the margin is named.
+#[test]
+fn a_scenario_off_the_map_is_refused_naming_the_first_point_outside() {
+    let map = Map::parse(&doc(&good_pair()), "t").unwrap();
+    let agent = |id: &str, role: &str, far: f64| {
+        serde_json::json!({
+            "id": id, "role": role,
+            "route": [{"x": 0.0, "y": -1.75}, {"x": 40.0 + far, "y": -1.75}],
+            "start": {"anchor_id": "a", "position": {"x": 0.0, "y": -1.75}, "heading_rad": 0.0, "speed_mps": 8.0, "time_s": 0.0},
+            "goal": {"anchor_id": "b", "position": {"x": 40.0, "y": -1.75}, "heading_rad": 0.0, "speed_mps": 8.0, "time_s": null}
+        })
+    };
+    let scenario = |far: f64| -> v2t_model::grounded::GroundedScenario {
+        serde_json::from_value(serde_json::json!({
+            "fragment_id": "f", "interaction_type": "cut_in",
+            "agents": [agent("vut", "vut", 0.0), agent("bv1", "bv", far)],
+            "conflicts": [{"bv_id": "bv1", "kind": "merge", "anchor_id": "c", "point": {"x": 20.0, "y": -1.75},
+                "vut_interval": {"enter_s_m": 18.0, "exit_s_m": 22.0}, "bv_interval": {"enter_s_m": 18.0, "exit_s_m": 22.0}}],
+            "tau_s": 2.0, "style": "rush"
+        }))
+        .unwrap()
+    };
+    map.check_scenario(&scenario(0.0)).unwrap();
+    let e = map.check_scenario(&scenario(5_000.0)).unwrap_err().to_string();
+    assert!(e.contains("agents[1].route[1]") && e.contains("more than 500 m outside"), "{e}");
+}
