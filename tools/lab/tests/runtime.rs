@@ -255,16 +255,33 @@ fn a_killed_regulator_brings_the_minimal_risk_stop_within_100_ms_and_its_restart
     watch.until(GateState::Engaged, Duration::from_secs(3));
 }
 
-#[test]
-fn a_stale_state_brings_the_minimal_risk_stop() {
-    let ns = namespace("stale");
+/// The runtime (launcher and every node) and the simulated ECU driving the left turn, engaged for
+/// `driving`; everything stops when this is dropped.
+struct Engaged {
+    ns: String,
+    cfg: String,
+    watch: GateWatch,
+    _launcher: Proc,
+    ecu: Proc,
+}
+
+fn engaged(tag: &str, driving: Duration) -> Engaged {
+    let ns = namespace(tag);
     let cfg = config();
     let watch = GateWatch::new(&ns);
-    let _launcher = Proc::start(&edge_bin(), &["launch", "--config", &cfg, "--namespace", &ns]);
+    let launcher = Proc::start(&edge_bin(), &["launch", "--config", &cfg, "--namespace", &ns]);
     let card = root().join("config/scenarios/left_turn_basic.toml").display().to_string();
     let ecu = Proc::start(&ecu_bin(), &["--config", &cfg, "--namespace", &ns, "--scenario", &card]);
     watch.until(GateState::Engaged, Duration::from_secs(20));
-    std::thread::sleep(Duration::from_millis(500));
+    std::thread::sleep(driving);
+    Engaged { ns, cfg, watch, _launcher: launcher, ecu }
+}
+
+#[test]
+fn a_stale_state_brings_the_minimal_risk_stop() {
+    // Bound whole: the launcher and the ECU run until the end of the test.
+    let run = engaged("stale", Duration::from_millis(500));
+    let (watch, ecu) = (&run.watch, &run.ecu);
     // Freeze the ECU: no more fixes, no more feedback.
     let frozen_ns = now_ns();
     send_signal(&ecu.child, Signal::StopExecution);
@@ -280,22 +297,16 @@ fn a_stale_state_brings_the_minimal_risk_stop() {
 /// stopped, while the runtime still runs; with no runtime there is nothing to wait for.
 #[test]
 fn an_operator_stop_waits_until_the_bv_stands() {
-    let ns = namespace("stopwait");
-    let cfg = config();
-    let watch = GateWatch::new(&ns);
-    let _launcher = Proc::start(&edge_bin(), &["launch", "--config", &cfg, "--namespace", &ns]);
-    let card = root().join("config/scenarios/left_turn_basic.toml").display().to_string();
-    let _ecu = Proc::start(&ecu_bin(), &["--config", &cfg, "--namespace", &ns, "--scenario", &card]);
-    watch.until(GateState::Engaged, Duration::from_secs(20));
-    std::thread::sleep(Duration::from_millis(1000));
+    let run = engaged("stopwait", Duration::from_millis(1000));
+    let (ns, cfg, watch) = (&run.ns, &run.cfg, &run.watch);
     let stop = |ns: &str| {
         Command::new(edge_bin())
-            .args(["stop", "--config", &cfg, "--namespace", ns, "--wait-s", "15"])
+            .args(["stop", "--config", cfg, "--namespace", ns, "--wait-s", "15"])
             .current_dir(root())
             .output()
             .unwrap()
     };
-    let o = stop(&ns);
+    let o = stop(ns);
     let out = String::from_utf8_lossy(&o.stdout);
     eprintln!("{out}{}", String::from_utf8_lossy(&o.stderr));
     assert!(o.status.success() && out.contains("stopped: the BV stands"), "{out}");
