@@ -123,6 +123,37 @@ pub struct TraceSample {
     pub predicted_pet_s: Vec<Option<f64>>,
 }
 
+/// What a drawing of a run needs besides its trace.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunLayout {
+    /// Footprint of every vehicle, in trace order (VUT first), m.
+    pub dims: Vec<v2t_model::metrics::Dimensions>,
+    /// Every BV's conflict zone with the VUT: the stretch of each vehicle's own path (arc length of
+    /// its reference point, the trace's `s_m`) along which its footprint is in the zone.
+    pub zones: Vec<ConflictSetup>,
+    /// Every vehicle's route, in trace order, as `[x, y]` every [`ROUTE_STEP_M`] of arc length
+    /// (point `k` at `s = k · ROUTE_STEP_M`, the last at the route's end), m.
+    pub routes: Vec<Vec<[f64; 2]>>,
+}
+
+/// Spacing of the route points of a [`RunLayout`], m.
+pub const ROUTE_STEP_M: f64 = 1.0;
+
+/// Longest route a [`RunLayout`] keeps, points (longer routes are cut, so a report stays small).
+const MAX_ROUTE_POINTS: usize = 20_000;
+
+/// `route` every [`ROUTE_STEP_M`].
+fn route_points(route: &ReferencePath) -> Vec<[f64; 2]> {
+    let len = route.length();
+    let n = ((len / ROUTE_STEP_M).floor() as usize).min(MAX_ROUTE_POINTS);
+    let mut out: Vec<[f64; 2]> = (0..=n).map(|k| route.point_at(k as f64 * ROUTE_STEP_M)).map(|p| [p.x, p.y]).collect();
+    if n < MAX_ROUTE_POINTS && len - n as f64 * ROUTE_STEP_M > 1e-6 {
+        let p = route.point_at(len);
+        out.push([p.x, p.y]);
+    }
+    out
+}
+
 /// A finished run.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RunOutcome {
@@ -132,6 +163,8 @@ pub struct RunOutcome {
     pub agent_ids: Vec<String>,
     /// The recorded trace.
     pub trace: Vec<TraceSample>,
+    /// The vehicles' footprints and the conflict zones, for drawings of the run (a report).
+    pub layout: RunLayout,
     /// What the measurements are taken against (not in the JSON: a recording keeps it).
     #[serde(skip)]
     pub setup: MeasureSetup,
@@ -560,10 +593,19 @@ impl<'s> Simulation<'s> {
         let result = measure(&setup, &self.truth);
         let mut trace = self.trace;
         fill_predicted_pet(scenario, &mut trace);
+        let layout = RunLayout {
+            dims: self.truth.agents.iter().map(|a| a.dims).collect(),
+            zones: setup.conflicts.clone(),
+            routes: std::iter::once(&scenario.vut.agent)
+                .chain(scenario.bvs.iter().map(|b| &b.agent))
+                .map(|a| route_points(&a.route))
+                .collect(),
+        };
         RunOutcome {
             result,
             agent_ids: self.agents.iter().map(|a| a.id.clone()).collect(),
             trace,
+            layout,
             setup,
             truth: self.truth,
         }
