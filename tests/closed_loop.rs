@@ -106,7 +106,7 @@ fn two_bvs_each_get_their_own_conflict_and_regulator() {
         &v2t_lab::vut::Vut::Builtin(VutModel::IdmNormal),
         1..=1,
     );
-    let s = c.stats;
+    let s = &c.stats;
     assert_eq!((s.collisions, s.zone_overlaps, s.unmeasured), (0, 0, 0), "{c:?}");
     assert_eq!(s.order_ok_frac, 1.0, "both BVs let the VUT through first: {c:?}");
 }

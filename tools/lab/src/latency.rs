@@ -435,6 +435,7 @@ mod tests {
             stats: RunStats {
                 repeats: 2,
                 mean_pet_min_s: mean,
+                pets_s: mean.map(|m| vec![m, m]).unwrap_or_default(),
                 pet_min_track_s: mean,
                 collisions: 0,
                 zone_overlaps: 0,

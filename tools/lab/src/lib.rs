@@ -45,6 +45,7 @@ pub mod methods;
 pub mod netdelay;
 pub mod progress;
 pub mod reach;
+pub mod report;
 pub mod sim;
 pub mod stats;
 pub mod steer;

@@ -538,6 +538,7 @@ mod tests {
             stats: RunStats {
                 repeats: 1,
                 mean_pet_min_s: Some(mean),
+                pets_s: vec![mean],
                 pet_min_track_s: Some(mean),
                 collisions: 0,
                 zone_overlaps: 0,

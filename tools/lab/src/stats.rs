@@ -124,6 +124,7 @@ impl Tally {
         RunStats {
             repeats: self.runs,
             mean_pet_min_s: mean,
+            pets_s: self.pets.clone(),
             pet_min_track_s: self.pets.iter().copied().reduce(f64::min),
             collisions: self.collisions,
             zone_overlaps: self.zone_overlaps,
@@ -137,13 +138,16 @@ impl Tally {
 }
 
 /// What the repeated runs of one case measured.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RunStats {
     /// Runs, failed ones included.
     pub repeats: usize,
     /// Mean over runs of PET_min, s (runs without a measured PET are left out and counted in
     /// `unmeasured`).
     pub mean_pet_min_s: Option<f64>,
+    /// PET_min of every run with a measured PET, in the order the runs were added, s (the spread
+    /// the reports plot).
+    pub pets_s: Vec<f64>,
     /// Smallest PET_min over the runs, s.
     pub pet_min_track_s: Option<f64>,
     /// Runs with a collision.

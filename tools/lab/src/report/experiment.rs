@@ -1,0 +1,542 @@
+//! The parts of an experiment's or campaign's report: its tables (the markdown the experiment
+//! prints, as HTML), every run's PET per case as strips (one plot per VUT: figures are never pooled
+//! across VUT models), the steering error against τ, the methods side by side, and each case's
+//! runs to drill down to.
+
+use std::fmt::Write as _;
+
+use super::plot::{Level, LinePlot, Series, Strip, StripPlot, colour};
+use super::{esc, num, pct, table};
+
+/// One case of an experiment (a scenario, style, τ, VUT, and method or setting), with its runs.
+#[derive(Debug, Clone, Default)]
+pub struct CaseView {
+    /// The scenario.
+    pub scenario: String,
+    /// The VUT model or SUMO driver.
+    pub vut: String,
+    /// The method (the four methods) or setting (a realism weight, a network); empty: none.
+    pub method: String,
+    /// `rush` or `yield`.
+    pub style: String,
+    /// The target PET, s.
+    pub tau_s: f64,
+    /// PET_min of every run with a measured PET, s.
+    pub pets_s: Vec<f64>,
+    /// Runs without a measured PET.
+    pub unmeasured: usize,
+    /// Runs with a collision.
+    pub collisions: usize,
+    /// The case's steering error |mean PET − τ| / τ.
+    pub error_rel: Option<f64>,
+    /// Whether any BV can reach τ against this VUT; `Some(false)` is marked, not hidden.
+    pub reachable: Option<bool>,
+    /// The columns of [`CaseView::runs`].
+    pub run_header: Vec<String>,
+    /// One row per run (HTML-escaped cells).
+    pub runs: Vec<Vec<String>>,
+}
+
+impl CaseView {
+    fn label(&self) -> String {
+        let m = if self.method.is_empty() { String::new() } else { format!("{} · ", self.method) };
+        format!("{m}{} {} τ {:.1}", self.scenario, self.style, self.tau_s)
+    }
+
+    fn anchor(&self) -> String {
+        format!("case-{}", self.label())
+            .chars()
+            .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+            .collect::<String>()
+            + &format!(
+                "-{}",
+                self.vut.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '-' }).collect::<String>()
+            )
+    }
+}
+
+/// The VUTs of `cases` in order of first appearance.
+fn vuts(cases: &[CaseView]) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for c in cases {
+        if !out.contains(&c.vut) {
+            out.push(c.vut.clone());
+        }
+    }
+    out
+}
+
+fn methods(cases: &[CaseView]) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for c in cases {
+        if !out.contains(&c.method) {
+            out.push(c.method.clone());
+        }
+    }
+    out
+}
+
+/// The experiment's printed markdown (tables, paragraphs, headings) as HTML.
+pub fn markdown(md: &str) -> String {
+    let mut h = String::new();
+    let mut rows: Vec<Vec<String>> = Vec::new();
+    let flush = |h: &mut String, rows: &mut Vec<Vec<String>>| {
+        if rows.is_empty() {
+            return;
+        }
+        let header: Vec<String> = rows.remove(0);
+        let body: Vec<Vec<String>> =
+            rows.drain(..).filter(|r| !r.iter().all(|c| c.chars().all(|ch| matches!(ch, '-' | ':' | ' ')))).collect();
+        let header: Vec<&str> = header.iter().map(String::as_str).collect();
+        h.push_str(&table("md", &header, &body));
+    };
+    for line in md.lines() {
+        let t = line.trim();
+        if t.starts_with('|') {
+            let cells: Vec<String> = t.trim_matches('|').split('|').map(|c| inline(c.trim())).collect();
+            rows.push(cells);
+            continue;
+        }
+        flush(&mut h, &mut rows);
+        if t.is_empty() {
+            continue;
+        }
+        if let Some(rest) = t.strip_prefix("### ") {
+            let _ = write!(h, "<h4>{}</h4>", inline(rest));
+        } else if let Some(rest) = t.strip_prefix("## ") {
+            let _ = write!(h, "<h3>{}</h3>", inline(rest));
+        } else if let Some(rest) = t.strip_prefix("# ") {
+            let _ = write!(h, "<h3>{}</h3>", inline(rest));
+        } else {
+            let _ = write!(h, "<p>{}</p>", inline(t));
+        }
+    }
+    flush(&mut h, &mut rows);
+    h
+}
+
+/// Inline markdown: `**bold**` and `` `code` ``, the rest escaped.
+fn inline(s: &str) -> String {
+    let e = esc(s);
+    let mut out = String::new();
+    let mut bold = false;
+    let mut code = false;
+    let mut chars = e.chars().peekable();
+    while let Some(c) = chars.next() {
+        if c == '*' && chars.peek() == Some(&'*') {
+            chars.next();
+            out.push_str(if bold { "</b>" } else { "<b>" });
+            bold = !bold;
+        } else if c == '`' {
+            out.push_str(if code { "</code>" } else { "<code>" });
+            code = !code;
+        } else {
+            out.push(c);
+        }
+    }
+    if bold {
+        out.push_str("</b>");
+    }
+    if code {
+        out.push_str("</code>");
+    }
+    out
+}
+
+/// Every run's PET as a strip per case, τ in red, one plot per VUT; cases whose τ the VUT does
+/// not allow are shaded and labelled.
+pub fn strips(cases: &[CaseView]) -> String {
+    let mut h = String::from(
+        "<h2>Every run's PET, per VUT</h2><p class=\"muted\">One dot per run (PET<sub>min</sub>), the box from the first to the third quartile with the median, τ as a red line; a shaded column is a target this VUT does not allow (measured by the open-loop reach grid).</p><div class=\"grid2\">",
+    );
+    let many_methods = methods(cases).len() > 1;
+    for vut in vuts(cases) {
+        let strips: Vec<Strip> = cases
+            .iter()
+            .filter(|c| c.vut == vut)
+            .map(|c| Strip {
+                label: if many_methods {
+                    format!("{}\n{} {:.1}", short(&c.method), &c.style.chars().take(1).collect::<String>(), c.tau_s)
+                } else {
+                    format!("{} {}\n{:.1} s", short(&c.scenario), c.style, c.tau_s)
+                },
+                values: c.pets_s.clone(),
+                colour: colour(methods(cases).iter().position(|m| *m == c.method).unwrap_or(0)),
+                reference: Some(c.tau_s),
+                unreachable: c.reachable == Some(false),
+            })
+            .collect();
+        h.push_str(
+            &StripPlot { title: format!("PET per run — VUT {vut}"), y_label: "PET_min (s)".into(), strips }
+                .svg("strips"),
+        );
+    }
+    h.push_str("</div>");
+    h
+}
+
+fn short(s: &str) -> String {
+    let s: String = s.chars().take(12).collect();
+    s
+}
+
+/// The steering error of every case against τ, one plot per VUT, a series per method (or style).
+pub fn error_vs_tau(cases: &[CaseView]) -> String {
+    let mut h = String::from("<h2>Steering error against τ, per VUT</h2><div class=\"grid2\">");
+    let ms = methods(cases);
+    for vut in vuts(cases) {
+        let mut series: Vec<Series> = Vec::new();
+        let keys: Vec<(String, String)> = if ms.len() > 1 {
+            ms.iter().map(|m| (m.clone(), String::new())).collect()
+        } else {
+            vec![
+                (ms.first().cloned().unwrap_or_default(), "rush".into()),
+                (ms.first().cloned().unwrap_or_default(), "yield".into()),
+            ]
+        };
+        for (i, (m, style)) in keys.iter().enumerate() {
+            let pts: Vec<(f64, f64)> = cases
+                .iter()
+                .filter(|c| c.vut == vut && c.method == *m && (style.is_empty() || c.style == *style))
+                .filter_map(|c| Some((c.tau_s, 100.0 * c.error_rel?)))
+                .collect();
+            if pts.is_empty() {
+                continue;
+            }
+            let name = match (m.is_empty(), style.is_empty()) {
+                (true, _) => style.clone(),
+                (false, true) => m.clone(),
+                (false, false) => format!("{m} {style}"),
+            };
+            series.push(Series { name, points: pts, dashed: false, colour: colour(i) });
+        }
+        let plot = LinePlot {
+            title: format!("Steering error — VUT {vut}"),
+            x_label: "target τ (s)".into(),
+            y_label: "|mean PET − τ| / τ (%)".into(),
+            series,
+            levels: vec![Level { y: 10.0, label: "10 %".into() }],
+            y_range: None,
+            x_range: None,
+            cursor: false,
+            markers: true,
+        };
+        h.push_str(&plot.svg("error"));
+    }
+    h.push_str("</div>");
+    h
+}
+
+/// The methods side by side: per VUT and method, the mean error, the runs, collisions and the
+/// order; only when the experiment compares methods.
+pub fn methods_side_by_side(cases: &[CaseView]) -> String {
+    let ms = methods(cases);
+    if ms.len() < 2 {
+        return String::new();
+    }
+    let mut header = vec!["VUT".to_owned()];
+    header.extend(ms.iter().map(|m| esc(m)));
+    let mut rows = Vec::new();
+    for vut in vuts(cases) {
+        let mut row = vec![esc(&vut)];
+        for m in &ms {
+            let own: Vec<&CaseView> = cases.iter().filter(|c| c.vut == vut && c.method == *m).collect();
+            let errs: Vec<f64> = own.iter().filter_map(|c| c.error_rel).collect();
+            let runs: usize = own.iter().map(|c| c.pets_s.len() + c.unmeasured).sum();
+            let coll: usize = own.iter().map(|c| c.collisions).sum();
+            let mean = (!errs.is_empty()).then(|| errs.iter().sum::<f64>() / errs.len() as f64);
+            row.push(format!(
+                "{} mean error<br><span class=\"muted\">{} cases, {runs} runs</span><br>{}",
+                pct(mean),
+                own.len(),
+                if coll > 0 { format!("<span class=\"warn\">{coll} collisions</span>") } else { "no collision".into() }
+            ));
+        }
+        rows.push(row);
+    }
+    let header: Vec<&str> = header.iter().map(String::as_str).collect();
+    format!("<h2>The methods side by side</h2>{}", table("methods", &header, &rows))
+}
+
+/// Each case's runs, folded: the case's figures in the summary line, every run in the table.
+pub fn drill_down(cases: &[CaseView]) -> String {
+    let mut h = String::from("<h2>Runs, case by case</h2>");
+    for vut in vuts(cases) {
+        let _ = write!(h, "<h3>VUT {}</h3>", esc(&vut));
+        for c in cases.iter().filter(|c| c.vut == vut) {
+            let mean = (!c.pets_s.is_empty()).then(|| c.pets_s.iter().sum::<f64>() / c.pets_s.len() as f64);
+            let _ = write!(
+                h,
+                "<details id=\"{}\"><summary>{} — mean PET {} s, error {}, {} runs{}{}{}</summary>",
+                esc(&c.anchor()),
+                esc(&c.label()),
+                num(mean, 2),
+                pct(c.error_rel),
+                c.pets_s.len() + c.unmeasured,
+                if c.unmeasured > 0 { format!(", {} without PET", c.unmeasured) } else { String::new() },
+                if c.collisions > 0 {
+                    format!(", <span class=\"warn\">{} collisions</span>", c.collisions)
+                } else {
+                    String::new()
+                },
+                if c.reachable == Some(false) {
+                    ", <span class=\"warn\">τ not allowed by this VUT</span>"
+                } else {
+                    ""
+                }
+            );
+            if c.runs.is_empty() {
+                h.push_str("<p class=\"muted\">This experiment keeps the case's figures, not its single runs.</p>");
+            } else {
+                let header: Vec<&str> = c.run_header.iter().map(String::as_str).collect();
+                h.push_str(&table("runs", &header, &c.runs));
+            }
+            h.push_str("</details>");
+        }
+    }
+    h
+}
+
+/// The usual body: tables, strips, error against τ, methods, drill-down.
+pub fn body(markdown_tables: &str, cases: &[CaseView]) -> String {
+    let mut h = String::from("<h2>Results</h2>");
+    h.push_str(&markdown(markdown_tables));
+    h.push_str(&strips(cases));
+    h.push_str(&error_vs_tau(cases));
+    h.push_str(&methods_side_by_side(cases));
+    h.push_str(&drill_down(cases));
+    h
+}
+
+/// Cases of figures over repeated runs: the pets as the only per-run detail.
+fn stats_case(
+    scenario: &str,
+    vut: &str,
+    method: String,
+    style: v2t_model::Style,
+    tau_s: f64,
+    stats: &crate::stats::RunStats,
+) -> CaseView {
+    CaseView {
+        scenario: scenario.to_owned(),
+        vut: vut.to_owned(),
+        method,
+        style: style.to_string(),
+        tau_s,
+        pets_s: stats.pets_s.clone(),
+        unmeasured: stats.unmeasured,
+        collisions: stats.collisions,
+        error_rel: stats.error_rel(tau_s),
+        reachable: None,
+        run_header: vec!["measured run".into(), "PET<sub>min</sub> (s)".into(), "PET − τ (s)".into()],
+        runs: stats
+            .pets_s
+            .iter()
+            .enumerate()
+            .map(|(k, p)| vec![(k + 1).to_string(), format!("{p:.2}"), format!("{:+.2}", p - tau_s)])
+            .collect(),
+    }
+}
+
+/// The regulator on the scenario cards (`experiment steerability`).
+pub fn from_steer(r: &crate::steer::SteerReport) -> Vec<CaseView> {
+    r.cases
+        .iter()
+        .map(|c| CaseView {
+            reachable: c.reachable,
+            error_rel: c.error_rel,
+            ..stats_case(&c.scenario, &c.vut, String::new(), c.style, c.tau_s, &c.stats)
+        })
+        .collect()
+}
+
+/// The four methods (`adversariality`, `fidelity`, `style`, `steerability --methods`).
+pub fn from_methods(cases: &[crate::methods::MethodCase]) -> Vec<CaseView> {
+    cases
+        .iter()
+        .map(|c| stats_case(&c.scenario, &c.vut, c.method.name().to_owned(), c.style, c.tau_s, &c.stats))
+        .collect()
+}
+
+/// The realism-weight sweep (`tradeoff`): each weight a setting of its method.
+pub fn from_tradeoff(r: &crate::tradeoff::TradeoffReport) -> Vec<CaseView> {
+    r.cases
+        .iter()
+        .map(|t| {
+            let c = &t.case;
+            let method = match t.w_real {
+                Some(w) => format!("{} w_real {w}", c.method.name()),
+                None => c.method.name().to_owned(),
+            };
+            stats_case(&c.scenario, &c.vut, method, c.style, c.tau_s, &c.stats)
+        })
+        .collect()
+}
+
+/// Onboard against the cloud (`latency`): each deployment and network a setting.
+pub fn from_latency(cases: &[crate::latency::LatencyCase]) -> Vec<CaseView> {
+    cases
+        .iter()
+        .map(|c| {
+            let method = format!("{:?} {}", c.deployment, c.network).to_lowercase();
+            let mut v = stats_case(&c.scenario, &c.vut, method, c.style, c.tau_s, &c.stats);
+            for col in &c.collisions {
+                v.runs.push(vec![
+                    format!("seed {}", col.seed),
+                    format!("<span class=\"warn\">collision at {:.2} s</span>", col.t_s),
+                    if col.bv_fell_back { "BV in fallback".into() } else { String::new() },
+                ]);
+            }
+            v
+        })
+        .collect()
+}
+
+/// Test campaigns (`campaign`): every run of every campaign, with its aim.
+pub fn from_campaign(r: &crate::campaign::CampaignReport) -> Vec<CaseView> {
+    r.cases
+        .iter()
+        .map(|c| {
+            let pets: Vec<f64> = c.runs.iter().filter_map(|x| x.pet_s).collect();
+            let mean = (!pets.is_empty()).then(|| pets.iter().sum::<f64>() / pets.len() as f64);
+            CaseView {
+                scenario: c.scenario.clone(),
+                vut: c.vut.clone(),
+                method: String::new(),
+                style: c.style.to_string(),
+                tau_s: c.tau_s,
+                unmeasured: c.runs.len() - pets.len(),
+                collisions: c.runs.iter().filter(|x| x.collision).count(),
+                error_rel: mean.map(|m| (m - c.tau_s).abs() / c.tau_s),
+                reachable: c.reachable,
+                pets_s: pets,
+                run_header: std::iter::once("campaign".to_owned())
+                    .chain((1..=r.runs_per_campaign).map(|k| format!("run {k}")))
+                    .collect(),
+                runs: campaign_rows(&c.runs),
+            }
+        })
+        .collect()
+}
+
+/// One row per campaign, one cell per run: its PET over the aim it was run at (the aim in
+/// grey), a wrong order, a collision and a "τ out of reach" report marked.
+fn campaign_rows(runs: &[crate::campaign::CampaignRun]) -> Vec<Vec<String>> {
+    let mut rows: Vec<Vec<String>> = Vec::new();
+    let mut current: Option<u64> = None;
+    for x in runs {
+        if current != Some(x.campaign) {
+            current = Some(x.campaign);
+            rows.push(vec![format!("{} <span class=\"muted\">(seeds {}…)</span>", x.campaign, x.seed)]);
+        }
+        let pet = if x.failed { "failed".to_owned() } else { num(x.pet_s, 2) };
+        let mut marks = String::new();
+        if !x.order_ok {
+            marks.push_str(" order");
+        }
+        if x.collision {
+            marks.push_str(" collision");
+        }
+        if x.below_reach.is_some() {
+            marks.push_str(" ↓reach");
+        }
+        let cell = if marks.is_empty() && !x.failed {
+            format!("{pet}<br><small class=\"muted\">{:.2}</small>", x.aim_s)
+        } else {
+            format!("<span class=\"warn\">{pet}{marks}</span><br><small class=\"muted\">{:.2}</small>", x.aim_s)
+        };
+        if let Some(row) = rows.last_mut() {
+            row.push(cell);
+        }
+    }
+    rows
+}
+
+/// A campaign's learning: per VUT, the mean steering error of the k-th run of every campaign.
+pub fn campaign_learning(r: &crate::campaign::CampaignReport) -> String {
+    let mut vuts: Vec<&str> = Vec::new();
+    for c in &r.cases {
+        if !vuts.contains(&c.vut.as_str()) {
+            vuts.push(&c.vut);
+        }
+    }
+    let series: Vec<Series> = vuts
+        .iter()
+        .enumerate()
+        .map(|(i, vut)| {
+            let points = (0..r.runs_per_campaign)
+                .filter_map(|k| {
+                    let errs: Vec<f64> = r
+                        .cases
+                        .iter()
+                        .filter(|c| c.vut == *vut && c.reachable != Some(false))
+                        .filter_map(|c| c.per_run.get(k).map(|s| s.error_rel))
+                        .collect();
+                    (!errs.is_empty()).then(|| ((k + 1) as f64, 100.0 * errs.iter().sum::<f64>() / errs.len() as f64))
+                })
+                .collect();
+            Series { name: (*vut).to_owned(), points, dashed: false, colour: colour(i) }
+        })
+        .collect();
+    let plot = LinePlot {
+        title: "Learning over a campaign (targets the VUT allows)".into(),
+        x_label: "run of the campaign".into(),
+        y_label: "mean steering error (%)".into(),
+        series,
+        levels: vec![Level { y: 10.0, label: "10 %".into() }],
+        y_range: None,
+        x_range: Some((0.5, r.runs_per_campaign as f64 + 0.5)),
+        cursor: false,
+        markers: false,
+    };
+    format!(
+        "<h2>Steering over a campaign, per VUT</h2>{}<p class=\"muted\">Under \"Runs, case by case\" every cell \
+         holds a run's PET<sub>min</sub> over the aim the BV was run at (grey), s; a wrong order, a collision and a \
+         \"τ out of reach\" report (↓reach) are marked.</p>",
+        plot.svg("learning")
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn case(vut: &str, method: &str, tau: f64, pets: &[f64]) -> CaseView {
+        CaseView {
+            scenario: "left_turn".into(),
+            vut: vut.into(),
+            method: method.into(),
+            style: "rush".into(),
+            tau_s: tau,
+            pets_s: pets.to_vec(),
+            error_rel: Some(0.05),
+            reachable: Some(tau > 1.6),
+            run_header: vec!["seed".into(), "PET (s)".into()],
+            runs: pets.iter().enumerate().map(|(k, p)| vec![k.to_string(), format!("{p:.2}")]).collect(),
+            ..CaseView::default()
+        }
+    }
+
+    #[test]
+    fn markdown_tables_become_html_tables_and_text_is_escaped() {
+        let h = markdown("# Title\nsome <text> with **bold**\n\n| a | b |\n|---|--:|\n| 1 | `x` |\n");
+        assert!(h.contains("<h3>Title</h3>") && h.contains("&lt;text&gt;") && h.contains("<b>bold</b>"), "{h}");
+        assert!(h.contains("<th>a</th><th>b</th>") && h.contains("<td>1</td><td><code>x</code></td>"), "{h}");
+        assert!(!h.contains("---"), "the separator row is no row: {h}");
+    }
+
+    #[test]
+    fn every_vut_gets_its_own_plots_and_an_unreachable_target_is_marked() {
+        let cases = vec![case("idm-normal", "", 1.5, &[1.4, 1.6]), case("idm-cautious", "", 3.0, &[2.9])];
+        let h = strips(&cases);
+        assert_eq!(h.matches("<svg class=\"plot strip").count(), 2, "one strip plot per VUT");
+        assert!(h.contains("not allowed"), "τ 1.5 is marked as not allowed: {h}");
+        assert_eq!(error_vs_tau(&cases).matches("<svg").count(), 2);
+        let d = drill_down(&cases);
+        assert_eq!(d.matches("<details").count(), 2);
+        assert!(d.contains("<td>1.60</td>"));
+        assert!(methods_side_by_side(&cases).is_empty(), "one method: nothing side by side");
+        let two = vec![case("m", "Video2Track", 2.0, &[2.0]), case("m", "Diffusion-only", 2.0, &[3.0])];
+        assert!(methods_side_by_side(&two).contains("<th>Diffusion-only</th>"));
+    }
+}

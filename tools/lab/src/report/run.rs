@@ -1,0 +1,863 @@
+//! One run in the report, from its run file (the JSON `video2track sim --json` and `v2t-sim-ecu
+//! --out` write): the map, the routes and driven paths, the conflict zones, footprints at the key
+//! moments and a time slider that moves them, plots over time, the zone-occupancy timeline, the
+//! regulator's status, the gate's state, the realism and links to the run's files.
+//!
+//! Everything is read from the file by name; a part the file does not hold (no regulator in a run
+//! whose BVs follow their references, no gate outside the onboard runtime) is said, not drawn.
+
+use std::fmt::Write as _;
+
+use serde_json::Value;
+
+use super::plot::{Bar, Level, LinePlot, Series, Timeline, colour};
+use super::{esc, num, table};
+
+/// What a run's section is made of.
+#[derive(Debug, Clone)]
+pub struct RunInput<'a> {
+    /// The section's anchor (letters, digits, `-`, `_`).
+    pub id: String,
+    /// Heading.
+    pub title: String,
+    /// The run file, parsed.
+    pub run: &'a Value,
+    /// The track's map, drawn under the run; `None`: the run's own routes only.
+    pub map: Option<&'a v2t_map::Map>,
+    /// What the drawing's ground is (the map file, or the card's own geometry).
+    pub ground: String,
+    /// Links to the run's files: label and relative address.
+    pub links: Vec<(String, String)>,
+    /// Extra facts for the table (label, value; HTML-escaped by the caller).
+    pub facts: Vec<(String, String)>,
+}
+
+/// The value at a JSON pointer, `null` when absent.
+fn at<'v>(v: &'v Value, pointer: &str) -> &'v Value {
+    v.pointer(pointer).unwrap_or(&Value::Null)
+}
+
+fn f(v: &Value, pointer: &str) -> Option<f64> {
+    at(v, pointer).as_f64()
+}
+
+/// Samples the JavaScript gets: at most this many per run (the trace is thinned evenly).
+const MAX_SAMPLES: usize = 800;
+
+/// A vehicle's recorded motion, thinned.
+struct Track {
+    id: String,
+    length_m: f64,
+    width_m: f64,
+    x: Vec<f64>,
+    y: Vec<f64>,
+    h: Vec<f64>,
+    v: Vec<f64>,
+    a: Vec<f64>,
+    a_req: Vec<f64>,
+}
+
+struct Trace {
+    t: Vec<f64>,
+    tracks: Vec<Track>,
+    /// Predicted PET per conflict and sample.
+    pet: Vec<Vec<Option<f64>>>,
+}
+
+fn read_trace(run: &Value) -> Trace {
+    let ids: Vec<String> = at(run, "/agent_ids")
+        .as_array()
+        .map(|a| a.iter().map(|v| v.as_str().unwrap_or("?").to_owned()).collect())
+        .unwrap_or_default();
+    let samples = at(run, "/trace").as_array().map(Vec::as_slice).unwrap_or_default();
+    let stride = samples.len().div_ceil(MAX_SAMPLES).max(1);
+    let kept: Vec<&Value> = samples.iter().step_by(stride).collect();
+    let n_conflicts = at(run, "/result/conflicts").as_array().map_or(0, Vec::len);
+    let mut tracks: Vec<Track> = ids
+        .iter()
+        .enumerate()
+        .map(|(i, id)| Track {
+            id: id.clone(),
+            length_m: f(run, &format!("/layout/dims/{i}/length_m")).unwrap_or(4.6),
+            width_m: f(run, &format!("/layout/dims/{i}/width_m")).unwrap_or(1.8),
+            x: Vec::new(),
+            y: Vec::new(),
+            h: Vec::new(),
+            v: Vec::new(),
+            a: Vec::new(),
+            a_req: Vec::new(),
+        })
+        .collect();
+    let mut t = Vec::with_capacity(kept.len());
+    let mut pet = vec![Vec::with_capacity(kept.len()); n_conflicts];
+    for s in kept {
+        t.push(f(s, "/t_s").unwrap_or(f64::NAN));
+        for (i, tr) in tracks.iter_mut().enumerate() {
+            let a = at(s, &format!("/agents/{i}"));
+            tr.x.push(f(a, "/state/px").unwrap_or(f64::NAN));
+            tr.y.push(f(a, "/state/py").unwrap_or(f64::NAN));
+            tr.h.push(f(a, "/state/theta_rad").unwrap_or(0.0));
+            tr.v.push(f(a, "/state/speed_mps").unwrap_or(f64::NAN));
+            tr.a.push(f(a, "/accel_mps2").unwrap_or(f64::NAN));
+            tr.a_req.push(f(a, "/request/accel_mps2").unwrap_or(f64::NAN));
+        }
+        for (k, p) in pet.iter_mut().enumerate() {
+            p.push(f(s, &format!("/predicted_pet_s/{k}")));
+        }
+    }
+    Trace { t, tracks, pet }
+}
+
+/// A moment worth a footprint and a button.
+#[derive(Debug, Clone)]
+struct Moment {
+    t_s: f64,
+    label: String,
+}
+
+fn passage(c: &Value, side: &str) -> Option<(f64, Option<f64>)> {
+    let p = at(c, &format!("/{side}_passage"));
+    Some((p.get("enter_t_s")?.as_f64()?, p.get("exit_t_s").and_then(Value::as_f64)))
+}
+
+/// The moments: zone entries and exits, PET_min realised, the closest approach, a collision.
+fn moments(run: &Value) -> Vec<Moment> {
+    let mut m = Vec::new();
+    let conflicts = at(run, "/result/conflicts").as_array().map(Vec::as_slice).unwrap_or_default();
+    for c in conflicts {
+        let bv = at(c, "/bv_id").as_str().unwrap_or("BV");
+        for (side, who) in [("vut", "VUT"), ("bv", bv)] {
+            if let Some((enter, exit)) = passage(c, side) {
+                m.push(Moment { t_s: enter, label: format!("{who} enters the zone") });
+                if let Some(x) = exit {
+                    m.push(Moment { t_s: x, label: format!("{who} leaves the zone") });
+                }
+            }
+        }
+    }
+    if let Some(t) = f(run, "/result/min_distance_t_s") {
+        m.push(Moment { t_s: t, label: "closest approach".into() });
+    }
+    if let Some(t) = f(run, "/result/collision/t_s") {
+        m.push(Moment { t_s: t, label: "collision".into() });
+    }
+    m.retain(|x| x.t_s.is_finite());
+    m.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
+    m
+}
+
+/// The moment PET_min was realised: the second vehicle's entry into the zone with the smallest
+/// measured PET (the end of the gap PET measures).
+fn pet_min_moment(run: &Value) -> Option<(f64, f64)> {
+    let conflicts = at(run, "/result/conflicts").as_array()?;
+    conflicts
+        .iter()
+        .filter_map(|c| {
+            let pet = f(c, "/pet/pet_s")?;
+            let (v, b) = (passage(c, "vut")?.0, passage(c, "bv")?.0);
+            Some((v.max(b), pet))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+}
+
+fn index_at(t: &[f64], time: f64) -> usize {
+    let mut best = 0;
+    for (k, v) in t.iter().enumerate() {
+        if (v - time).abs() < (t.get(best).copied().unwrap_or(f64::INFINITY) - time).abs() {
+            best = k;
+        }
+    }
+    best
+}
+
+/// The section of one run.
+pub fn section(input: &RunInput<'_>) -> String {
+    let run = input.run;
+    let trace = read_trace(run);
+    let t_range = (
+        trace.t.first().copied().filter(|v| v.is_finite()).unwrap_or(0.0),
+        trace.t.last().copied().filter(|v| v.is_finite()).unwrap_or(1.0),
+    );
+    let moments = moments(run);
+    let pet_min = pet_min_moment(run);
+    let mut h = String::new();
+    let _ = write!(h, "<section class=\"run\" id=\"{}\"><h2>{}</h2>", esc(&input.id), esc(&input.title));
+    h.push_str(&facts(input));
+    // The map and the slider.
+    let _ = write!(
+        h,
+        "<div class=\"controls\"><input type=\"range\" class=\"slider\" min=\"0\" max=\"{}\" value=\"0\" aria-label=\"time\">",
+        trace.t.len().saturating_sub(1)
+    );
+    if let Some((t, pet)) = pet_min {
+        let _ = write!(h, "<button data-t=\"{t:.3}\">PET<sub>min</sub> {pet:.2} s realised ({t:.2} s)</button>");
+    }
+    for m in &moments {
+        let _ = write!(h, "<button data-t=\"{:.3}\">{} ({:.2} s)</button>", m.t_s, esc(&m.label), m.t_s);
+    }
+    h.push_str("<span class=\"readout\"></span></div><div class=\"grid2\">");
+    let _ = write!(
+        h,
+        "<figure class=\"mapfig\">{}<figcaption class=\"muted\">North up. Dashed grey: routes; colour: driven paths; red bands: \
+         each vehicle's stretch in the conflict zone (where they cross is the zone); outlines: both vehicles at every \
+         zone entry and exit and when PET<sub>min</sub> was realised; filled: at the slider's time.</figcaption></figure>",
+        map_svg(input, &trace, &moments, pet_min)
+    );
+    h.push_str("<div class=\"col\">");
+    h.push_str(&occupancy(run, t_range));
+    h.push_str(&states(run, t_range));
+    h.push_str("</div></div><div class=\"grid2\">");
+    h.push_str(&plots(run, &trace, t_range));
+    h.push_str("</div>");
+    h.push_str(&realism(run));
+    if !input.links.is_empty() {
+        h.push_str("<p class=\"links\">Files: ");
+        for (label, href) in &input.links {
+            let _ = write!(h, "<a href=\"{}\">{}</a>", esc(href), esc(label));
+        }
+        h.push_str("</p>");
+    }
+    // The data the slider moves the footprints with.
+    let start = pet_min.map(|p| p.0).or_else(|| moments.first().map(|m| m.t_s));
+    let _ =
+        write!(h, "<script type=\"application/json\" class=\"rundata\">{}</script></section>", rundata(&trace, start));
+    h
+}
+
+fn rundata(trace: &Trace, start: Option<f64>) -> String {
+    let r = |v: &[f64], d: i32| -> Value {
+        let k = 10f64.powi(d);
+        Value::Array(
+            v.iter()
+                .map(|x| if x.is_finite() { serde_json::json!((x * k).round() / k) } else { Value::Null })
+                .collect(),
+        )
+    };
+    let agents: Vec<Value> = trace
+        .tracks
+        .iter()
+        .map(|tr| serde_json::json!({"id": tr.id, "x": r(&tr.x, 2), "y": r(&tr.y, 2), "h": r(&tr.h, 3), "v": r(&tr.v, 2)}))
+        .collect();
+    let pet: Vec<Option<f64>> = trace.pet.first().cloned().unwrap_or_default();
+    let pet: Vec<f64> = pet.iter().map(|p| p.unwrap_or(f64::NAN)).collect();
+    let mut doc = serde_json::json!({"t": r(&trace.t, 3), "agents": agents, "pet": r(&pet, 2)});
+    if let (Some(s), Some(obj)) = (start, doc.as_object_mut()) {
+        obj.insert("start".into(), serde_json::json!(s));
+    }
+    // `</` cannot end the script element early: the JSON holds no such pair, but ids could.
+    doc.to_string().replace("</", "<\\/")
+}
+
+fn facts(input: &RunInput<'_>) -> String {
+    let r = at(input.run, "/result");
+    let s = |p: &str| esc(at(r, p).as_str().unwrap_or("–"));
+    let tau = f(r, "/tau_s");
+    let pet = f(r, "/pet_min_s");
+    let err = pet.zip(tau).map(|(p, t)| (p - t).abs() / t);
+    let order = at(r, "/conflicts")
+        .as_array()
+        .map(|cs| {
+            cs.iter()
+                .map(|c| match at(c, "/order_matches_style").as_bool() {
+                    Some(true) => "<span class=\"ok\">as the style asks</span>".to_owned(),
+                    Some(false) => "<span class=\"warn\">opposite to the style</span>".to_owned(),
+                    None => "no order".to_owned(),
+                })
+                .collect::<Vec<_>>()
+                .join(", ")
+        })
+        .unwrap_or_default();
+    let collision = match at(r, "/collision") {
+        Value::Null => "none".to_owned(),
+        c => format!(
+            "<span class=\"warn\">{} and {} at {} s</span>",
+            esc(at(c, "/agents/0").as_str().unwrap_or("?")),
+            esc(at(c, "/agents/1").as_str().unwrap_or("?")),
+            num(f(c, "/t_s"), 2)
+        ),
+    };
+    let mut rows: Vec<Vec<String>> = vec![
+        vec!["scenario".into(), s("/scenario")],
+        vec!["VUT driver".into(), s("/vut_model")],
+        vec!["BV controller".into(), s("/bv_controller")],
+        vec!["seed".into(), at(r, "/seed").to_string()],
+        vec!["style, target τ".into(), format!("{}, {} s", s("/style"), num(tau, 2))],
+        vec!["PET<sub>min</sub> achieved".into(), format!("{} s (error against τ {})", num(pet, 2), super::pct(err))],
+        vec!["order".into(), order],
+        vec![
+            "closest approach".into(),
+            format!("{} m at {} s", num(f(r, "/min_distance_m"), 2), num(f(r, "/min_distance_t_s"), 2)),
+        ],
+        vec!["smallest TTC".into(), format!("{} s", num(f(r, "/min_ttc_s"), 2))],
+        vec!["collision".into(), collision],
+        vec![
+            "duration".into(),
+            format!(
+                "{} s, {}",
+                num(f(r, "/duration_s"), 1),
+                if at(r, "/completed").as_bool() == Some(true) { "completed" } else { "stopped before the end" }
+            ),
+        ],
+        vec!["drawn on".into(), esc(&input.ground)],
+    ];
+    if let Some(e) = at(input.run, "/ecu").as_object() {
+        let g = |k: &str| e.get(k).and_then(Value::as_u64).unwrap_or(0);
+        rows.push(vec![
+            "CAN frames (simulated ECU)".into(),
+            format!(
+                "{} accepted, {} rejected; {} steps braked on the ECU's command timeout; {} late steps",
+                g("frames_ok"),
+                g("frames_rejected"),
+                g("timeout_steps"),
+                g("late_steps")
+            ),
+        ]);
+    }
+    rows.extend(input.facts.iter().map(|(k, v)| vec![esc(k), v.clone()]));
+    table("facts", &["", ""], &rows).replacen("<thead><tr><th></th><th></th></tr></thead>", "", 1)
+}
+
+/// The point `s` m along a route sampled every [`v2t_sim::runner::ROUTE_STEP_M`].
+fn along(route: &[[f64; 2]], s: f64) -> Option<(f64, f64)> {
+    let step = v2t_sim::runner::ROUTE_STEP_M;
+    let k = (s / step).floor().max(0.0) as usize;
+    let a = route.get(k).or_else(|| route.last())?;
+    let b = route.get(k + 1).unwrap_or(a);
+    let u = (s / step - k as f64).clamp(0.0, 1.0);
+    Some((a[0] + (b[0] - a[0]) * u, a[1] + (b[1] - a[1]) * u))
+}
+
+fn routes(run: &Value) -> Vec<Vec<[f64; 2]>> {
+    at(run, "/layout/routes")
+        .as_array()
+        .map(|rs| {
+            rs.iter()
+                .map(|r| {
+                    r.as_array()
+                        .map(|pts| {
+                            pts.iter().filter_map(|p| Some([p.get(0)?.as_f64()?, p.get(1)?.as_f64()?])).collect()
+                        })
+                        .unwrap_or_default()
+                })
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+fn path_d(points: impl Iterator<Item = (f64, f64)>) -> String {
+    let mut d = String::new();
+    for (i, (x, y)) in points.filter(|(x, y)| x.is_finite() && y.is_finite()).enumerate() {
+        let _ = write!(d, "{}{x:.2} {y:.2}", if i == 0 { "M" } else { " L" });
+    }
+    d
+}
+
+fn map_svg(input: &RunInput<'_>, trace: &Trace, moments: &[Moment], pet_min: Option<(f64, f64)>) -> String {
+    let routes = routes(input.run);
+    let pts = trace
+        .tracks
+        .iter()
+        .flat_map(|t| t.x.iter().copied().zip(t.y.iter().copied()))
+        .chain(routes.iter().flatten().map(|p| (p[0], p[1])))
+        .filter(|(x, y)| x.is_finite() && y.is_finite());
+    let (mut x0, mut y0, mut x1, mut y1) = (f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
+    for (x, y) in pts {
+        x0 = x0.min(x);
+        y0 = y0.min(y);
+        x1 = x1.max(x);
+        y1 = y1.max(y);
+    }
+    if !x0.is_finite() {
+        return "<p class=\"muted\">No positions in this run file: no map drawn.</p>".into();
+    }
+    let margin = 12.0;
+    let (mut x0, mut y0, mut x1, mut y1) = (x0 - margin, y0 - margin, x1 + margin, y1 + margin);
+    // Not thinner than 2:3 either way, so that a straight road still shows its surroundings.
+    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
+    let half = (x1 - x0).max(y1 - y0) / 3.0;
+    if x1 - x0 < 2.0 * half {
+        (x0, x1) = (cx - half, cx + half);
+    }
+    if y1 - y0 < 2.0 * half {
+        (y0, y1) = (cy - half, cy + half);
+    }
+    let (w, hgt) = (x1 - x0, y1 - y0);
+    let scale = (560.0 / w).min(560.0 / hgt);
+    let (pw, ph) = (w * scale, hgt * scale);
+    let font = 11.0 / scale;
+    let mut s = format!(
+        "<svg class=\"map\" width=\"{pw:.0}\" height=\"{ph:.0}\" viewBox=\"{x0:.2} {:.2} {w:.2} {hgt:.2}\" role=\"img\"><title>{} — map, routes, driven paths and footprints</title><g transform=\"scale(1 -1)\">",
+        -y1,
+        esc(&input.title)
+    );
+    if let Some(map) = input.map {
+        s.push_str(&lanes(map, (x0 - 20.0, y0 - 20.0, x1 + 20.0, y1 + 20.0)));
+    } else {
+        // No map: the routes as lanes, so that the drawing still shows the roads driven.
+        for r in &routes {
+            let _ = write!(
+                s,
+                "<path d=\"{}\" fill=\"none\" stroke=\"#c9cdd2\" stroke-width=\"3.5\" stroke-linejoin=\"round\"/>",
+                path_d(r.iter().map(|p| (p[0], p[1])))
+            );
+        }
+    }
+    // Conflict zones: the stretch of each vehicle's route along which it is in the zone, as wide as
+    // the vehicle; where the two bands cross is the zone.
+    for z in at(input.run, "/layout/zones").as_array().into_iter().flatten() {
+        let bv = at(z, "/bv_index").as_u64().map_or(1, |b| b as usize + 1);
+        for (agent, side) in [(0, "vut"), (bv, "bv")] {
+            let (Some(route), Some(a), Some(b)) =
+                (routes.get(agent), f(z, &format!("/zone/{side}/enter_s_m")), f(z, &format!("/zone/{side}/exit_s_m")))
+            else {
+                continue;
+            };
+            let width = trace.tracks.get(agent).map_or(1.8, |t| t.width_m);
+            let n = ((b - a) / 0.5).ceil().clamp(1.0, 2000.0) as usize;
+            let d = path_d((0..=n).filter_map(|k| along(route, a + (b - a) * k as f64 / n as f64)));
+            let _ = write!(
+                s,
+                "<path class=\"zone\" d=\"{d}\" stroke-width=\"{width:.2}\"><title>conflict zone: {} from {a:.1} to {b:.1} m along its route</title></path>",
+                esc(trace.tracks.get(agent).map_or("?", |t| t.id.as_str()))
+            );
+        }
+    }
+    for r in &routes {
+        let _ = write!(s, "<path class=\"route\" d=\"{}\"/>", path_d(r.iter().map(|p| (p[0], p[1]))));
+    }
+    for (i, tr) in trace.tracks.iter().enumerate() {
+        let _ = write!(
+            s,
+            "<path class=\"driven\" stroke=\"{}\" d=\"{}\"><title>{} driven</title></path>",
+            colour(i),
+            path_d(tr.x.iter().copied().zip(tr.y.iter().copied())),
+            esc(&tr.id)
+        );
+    }
+    // Fixed footprints at the moments that matter (they stay in print).
+    let mut fixed: Vec<(f64, String)> =
+        moments.iter().filter(|m| m.label.contains("zone")).map(|m| (m.t_s, m.label.clone())).collect();
+    if let Some((t, pet)) = pet_min {
+        fixed.push((t, format!("PET_min {pet:.2} s realised")));
+    }
+    for (t, label) in &fixed {
+        let k = index_at(&trace.t, *t);
+        for (i, tr) in trace.tracks.iter().enumerate() {
+            let (Some(x), Some(y), Some(hd)) = (tr.x.get(k), tr.y.get(k), tr.h.get(k)) else { continue };
+            if !(x.is_finite() && y.is_finite()) {
+                continue;
+            }
+            let _ = write!(
+                s,
+                "<rect class=\"ghost\" stroke=\"{}\" x=\"{:.2}\" y=\"{:.2}\" width=\"{:.2}\" height=\"{:.2}\" transform=\"translate({x:.2} {y:.2}) rotate({:.1})\"><title>{} at {t:.2} s: {}</title></rect>",
+                colour(i),
+                -tr.length_m / 2.0,
+                -tr.width_m / 2.0,
+                tr.length_m,
+                tr.width_m,
+                hd.to_degrees(),
+                esc(&tr.id),
+                esc(label)
+            );
+        }
+    }
+    // The footprints the slider moves.
+    for (i, tr) in trace.tracks.iter().enumerate() {
+        let (l, w) = (tr.length_m, tr.width_m);
+        let _ = write!(
+            s,
+            "<g class=\"fp\" data-agent=\"{i}\" transform=\"translate({:.2} {:.2})\"><rect x=\"{:.2}\" y=\"{:.2}\" width=\"{l:.2}\" height=\"{w:.2}\" fill=\"{}\" fill-opacity=\"0.85\"/>\
+             <path d=\"M{:.2} 0 L{:.2} {:.2} L{:.2} {:.2} Z\" fill=\"#fff\"/><title>{}</title></g>",
+            tr.x.first().copied().unwrap_or(0.0),
+            tr.y.first().copied().unwrap_or(0.0),
+            -l / 2.0,
+            -w / 2.0,
+            colour(i),
+            l / 2.0 - 0.2,
+            l / 2.0 - 1.2,
+            w / 4.0,
+            l / 2.0 - 1.2,
+            -w / 4.0,
+            esc(&tr.id)
+        );
+    }
+    s.push_str("</g>");
+    // Labels outside the mirrored group, so that text reads upright.
+    for (i, tr) in trace.tracks.iter().enumerate() {
+        if let (Some(x), Some(y)) = (tr.x.first(), tr.y.first())
+            && x.is_finite()
+            && y.is_finite()
+        {
+            let _ = write!(
+                s,
+                "<text x=\"{:.2}\" y=\"{:.2}\" fill=\"{}\" font-size=\"{font:.3}\">{} start</text>",
+                x + 1.5,
+                -y - 1.5,
+                colour(i),
+                esc(&tr.id)
+            );
+        }
+    }
+    let bar = nice_bar(w);
+    let _ = write!(
+        s,
+        "<g class=\"scalebar\"><path d=\"M{:.2} {:.2} h{bar:.2}\" stroke=\"#222\" stroke-width=\"{:.3}\"/><text x=\"{:.2}\" y=\"{:.2}\" font-size=\"{font:.3}\">{bar:.0} m</text></g>",
+        x0 + 2.0,
+        -y0 - 2.0,
+        2.0 / scale,
+        x0 + 2.0,
+        -y0 - 3.0 - 2.0 / scale
+    );
+    s.push_str("</svg>");
+    s
+}
+
+/// A round scale-bar length for a drawing `w` m wide.
+fn nice_bar(w: f64) -> f64 {
+    let target = w / 5.0;
+    let mag = 10f64.powf(target.log10().floor());
+    [1.0, 2.0, 5.0, 10.0].iter().map(|m| m * mag).rfind(|v| *v <= target).unwrap_or(mag)
+}
+
+/// The map's lanes and marks within `window` (x0, y0, x1, y1).
+fn lanes(map: &v2t_map::Map, window: (f64, f64, f64, f64)) -> String {
+    use v2t_map::xodr::MarkType;
+    let inside =
+        |p: v2t_model::geometry::Point2| p.x >= window.0 && p.x <= window.2 && p.y >= window.1 && p.y <= window.3;
+    let mut lanes = String::from("<g class=\"lanes\">");
+    let mut marks = String::from("<g class=\"marks\">");
+    for lane in &map.graph.lanes {
+        // Runs of consecutive samples inside the window.
+        let mut runs: Vec<Vec<&v2t_map::graph::LaneSample>> = Vec::new();
+        let mut cur = Vec::new();
+        for q in &lane.samples {
+            if inside(q.p) {
+                cur.push(q);
+            } else if !cur.is_empty() {
+                runs.push(std::mem::take(&mut cur));
+            }
+        }
+        if !cur.is_empty() {
+            runs.push(cur);
+        }
+        for r in runs.iter().filter(|r| r.len() >= 2) {
+            let outline: Vec<v2t_model::geometry::Point2> =
+                r.iter().map(|q| q.left).chain(r.iter().rev().map(|q| q.right)).collect();
+            let outline = v2t_map::boundaries::simplify(&outline, 0.05);
+            let _ = write!(
+                lanes,
+                "<path class=\"lane\" fill=\"{}\" d=\"{}Z\"/>",
+                if lane.drivable { "#c3c7cc" } else { "#dde2d6" },
+                path_d(outline.iter().map(|p| (p.x, p.y)))
+            );
+            for side in [true, false] {
+                let mut seg: Vec<v2t_model::geometry::Point2> = Vec::new();
+                let mut kind: Option<MarkType> = None;
+                let mut flush = |seg: &[v2t_model::geometry::Point2], kind: Option<MarkType>| {
+                    let dash = match kind {
+                        Some(MarkType::Broken) => " stroke-dasharray=\"6 6\"",
+                        Some(MarkType::Mixed) => " stroke-dasharray=\"12 3\"",
+                        _ => "",
+                    };
+                    if seg.len() >= 2 && !matches!(kind, Some(MarkType::None) | None) {
+                        let seg = v2t_map::boundaries::simplify(seg, 0.05);
+                        let _ = write!(
+                            marks,
+                            "<path class=\"mark\"{dash} d=\"{}\"/>",
+                            path_d(seg.iter().map(|p| (p.x, p.y)))
+                        );
+                    }
+                };
+                for q in r {
+                    let (p, m) = if side { (q.left, q.left_mark) } else { (q.right, q.right_mark) };
+                    if kind != Some(m) {
+                        if let Some(last) = seg.last().copied() {
+                            flush(&seg, kind);
+                            seg = vec![last];
+                        }
+                        kind = Some(m);
+                    }
+                    seg.push(p);
+                }
+                flush(&seg, kind);
+            }
+        }
+    }
+    lanes.push_str("</g>");
+    marks.push_str("</g>");
+    lanes + &marks
+}
+
+fn plots(run: &Value, trace: &Trace, t_range: (f64, f64)) -> String {
+    let mut out = String::new();
+    let series = |name: String, t: &[f64], v: &[f64], i: usize, dashed: bool| Series {
+        name,
+        points: t.iter().copied().zip(v.iter().copied()).collect(),
+        dashed,
+        colour: colour(i),
+    };
+    let mut speed = LinePlot::over_time("Speed", "speed (m/s)", t_range);
+    let mut accel = LinePlot::over_time("Acceleration", "acceleration (m/s²)", t_range);
+    for (i, tr) in trace.tracks.iter().enumerate() {
+        speed.series.push(series(tr.id.clone(), &trace.t, &tr.v, i, false));
+        accel.series.push(series(tr.id.clone(), &trace.t, &tr.a, i, false));
+        if i > 0 {
+            accel.series.push(series(format!("{} requested", tr.id), &trace.t, &tr.a_req, i, true));
+        }
+    }
+    out.push_str(&speed.svg("speed"));
+    out.push_str(&accel.svg("accel"));
+    // Predicted PET: from the true states at constant velocity, and the regulator's own.
+    let tau = f(run, "/result/tau_s").unwrap_or(f64::NAN);
+    let top = if tau.is_finite() { (3.0 * tau).max(tau + 3.0) } else { 10.0 };
+    let clip = |v: Option<f64>| v.filter(|x| x.is_finite() && *x >= 0.0 && *x <= top).unwrap_or(f64::NAN);
+    let mut pet = LinePlot::over_time("Predicted PET", "PET (s)", t_range);
+    pet.y_range = Some((0.0, top));
+    if tau.is_finite() {
+        pet.levels.push(Level { y: tau, label: format!("τ = {tau:.2} s") });
+    }
+    let bv_ids: Vec<String> = at(run, "/result/conflicts")
+        .as_array()
+        .map(|cs| cs.iter().map(|c| at(c, "/bv_id").as_str().unwrap_or("BV").to_owned()).collect())
+        .unwrap_or_default();
+    for (k, p) in trace.pet.iter().enumerate() {
+        let v: Vec<f64> = p.iter().map(|x| clip(*x)).collect();
+        let who = bv_ids.get(k).map_or("BV", String::as_str);
+        pet.series.push(series(format!("constant velocity, {who}"), &trace.t, &v, k + 1, false));
+    }
+    for (b, plans) in at(run, "/regulator").as_array().into_iter().flatten().enumerate() {
+        let pts: Vec<(f64, f64)> = plans
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter_map(|p| Some((f(p, "/t_s")?, clip(f(p, "/predicted_pet_s")))))
+            .collect();
+        let who = bv_ids.get(b).map_or("BV", String::as_str);
+        pet.series.push(Series { name: format!("regulator, {who}"), points: pts, dashed: true, colour: colour(b + 1) });
+    }
+    out.push_str(&pet.svg("pet"));
+    out
+}
+
+fn status_colour(s: &str) -> &'static str {
+    match s {
+        "Regulating" | "Engaged" => "#009e73",
+        "Degraded" => "#e69f00",
+        "SafetyYield" => "#cc79a7",
+        "Waiting" => "#56b4e9",
+        "Passed" | "Disengaged" => "#9a9a9a",
+        "Stale" | "Fault" => "#d00000",
+        "MinimalRiskStop" => "#d55e00",
+        _ => "#333333",
+    }
+}
+
+/// Bars from a change log `(t, state)` up to `t_end`.
+fn bars(log: &[(f64, String)], t_end: f64) -> Vec<Bar> {
+    let mut out: Vec<Bar> = Vec::new();
+    for (t, state) in log {
+        if out.last().is_some_and(|b| b.label == *state) {
+            continue;
+        }
+        if let Some(last) = out.last_mut() {
+            last.t1 = *t;
+        }
+        out.push(Bar { t0: *t, t1: t_end, colour: status_colour(state), label: state.clone() });
+    }
+    out
+}
+
+/// The regulator's status per BV and the actuation gate's state over time.
+fn states(run: &Value, t_range: (f64, f64)) -> String {
+    let mut rows = Vec::new();
+    let mut notes = Vec::new();
+    let ids: Vec<&str> =
+        at(run, "/agent_ids").as_array().map(|a| a.iter().filter_map(Value::as_str).collect()).unwrap_or_default();
+    match at(run, "/regulator").as_array() {
+        Some(per_bv) => {
+            for (b, plans) in per_bv.iter().enumerate() {
+                let log: Vec<(f64, String)> = plans
+                    .as_array()
+                    .into_iter()
+                    .flatten()
+                    .filter_map(|p| Some((f(p, "/t_s")?, at(p, "/status").as_str()?.to_owned())))
+                    .collect();
+                rows.push((format!("regulator {}", ids.get(b + 1).unwrap_or(&"BV")), bars(&log, t_range.1)));
+            }
+        }
+        None => notes.push(if at(run, "/result/bv_controller").as_str() == Some("reference") {
+            "Regulator: none in this run (the BVs followed their references)."
+        } else {
+            "Regulator: its decisions are not in this run file."
+        }),
+    }
+    match at(run, "/gate").as_array() {
+        Some(g) => {
+            let log: Vec<(f64, String)> =
+                g.iter().filter_map(|r| Some((f(r, "/t_s")?, at(r, "/state").as_str()?.to_owned()))).collect();
+            rows.push(("actuation gate".to_owned(), bars(&log, t_range.1)));
+        }
+        None => notes.push(
+            "Actuation gate: none in this world (the in-process simulation has no onboard gateway; runs through \
+             v2t-sim-ecu record it).",
+        ),
+    }
+    let mut h = String::new();
+    if !rows.is_empty() {
+        let mut seen: Vec<&'static str> = Vec::new();
+        let mut legend = Vec::new();
+        for b in rows.iter().flat_map(|r| r.1.iter()) {
+            if !seen.contains(&b.colour) {
+                seen.push(b.colour);
+                legend.push((b.colour, b.label.clone()));
+            }
+        }
+        h.push_str(
+            &Timeline { title: "Regulator status and gate state".into(), rows, t_range, gaps: Vec::new(), legend }
+                .svg("states"),
+        );
+    }
+    for n in notes {
+        let _ = write!(h, "<p class=\"muted note\">{}</p>", esc(n));
+    }
+    h
+}
+
+/// Who was in each conflict zone when; PET as the gap between the bars.
+fn occupancy(run: &Value, t_range: (f64, f64)) -> String {
+    let conflicts = at(run, "/result/conflicts").as_array().map(Vec::as_slice).unwrap_or_default();
+    if conflicts.is_empty() {
+        return "<p class=\"muted\">No conflict zone in this run.</p>".into();
+    }
+    let mut rows = Vec::new();
+    let mut gaps = Vec::new();
+    for c in conflicts {
+        let bv = at(c, "/bv_id").as_str().unwrap_or("BV");
+        let mut ends = Vec::new();
+        for (side, who, k) in [("vut", "VUT", 0), ("bv", bv, 1)] {
+            let mut row = Vec::new();
+            if let Some((enter, exit)) = passage(c, side) {
+                row.push(Bar {
+                    t0: enter,
+                    t1: exit.unwrap_or(t_range.1),
+                    colour: colour(k),
+                    label: format!("{who} in the zone"),
+                });
+                ends.push((enter, exit));
+            }
+            rows.push((format!("{who} (zone {bv})"), row));
+        }
+        if let ([a, b], Some(pet)) = (ends.as_slice(), f(c, "/pet/pet_s")) {
+            let (first, second) = if a.0 <= b.0 { (a, b) } else { (b, a) };
+            if let Some(exit) = first.1 {
+                let label = if pet >= 0.0 { format!("PET {pet:.2} s") } else { format!("overlap {:.2} s", -pet) };
+                gaps.push((exit.min(second.0), exit.max(second.0), label));
+            }
+        }
+    }
+    let mut h =
+        Timeline { title: "Conflict-zone occupancy".into(), rows, t_range, gaps, legend: Vec::new() }.svg("occupancy");
+    for c in conflicts {
+        if let Some(lb) = f(c, "/pet/pet_lower_bound_s") {
+            let _ = write!(
+                h,
+                "<p class=\"muted\">Zone {}: the second vehicle never entered; PET &gt; {lb:.2} s (censored).</p>",
+                esc(at(c, "/bv_id").as_str().unwrap_or("BV"))
+            );
+        }
+    }
+    h
+}
+
+fn realism(run: &Value) -> String {
+    let Some(vehicles) = at(run, "/realism/vehicles").as_array() else {
+        return "<p class=\"muted\">Realism: not measured in this run (no human reference given).</p>".into();
+    };
+    let rows: Vec<Vec<String>> = vehicles
+        .iter()
+        .map(|v| {
+            let m = at(v, "/realism");
+            let mut row = vec![esc(at(v, "/id").as_str().unwrap_or("?")), esc(at(v, "/class").as_str().unwrap_or("?"))];
+            if m.is_null() {
+                row.push("no human reference for this class".into());
+                row.extend(std::iter::repeat_n("–".to_owned(), 4));
+            } else {
+                row.push(num(f(m, "/w1_accel_mps2"), 3));
+                row.push(num(f(m, "/w1_jerk_mps3"), 3));
+                row.push(num(f(m, "/w1_yaw_rate_radps"), 4));
+                row.push(num(f(m, "/jerk_rms_mps3"), 2));
+                row.push(at(m, "/speed_reversals").to_string());
+            }
+            row
+        })
+        .collect();
+    format!(
+        "<h3>Realism against recorded human driving</h3>{}<p class=\"muted\">W<sub>1</sub>: Wasserstein-1 distance between this \
+         run's distribution and the recorded human driving of the same manoeuvre class; smaller is more human.</p>",
+        table(
+            "realism",
+            &[
+                "vehicle",
+                "class",
+                "W<sub>1</sub> accel (m/s²)",
+                "W<sub>1</sub> jerk (m/s³)",
+                "W<sub>1</sub> yaw rate (rad/s)",
+                "jerk RMS (m/s³)",
+                "speed reversals"
+            ],
+            &rows
+        )
+    )
+}
+
+/// `file` as a link from a report written to `report`: its name when both are in one folder,
+/// else its absolute path.
+pub fn link(report: &std::path::Path, file: &std::path::Path) -> String {
+    let dir = |p: &std::path::Path| {
+        p.parent().map(|d| if d.as_os_str().is_empty() { std::path::PathBuf::from(".") } else { d.to_owned() })
+    };
+    let same = dir(report)
+        .zip(dir(file))
+        .is_some_and(|(a, b)| a == b || a.canonicalize().ok().zip(b.canonicalize().ok()).is_some_and(|(x, y)| x == y));
+    match (same, file.file_name()) {
+        (true, Some(name)) => name.to_string_lossy().into_owned(),
+        _ => std::path::absolute(file).unwrap_or_else(|_| file.to_owned()).display().to_string(),
+    }
+}
+
+/// A whole page of one run (`video2track sim --report`, `v2t-sim-ecu --report`): `files` are the
+/// run's other outputs, linked when given.
+pub fn page(
+    run: &Value,
+    map: Option<&v2t_map::Map>,
+    map_path: &std::path::Path,
+    provenance: &str,
+    report: &std::path::Path,
+    files: &[(&str, Option<&std::path::Path>)],
+) -> String {
+    let r = at(run, "/result");
+    let title = format!(
+        "Run {} — VUT {}, BV {}, seed {}",
+        at(r, "/scenario").as_str().unwrap_or("?"),
+        at(r, "/vut_model").as_str().unwrap_or("?"),
+        at(r, "/bv_controller").as_str().unwrap_or("?"),
+        at(r, "/seed")
+    );
+    let ground = match map {
+        Some(_) => format!("the map {}", map_path.display()),
+        None => "the scenario's own routes (a scenario card: no OpenDRIVE map)".to_owned(),
+    };
+    let input = RunInput {
+        id: "run".into(),
+        title: title.clone(),
+        run,
+        map,
+        ground,
+        links: files.iter().filter_map(|(label, p)| Some(((*label).to_owned(), link(report, (*p)?)))).collect(),
+        facts: Vec::new(),
+    };
+    let mut p = super::Page::new(&title);
+    p.provenance.push(provenance.to_owned());
+    p.body = section(&input);
+    p.html()
+}
