@@ -28,7 +28,10 @@ fn the_demo_runs_every_scenario_and_writes_what_it_promises() {
         let name = s["name"].as_str().unwrap();
         assert_eq!(s["collision"], false, "{name}");
         assert_eq!(s["order_ok"], true, "{name}");
-        let err = s["fidelity_error_rel"].as_f64().unwrap();
+        let err = s["fidelity_error_rel"].as_f64().unwrap_or_else(|| {
+            let log = std::fs::read_to_string(out.join(format!("{name}.run.log"))).unwrap_or_default();
+            panic!("{name}: no PET measured\n{stdout}\n{name}.run.log:\n{log}")
+        });
         println!(
             "{name}: PET video {} s, track {} s, error {:.1} %",
             s["pet_video_s"],
@@ -52,4 +55,23 @@ fn the_demo_runs_every_scenario_and_writes_what_it_promises() {
     }
     let report = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert!(report.contains("<svg") && report.contains("cut_in") && report.contains("left_turn_vut"));
+    let video = v2t_test_support::missing(v2t_test_support::VIDEO_TOOLS).is_empty();
+    for name in ["cut_in", "left_turn", "left_turn_vut"] {
+        for file in ["mcap", "xosc", "run.json"] {
+            assert!(report.contains(&format!("href=\"{name}.{file}\"")), "{name}: no link to its {file}");
+        }
+        assert_eq!(report.contains(&format!("href=\"{name}.mp4\"")), video, "{name}: the video link follows ffmpeg");
+    }
+    // In a real browser.
+    if !v2t_test_support::tools_or_not_run(v2t_test_support::BROWSER_TOOLS) {
+        return;
+    }
+    let opened = v2t_tests::report::open_checked(&out.join("report.html"), "demo", 4200);
+    let sections = v2t_tests::report::run_sections(&opened.dom);
+    assert_eq!(sections.len(), 3, "one section per scenario");
+    for s in sections {
+        // Every demo run goes through the onboard gateway: the gate's state is on the CAN bus.
+        v2t_tests::report::assert_run_parts(s, true, true);
+    }
+    assert!(opened.dom.contains("<table class=\"summary\""));
 }

@@ -3,6 +3,7 @@
 use std::path::{Path, PathBuf};
 
 pub mod harness;
+pub mod report;
 
 /// The repository root.
 pub fn repo_root() -> PathBuf {

@@ -106,6 +106,10 @@ pub struct ExperimentArgs {
     /// latency: write the plot of the steering error against the delay (SVG) to this file.
     #[arg(long)]
     svg: Option<PathBuf>,
+    /// Write the experiment's HTML report here: the tables, every run's PET per case and VUT, the
+    /// steering error against τ, the methods side by side, and each case's runs.
+    #[arg(long)]
+    report: Option<PathBuf>,
 }
 
 impl ExperimentArgs {
@@ -190,6 +194,19 @@ impl ExperimentArgs {
         }
         None
     }
+}
+
+/// Writes the experiment's report when `--report` asks for one.
+fn write_report(a: &ExperimentArgs, provenance: &[String], body: &str) -> anyhow::Result<()> {
+    let Some(path) = &a.report else { return Ok(()) };
+    let name = a.which.to_possible_value().map_or_else(String::new, |v| v.get_name().to_owned());
+    let mut page = v2t_lab::report::Page::new(&format!("Video2Track experiment: {name}"));
+    page.provenance = provenance.to_vec();
+    page.provenance.push(format!("Command: video2track {}", std::env::args().skip(1).collect::<Vec<_>>().join(" ")));
+    page.body = body.to_owned();
+    std::fs::write(path, page.html()).with_context(|| format!("writing {}", path.display()))?;
+    println!("wrote {}", path.display());
+    Ok(())
 }
 
 /// Runs the experiment and prints its tables.
@@ -313,7 +330,18 @@ fn tradeoff(a: ExperimentArgs) -> anyhow::Result<()> {
     let provenance = provenance(model, human, &seeds);
     let report = tradeoff::sweep(&setup, &scenarios, &taus, &weights, &models, seeds, provenance)?;
     println!("{}", report.provenance);
-    print!("{}", tradeoff::markdown(&report));
+    let md = tradeoff::markdown(&report);
+    print!("{md}");
+    if a.report.is_some() {
+        let cases = v2t_lab::report::experiment::from_tradeoff(&report);
+        let mut body = v2t_lab::report::experiment::body(&md, &cases);
+        for rec in &scenarios {
+            if let Some(svg) = tradeoff::svg(&report, &rec.name) {
+                body.push_str(&format!("<h2>Trade-off front, {}</h2>{svg}", v2t_lab::report::esc(&rec.name)));
+            }
+        }
+        write_report(&a, std::slice::from_ref(&report.provenance), &body)?;
+    }
     if let Some(dir) = &a.svg_dir {
         std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
         for rec in &scenarios {
@@ -364,11 +392,23 @@ fn four_methods(a: ExperimentArgs) -> anyhow::Result<()> {
         world.baseline_network.name,
         world.baseline_network.source
     );
-    print!("{}", methods::markdown(&summary, &labels));
+    let mut md = methods::markdown(&summary, &labels);
     let steering = methods::steering_errors(&cases);
     if a.which == Experiment::Steerability {
-        print!("{}", methods::steering_markdown(&steering));
+        md.push_str(&methods::steering_markdown(&steering));
     }
+    print!("{md}");
+    let provenance_line = format!(
+        "{}; TroubleMaker-like regulates in the cloud across the simulated \"{}\" network ({})",
+        provenance(model, human, &seeds),
+        world.baseline_network.name,
+        world.baseline_network.source
+    );
+    write_report(
+        &a,
+        &[provenance_line],
+        &v2t_lab::report::experiment::body(&md, &v2t_lab::report::experiment::from_methods(&cases)),
+    )?;
     if let Some(path) = a.json {
         write_json(&path, &serde_json::json!({ "cases": cases, "summary": summary, "steering": steering }))?;
     }
@@ -391,7 +431,14 @@ fn latency(a: ExperimentArgs) -> anyhow::Result<()> {
     let cases = v2t_lab::latency::run_all(&setup, &scenarios, &networks, &models, seeds.clone())?;
     let rows = v2t_lab::latency::summarize(&cases, &networks);
     println!("{}; networks simulated (presets named below)\n", provenance(model, human, &seeds));
-    print!("{}", v2t_lab::latency::markdown(&rows, &cases, &networks));
+    let md = v2t_lab::latency::markdown(&rows, &cases, &networks);
+    print!("{md}");
+    let mut body = v2t_lab::report::experiment::body(&md, &v2t_lab::report::experiment::from_latency(&cases));
+    body.push_str(&format!(
+        "<h2>Steering error against the delay</h2>{}",
+        v2t_lab::latency::svg(&rows, &networks, &seeds)
+    ));
+    write_report(&a, &[format!("{}; networks simulated", provenance(model, human, &seeds))], &body)?;
     if let Some(path) = &a.svg {
         std::fs::write(path, v2t_lab::latency::svg(&rows, &networks, &seeds))
             .with_context(|| format!("writing {}", path.display()))?;
@@ -469,13 +516,17 @@ fn campaign(a: ExperimentArgs) -> anyhow::Result<()> {
         runs,
         reach_seed,
     );
-    println!(
-        "{}",
-        cards
-            .provenance(&a, &seeds, "the regulator's and the campaign memory's constants")?
-            .replace("; seeds", "; campaigns: seeds")
-    );
-    print!("{}", v2t_lab::campaign::markdown(&report));
+    let provenance_line = cards
+        .provenance(&a, &seeds, "the regulator's and the campaign memory's constants")?
+        .replace("; seeds", "; campaigns: seeds");
+    println!("{provenance_line}");
+    let md = v2t_lab::campaign::markdown(&report);
+    print!("{md}");
+    if a.report.is_some() {
+        let mut body = v2t_lab::report::experiment::campaign_learning(&report);
+        body.push_str(&v2t_lab::report::experiment::body(&md, &v2t_lab::report::experiment::from_campaign(&report)));
+        write_report(&a, &[provenance_line, format!("{runs} runs per campaign")], &body)?;
+    }
     if let Some(dir) = &a.memory_dir {
         for (vut, seed, memory) in &memories {
             let sub = dir.join(vut);
@@ -500,8 +551,15 @@ fn regulator_on_cards(a: ExperimentArgs) -> anyhow::Result<()> {
     let reach_seed = (!a.no_reach).then_some(*seeds.start());
     let report =
         steer::steerability(&cards.settings, &cards.scenarios, &cards.targets, &vuts, seeds.clone(), reach_seed);
-    println!("{}", cards.provenance(&a, &seeds, "the regulator's settings")?);
-    print!("{}", steer::steer_markdown(&report));
+    let provenance_line = cards.provenance(&a, &seeds, "the regulator's settings")?;
+    println!("{provenance_line}");
+    let md = steer::steer_markdown(&report);
+    print!("{md}");
+    write_report(
+        &a,
+        &[provenance_line],
+        &v2t_lab::report::experiment::body(&md, &v2t_lab::report::experiment::from_steer(&report)),
+    )?;
     if let Some(path) = a.json {
         write_json(&path, &report)?;
     }

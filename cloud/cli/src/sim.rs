@@ -64,6 +64,14 @@ pub struct SimArgs {
     /// With --cloud-broker: the BV's id on the link.
     #[arg(long, default_value = "bv1", requires = "cloud_broker")]
     bv_id: String,
+    /// Write the run's HTML report (map, footprints and time slider, plots, zone occupancy, the
+    /// regulator's status, realism) to this file.
+    #[arg(long)]
+    report: Option<PathBuf>,
+    /// With --report: the map (OpenDRIVE) drawn under the run; the bundled cards run on the
+    /// proving ground's lanes.
+    #[arg(long, default_value = v2t_files::shipped::MAP, requires = "report")]
+    report_map: PathBuf,
 }
 
 impl SimArgs {
@@ -84,6 +92,11 @@ impl SimArgs {
 /// Runs the card and prints what happened.
 pub fn run(a: SimArgs) -> anyhow::Result<()> {
     let scenario = v2t_sim::files::load_scenario(&a.card)?;
+    // The report's map, read before the run.
+    let map = match &a.report {
+        Some(_) => Some(v2t_map::Map::load(&a.report_map).map_err(crate::BadFile::of)?),
+        None => None,
+    };
     let model = match &a.vut {
         Some(name) => Some(name.parse::<VutModel>().map_err(crate::Usage)?),
         None => None,
@@ -102,12 +115,13 @@ pub fn run(a: SimArgs) -> anyhow::Result<()> {
         },
         None => v2t_lab::vut::Vut::Builtin(model.unwrap_or(scenario.vut.default_model)),
     };
-    let outcome = if a.regulated && (a.network.is_some() || a.cloud_broker.is_some()) {
-        crate::regulate::cloud_regulated_run(&a.cloud(), &scenario, &vut, a.seed)?
+    let (outcome, plans) = if a.regulated && (a.network.is_some() || a.cloud_broker.is_some()) {
+        (crate::regulate::cloud_regulated_run(&a.cloud(), &scenario, &vut, a.seed)?, None)
     } else if a.regulated {
-        regulated(&a, &scenario, &vut)?
+        let run = regulated(&a, &scenario, &vut)?;
+        (run.outcome, Some(run.plans))
     } else {
-        v2t_lab::sim::run_reference(&scenario, &vut, a.seed)?
+        (v2t_lab::sim::run_reference(&scenario, &vut, a.seed)?, None)
     };
     print!("{}", v2t_lab::sim::report(&outcome, vut.world()));
     let realism = match &human {
@@ -118,18 +132,37 @@ pub fn run(a: SimArgs) -> anyhow::Result<()> {
         }
         None => None,
     };
-    if let Some(path) = a.mcap {
-        recording::write(&outcome, &path)?;
+    if let Some(path) = &a.mcap {
+        let first = plans.as_ref().and_then(|p| p.first()).map_or(&[][..], Vec::as_slice);
+        recording::write_with_plans(&outcome, first, path)?;
         println!("wrote {}", path.display());
     }
-    if let Some(path) = a.json {
-        #[derive(serde::Serialize)]
-        struct Output<'a> {
-            #[serde(flatten)]
-            outcome: &'a v2t_sim::runner::RunOutcome,
-            realism: Option<&'a v2t_sim::realism::RunRealism>,
-        }
-        write_json(&path, &Output { outcome: &outcome, realism: realism.as_ref() })?;
+    #[derive(serde::Serialize)]
+    struct Output<'a> {
+        #[serde(flatten)]
+        outcome: &'a v2t_sim::runner::RunOutcome,
+        realism: Option<&'a v2t_sim::realism::RunRealism>,
+        /// Each regulated BV's decisions over the run.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        regulator: Option<&'a Vec<Vec<v2t_sim::recording::PlanRecord>>>,
+    }
+    let output = Output { outcome: &outcome, realism: realism.as_ref(), regulator: plans.as_ref() };
+    if let Some(path) = &a.json {
+        write_json(path, &output)?;
+    }
+    if let Some(path) = &a.report {
+        let doc = serde_json::to_value(&output)?;
+        let place = format!("{}; scenario card {}", vut.world().provenance(), a.card.display());
+        let page = v2t_lab::report::run::page(
+            &doc,
+            map.as_ref(),
+            &a.report_map,
+            &place,
+            path,
+            &[("run (JSON)", a.json.as_deref()), ("recording (MCAP)", a.mcap.as_deref())],
+        );
+        std::fs::write(path, page).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
+        println!("wrote {}", path.display());
     }
     Ok(())
 }
@@ -139,7 +172,7 @@ fn regulated(
     a: &SimArgs,
     scenario: &v2t_sim::scenario::Scenario,
     vut: &v2t_lab::vut::Vut<'_>,
-) -> anyhow::Result<v2t_sim::runner::RunOutcome> {
+) -> anyhow::Result<v2t_lab::campaign::RegulatedRun> {
     use v2t_lab::campaign;
     let settings: v2t_game::regulator::RegulatorParams = v2t_files::load_toml(&a.regulator)?;
     let (name, world) = (vut.name(), vut.world().as_str());
@@ -172,7 +205,7 @@ fn regulated(
         }
         println!("wrote {}", path.display());
     }
-    Ok(run.outcome)
+    Ok(run)
 }
 
 /// `replay`'s arguments.

@@ -39,12 +39,19 @@ pub const FFMPEG: Tool = Tool { name: "ffmpeg", package: "ffmpeg" };
 /// Probes videos.
 pub const FFPROBE: Tool = Tool { name: "ffprobe", package: "ffmpeg" };
 
+/// Opens the HTML reports headless.
+pub const CHROMIUM: Tool = Tool { name: "chromium", package: "chromium" };
+
 /// What the MQTT tests need: the broker.
 pub const BROKER_TOOLS: &[Tool] = &[MOSQUITTO];
 /// What the TLS and password tests need besides the broker.
 pub const TLS_TOOLS: &[Tool] = &[MOSQUITTO, MOSQUITTO_PASSWD, OPENSSL];
 /// What the video tests need.
 pub const VIDEO_TOOLS: &[Tool] = &[FFMPEG, FFPROBE];
+/// What the report tests need: a real browser.
+pub const BROWSER_TOOLS: &[Tool] = &[CHROMIUM];
+
+pub mod browser;
 
 /// `require!(TOOLS)` at the top of a test: returns from the test, reported as not run, when a tool
 /// of `TOOLS` (a `&[Tool]`) is missing and [`ALLOW_MISSING`] is set; fails it when not set.

@@ -183,6 +183,8 @@ pub struct RegulatedRun {
     pub aims: Vec<Target>,
     /// Each BV's last "τ out of reach" report of the run.
     pub below_reach: Vec<Option<BelowReach>>,
+    /// Each BV's decisions over the run (status, predicted PET).
+    pub plans: Vec<Vec<v2t_sim::recording::PlanRecord>>,
 }
 
 /// Why a regulated run did not run.
@@ -206,6 +208,7 @@ pub fn regulated_run(
 ) -> Result<RegulatedRun, RegulatedRunError> {
     let target = scenario.target;
     let mut reports: Vec<Rc<Cell<Option<BelowReach>>>> = Vec::new();
+    let mut logs = Vec::new();
     let mut aims = Vec::with_capacity(scenario.bvs.len());
     let mut bvs: Vec<Box<dyn BvController>> = Vec::with_capacity(scenario.bvs.len());
     for i in 0..scenario.bvs.len() {
@@ -214,11 +217,18 @@ pub fn regulated_run(
         let r = RegulatedBv::new(RegulatedBv::params_for(settings, scenario, i), scenario, i)?
             .aiming(aim, case.and_then(|c| c.below_reach));
         reports.push(r.below_reach_report());
+        logs.push(r.decision_log());
         aims.push(aim);
         bvs.push(Box::new(r));
     }
     let outcome = vut.run(scenario, &mut bvs, seed)?;
-    Ok(RegulatedRun { outcome, aims, below_reach: reports.iter().map(|r| r.get()).collect() })
+    drop(bvs);
+    Ok(RegulatedRun {
+        outcome,
+        aims,
+        below_reach: reports.iter().map(|r| r.get()).collect(),
+        plans: logs.iter().map(|l| l.take()).collect(),
+    })
 }
 
 /// Records a regulated run of `scenario` (its target is the test's) in `memory`, BV by BV.

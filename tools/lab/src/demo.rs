@@ -204,7 +204,8 @@ pub fn run(opts: &DemoOptions) -> Result<Summary, DemoError> {
     }
     let summary = Summary { prior: prior_kind(&opts.weights, &model), scenarios, wall_s: t0.elapsed().as_secs_f64() };
     write(&opts.out.join("summary.json"), &pretty(&summary))?;
-    write(&opts.out.join("report.html"), &report::html(&summary, &runs))?;
+    let runs: Vec<Value> = runs.into_iter().map(|(run, _)| run).collect();
+    write(&opts.out.join("report.html"), &report::html(&summary, &runs, &inspection.map, &opts.map))?;
     Ok(summary)
 }
 
@@ -282,6 +283,14 @@ fn run_one(
         .map_err(fail("closed loop"))?;
     files.push(run_json.display().to_string());
     files.push(mcap.display().to_string());
+    // A bird's-eye video of the run, when ffmpeg is there.
+    let video = file("mp4");
+    let scene = v2t_export::video::load_scene(&run_json, None, Some(&opts.map));
+    let opts_video = v2t_export::video::RenderOptions { fps: 10, width: 640 };
+    match scene.and_then(|scene| v2t_export::video::encode(&scene, &opts_video, &video, Path::new("ffmpeg"))) {
+        Ok(_) => files.push(video.display().to_string()),
+        Err(e) => println!("  video       not rendered: {e}"),
+    }
     let text = std::fs::read_to_string(&run_json).map_err(|e| fail("closed loop")(e.to_string()))?;
     let run: Value = serde_json::from_str(&text).map_err(|e| fail("closed loop")(e.to_string()))?;
     let r = at(&run, "/result");

@@ -23,7 +23,8 @@ use v2t_sim::recording::PlanRecord;
 use v2t_sim::runner::{RunOutcome, Simulation};
 use v2t_sim::vut::VutModel;
 use v2t_wire::{
-    ActivePrior, BelowReachCode, Code, DbwMode, Header, Localization, PlanStatus, RegulatedPlan, VutState, services,
+    ActivePrior, BelowReachCode, Code, DbwMode, GateState, Header, Localization, PlanStatus, RegulatedPlan, VutState,
+    services,
 };
 
 use crate::world::{self, Vehicles, WorldError};
@@ -92,8 +93,21 @@ pub struct EcuRun {
     pub stats: EcuStats,
     /// The regulator's decisions, for the recording.
     pub plans: Vec<PlanRecord>,
+    /// The actuation gate's state as the gateway reported it on `BV_ControlState`: every change,
+    /// from the scenario's start.
+    pub gate: Vec<GateRecord>,
     /// How human each vehicle's motion was (when [`EcuOptions::human`] is given).
     pub realism: Option<v2t_sim::realism::RunRealism>,
+}
+
+/// A change of the actuation gate's state seen on the CAN bus.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct GateRecord {
+    /// Simulated time, s.
+    pub t_s: f64,
+    /// The state (`Disengaged`, `Engaged`, `MinimalRiskStop`, `Fault`, or `code N` for a code
+    /// this build does not know).
+    pub state: String,
 }
 
 /// Why the simulated ECU could not run.
@@ -163,6 +177,8 @@ struct Commands {
     accel: Option<(f64, u64)>,
     steer: Option<(f64, u64)>,
     engaged: bool,
+    /// The newest gate state code from `BV_ControlState`.
+    gate: Option<u8>,
     stats: EcuStats,
 }
 
@@ -178,7 +194,11 @@ impl Commands {
                 self.stats.frames_ok += 1;
                 self.steer = s.enable.then_some((s.steer_rad, now));
             }
-            Ok(_) => self.stats.frames_ok += 1,
+            Ok(Message::Control(c)) => {
+                self.stats.frames_ok += 1;
+                self.gate = Some(c.gate_state);
+            }
+            Ok(Message::Feedback(_)) => self.stats.frames_ok += 1,
             Err(_) => self.stats.frames_rejected += 1,
         }
     }
@@ -319,9 +339,17 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<EcuR
         Some((_, driver)) => driver.name.clone(),
         None => model.as_str().to_owned(),
     };
-    let finish = |outcome: RunOutcome, stats: EcuStats, plans: Vec<PlanRecord>| {
+    let finish = |outcome: RunOutcome, stats: EcuStats, plans: Vec<PlanRecord>, gate: Vec<GateRecord>| {
         let realism = opts.human.as_ref().and_then(|h| v2t_sim::realism::measure_run(&scenario, &outcome, h).ok());
-        EcuRun { outcome, stats, plans, realism }
+        EcuRun { outcome, stats, plans, gate, realism }
+    };
+    let mut gate_log: Vec<GateRecord> = Vec::new();
+    let mut log_gate = |t_s: f64, code: Option<u8>| {
+        let Some(code) = code else { return };
+        let state = GateState::from_code(code).map_or_else(|_| format!("code {code}"), |g| format!("{g:?}"));
+        if gate_log.last().is_none_or(|last| last.state != state) {
+            gate_log.push(GateRecord { t_s, state });
+        }
     };
     let mut driver = model.driver();
     let mut io = Io {
@@ -374,7 +402,7 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<EcuR
         }
         k += 1;
         if !io.bus.wait(Duration::from_nanos(step_ns)) {
-            return Ok(finish(sim.finish(&vut_name, "v2t-edge"), cmds.stats, plans));
+            return Ok(finish(sim.finish(&vut_name, "v2t-edge"), cmds.stats, plans, gate_log));
         }
     }
 
@@ -382,6 +410,7 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<EcuR
     let mut i: usize = 0;
     while !sim.is_done() {
         io.drain(&mut cmds);
+        log_gate(i as f64 * dt, cmds.gate);
         while let Some(p) = plan_in.receive().map_err(|e| EdgeError::ipc("receive", services::PLAN, e))? {
             plans.push(PlanRecord {
                 t_s: i as f64 * dt,
@@ -435,7 +464,7 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<EcuR
             break;
         }
     }
-    Ok(finish(sim.finish(&vut_name, "v2t-edge"), cmds.stats, plans))
+    Ok(finish(sim.finish(&vut_name, "v2t-edge"), cmds.stats, plans, gate_log))
 }
 
 fn scenario_start_vut(scenario: &v2t_sim::scenario::Scenario) -> v2t_model::kinematics::State {

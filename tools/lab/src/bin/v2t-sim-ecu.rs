@@ -86,12 +86,27 @@ struct Cli {
     /// the shipped config/realism/human_reference.json when run from the repository).
     #[arg(long)]
     human_reference: Option<PathBuf>,
+    /// Write the run's HTML report here, drawn on the map of --map (the bundled cards run on the
+    /// proving ground's lanes, as do priors grounded on it).
+    #[arg(long)]
+    report: Option<PathBuf>,
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     let human = v2t_files::human_reference_or_shipped(cli.human_reference.as_deref()).map_err(EcuError::from)?;
     let overrides = Overrides { namespace: cli.namespace.as_deref(), can_iface: cli.can_iface.as_deref() };
     let cfg = load_for_process(&cli.config, overrides).map_err(EcuError::from)?;
+    // The map a report draws a prior's run on, read before anything starts.
+    let report_map = cli.map.clone();
+    let map = match &cli.report {
+        Some(_) => Some(v2t_map::Map::load(&report_map).map_err(|e| {
+            EcuError::Input(v2t_files::InputError::Config(v2t_files::ConfigError::Parse {
+                origin: report_map.display().to_string(),
+                message: e.to_string(),
+            }))
+        })?),
+        _ => None,
+    };
     let source = match (cli.scenario, cli.prior) {
         (Some(card), _) => EcuSource::Card(card),
         (None, Some(path)) => EcuSource::Prior { path, agent: cli.agent, sim_settings: cli.sim_settings },
@@ -129,7 +144,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         style: cli.style,
         human,
     };
-    let v2t_lab::ecu::EcuRun { outcome, stats, plans, realism } = v2t_lab::ecu::run::<ipc::Service>(&cfg, &opts)?;
+    let v2t_lab::ecu::EcuRun { outcome, stats, plans, gate, realism } = v2t_lab::ecu::run::<ipc::Service>(&cfg, &opts)?;
     let r = &outcome.result;
     let pet = r.pet_min_s.map_or_else(|| "none".to_owned(), |p| format!("{p:.2} s"));
     println!(
@@ -149,17 +164,33 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     if let (Some(r), Some(h)) = (&realism, &opts.human) {
         print!("{}", v2t_lab::sim::realism_report(r, h));
     }
-    if let Some(path) = cli.mcap {
-        v2t_sim::recording::write_with_plans(&outcome, &plans, &path)?;
+    if let Some(path) = &cli.mcap {
+        v2t_sim::recording::write_with_plans(&outcome, &plans, path)?;
     }
-    if let Some(path) = cli.out {
-        let mut doc = serde_json::to_value(&outcome).context("serializing the run")?;
-        if let Some(obj) = doc.as_object_mut() {
-            obj.insert("ecu".into(), serde_json::to_value(stats).context("serializing the ECU statistics")?);
-            obj.insert("realism".into(), serde_json::to_value(&realism).context("serializing the realism")?);
-        }
+    if cli.out.is_none() && cli.report.is_none() {
+        return Ok(());
+    }
+    let mut doc = serde_json::to_value(&outcome).context("serializing the run")?;
+    if let Some(obj) = doc.as_object_mut() {
+        obj.insert("ecu".into(), serde_json::to_value(stats).context("serializing the ECU statistics")?);
+        obj.insert("realism".into(), serde_json::to_value(&realism).context("serializing the realism")?);
+        obj.insert("regulator".into(), serde_json::json!([plans]));
+        obj.insert("gate".into(), serde_json::to_value(&gate).context("serializing the gate log")?);
+    }
+    if let Some(path) = &cli.out {
         let text = serde_json::to_string_pretty(&doc).context("serializing the run")?;
-        std::fs::write(&path, text).with_context(|| format!("cannot write {}", path.display()))?;
+        std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    if let Some(path) = &cli.report {
+        let page = v2t_lab::report::run::page(
+            &doc,
+            map.as_ref(),
+            &report_map,
+            world.provenance(),
+            path,
+            &[("run (JSON)", cli.out.as_deref()), ("recording (MCAP)", cli.mcap.as_deref())],
+        );
+        std::fs::write(path, page).with_context(|| format!("cannot write {}", path.display()))?;
     }
     Ok(())
 }

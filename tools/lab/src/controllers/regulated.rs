@@ -1,7 +1,7 @@
 //! The regulator (`v2t-game`) as a BV controller of the simulated proving ground: the regulator
 //! decides the longitudinal motion every control period, pure pursuit keeps the BV on its path.
 
-use std::cell::Cell;
+use std::cell::{Cell, RefCell};
 use std::rc::Rc;
 use v2t_game::qp::QpError;
 use v2t_game::reference::{MAX_REFERENCE_SAMPLES, ReferenceSample};
@@ -25,6 +25,8 @@ pub struct RegulatedBv {
     last: Option<Decision>,
     /// The last "τ out of reach" the regulator reported in this run (shared with whoever asked).
     below_reach: Rc<Cell<Option<BelowReach>>>,
+    /// Every decision of the run, as the onboard runtime publishes them (shared with whoever asked).
+    log: Rc<RefCell<Vec<v2t_sim::recording::PlanRecord>>>,
 }
 
 /// Period at which the BV's reference speed profile is sampled for the regulator's realism term, s.
@@ -40,7 +42,14 @@ impl RegulatedBv {
         bv_index: usize,
     ) -> Result<Self, QpError> {
         let regulator = regulator_for(params, scenario, bv_index)?;
-        Ok(Self { regulator, target: scenario.target, last_accel: 0.0, last: None, below_reach: Rc::default() })
+        Ok(Self {
+            regulator,
+            target: scenario.target,
+            last_accel: 0.0,
+            last: None,
+            below_reach: Rc::default(),
+            log: Rc::default(),
+        })
     }
 
     /// This BV aiming at `aim` instead of the scenario's target (a campaign's learned aim, see
@@ -55,6 +64,11 @@ impl RegulatedBv {
     /// Where the last "τ out of reach" of the run will be (`None` while nothing said so).
     pub fn below_reach_report(&self) -> Rc<Cell<Option<BelowReach>>> {
         Rc::clone(&self.below_reach)
+    }
+
+    /// Where every decision of the run will be (the regulator's status and predicted PET over time).
+    pub fn decision_log(&self) -> Rc<RefCell<Vec<v2t_sim::recording::PlanRecord>>> {
+        Rc::clone(&self.log)
     }
 
     /// `settings` with the limits of BV `bv_index` and the VUT of `scenario` (unchanged when the
@@ -164,7 +178,20 @@ impl BvController for RegulatedBv {
         let vehicle = &bv.agent.vehicle;
         let own = Measured { s_m: obs.own.s_m, v_mps: obs.own.state.speed_mps, age_s: obs.own.age_s };
         let vut = Measured { s_m: obs.vut.s_m, v_mps: obs.vut.state.speed_mps, age_s: obs.vut.age_s };
+        let started = std::time::Instant::now();
         let d = decide(&mut self.regulator, bv, conflict, self.target, obs.t_s, own, vut, self.last_accel);
+        self.log.borrow_mut().push(v2t_sim::recording::PlanRecord {
+            t_s: obs.t_s,
+            prior_id: 0,
+            status: format!("{:?}", d.status),
+            s_m: own.s_m,
+            v_mps: own.v_mps,
+            accel_mps2: d.accel_mps2,
+            predicted_pet_s: d.predicted_pet_s,
+            below_reach: d.below_reach.map(|b| format!("{:?}", b.cause)),
+            pet_bound_s: d.below_reach.and_then(|b| b.pet_bound_s),
+            solve_us: started.elapsed().as_secs_f64() * 1e6,
+        });
         self.last_accel = d.accel_mps2;
         self.last = Some(d);
         if d.below_reach.is_some() {
