@@ -115,7 +115,7 @@ table{border-collapse:collapse;margin:.6em 0}td,th{border:1px solid #d0d0d0;padd
 th{background:#f2f2f4}td:first-child,th:first-child{text-align:left}\
 .warn{color:#b00020}.ok{color:#0a7a3e}.muted{color:#777}\
 .grid2{display:flex;flex-wrap:wrap;gap:10px;align-items:flex-start}.col{display:flex;flex-direction:column;gap:10px}\
-figure{margin:0}.mapfig{max-width:580px}figcaption{font-size:.85em}.run{margin-bottom:2em}\
+figure{margin:0}.scroll{overflow-x:auto;max-width:100%}svg{flex:none}.mapfig{max-width:580px}figcaption{font-size:.85em}.run{margin-bottom:2em}\
 svg{background:#fff;border:1px solid #e2e2e2}svg.map{background:#eef0ea}\
 .plot text{font-size:11px;fill:#333}.plot .rowlabel{font-size:11px}.plot .ptitle{font-size:12px;font-weight:600}.plot .axis{font-size:11px;fill:#222}\
 .plot .grid line{stroke:#ececec}.plot .frame{fill:none;stroke:#999}.plot .series{fill:none;stroke-width:1.8}\

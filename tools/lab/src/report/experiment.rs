@@ -88,8 +88,11 @@ pub fn markdown(md: &str) -> String {
         let body: Vec<Vec<String>> =
             rows.drain(..).filter(|r| !r.iter().all(|c| c.chars().all(|ch| matches!(ch, '-' | ':' | ' ')))).collect();
         let header: Vec<&str> = header.iter().map(String::as_str).collect();
+        h.push_str("<div class=\"scroll\">");
         h.push_str(&table("md", &header, &body));
+        h.push_str("</div>");
     };
+    let mut list = false;
     for line in md.lines() {
         let t = line.trim();
         if t.starts_with('|') {
@@ -98,6 +101,18 @@ pub fn markdown(md: &str) -> String {
             continue;
         }
         flush(&mut h, &mut rows);
+        if let Some(item) = t.strip_prefix("- ") {
+            if !list {
+                h.push_str("<ul>");
+                list = true;
+            }
+            let _ = write!(h, "<li>{}</li>", inline(item));
+            continue;
+        }
+        if list {
+            h.push_str("</ul>");
+            list = false;
+        }
         if t.is_empty() {
             continue;
         }
@@ -112,6 +127,9 @@ pub fn markdown(md: &str) -> String {
         }
     }
     flush(&mut h, &mut rows);
+    if list {
+        h.push_str("</ul>");
+    }
     h
 }
 
@@ -166,10 +184,8 @@ pub fn strips(cases: &[CaseView]) -> String {
                 unreachable: c.reachable == Some(false),
             })
             .collect();
-        h.push_str(
-            &StripPlot { title: format!("PET per run — VUT {vut}"), y_label: "PET_min (s)".into(), strips }
-                .svg("strips"),
-        );
+        let plot = StripPlot { title: format!("PET per run — VUT {vut}"), y_label: "PET_min (s)".into(), strips };
+        let _ = write!(h, "<div class=\"scroll\">{}</div>", plot.svg("strips"));
     }
     h.push_str("</div>");
     h
@@ -246,16 +262,17 @@ pub fn methods_side_by_side(cases: &[CaseView]) -> String {
             let coll: usize = own.iter().map(|c| c.collisions).sum();
             let mean = (!errs.is_empty()).then(|| errs.iter().sum::<f64>() / errs.len() as f64);
             row.push(format!(
-                "{} mean error<br><span class=\"muted\">{} cases, {runs} runs</span><br>{}",
+                "{} mean error<br><span class=\"muted\">{} case{}, {runs} runs</span><br>{}",
                 pct(mean),
                 own.len(),
+                if own.len() == 1 { "" } else { "s" },
                 if coll > 0 { format!("<span class=\"warn\">{coll} collisions</span>") } else { "no collision".into() }
             ));
         }
         rows.push(row);
     }
     let header: Vec<&str> = header.iter().map(String::as_str).collect();
-    format!("<h2>The methods side by side</h2>{}", table("methods", &header, &rows))
+    format!("<h2>The methods side by side</h2><div class=\"scroll\">{}</div>", table("methods", &header, &rows))
 }
 
 /// Each case's runs, folded: the case's figures in the summary line, every run in the table.
@@ -519,10 +536,11 @@ mod tests {
 
     #[test]
     fn markdown_tables_become_html_tables_and_text_is_escaped() {
-        let h = markdown("# Title\nsome <text> with **bold**\n\n| a | b |\n|---|--:|\n| 1 | `x` |\n");
+        let h = markdown("# Title\nsome <text> with **bold**\n\n| a | b |\n|---|--:|\n| 1 | `x` |\n- one\n- two\nend");
         assert!(h.contains("<h3>Title</h3>") && h.contains("&lt;text&gt;") && h.contains("<b>bold</b>"), "{h}");
         assert!(h.contains("<th>a</th><th>b</th>") && h.contains("<td>1</td><td><code>x</code></td>"), "{h}");
         assert!(!h.contains("---"), "the separator row is no row: {h}");
+        assert!(h.contains("<ul><li>one</li><li>two</li></ul><p>end</p>"), "{h}");
     }
 
     #[test]

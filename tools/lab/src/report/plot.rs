@@ -495,7 +495,10 @@ pub struct StripPlot {
 impl StripPlot {
     /// The SVG (wider with many columns).
     pub fn svg(&self, class: &str) -> String {
-        let col = 44.0;
+        // Wide enough for the longest label line (about 6 px a character at 11 px).
+        let longest =
+            self.strips.iter().flat_map(|s| s.label.split('\n')).map(|l| l.chars().count()).max().unwrap_or(0);
+        let col = (6.2 * longest as f64 + 8.0).max(44.0);
         let width = (LEFT + RIGHT + col * self.strips.len() as f64).max(WIDTH);
         let height = HEIGHT + 40.0;
         let all =
