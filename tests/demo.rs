@@ -74,4 +74,11 @@ fn the_demo_runs_every_scenario_and_writes_what_it_promises() {
         v2t_tests::report::assert_run_parts(s, true, true);
     }
     assert!(opened.dom.contains("<table class=\"summary\""));
+    // Printed, as an engineer hands it on: every page of it a PDF page, the slider left out.
+    let pdf = v2t_tests::report::screenshot_dir().join("demo.pdf");
+    v2t_test_support::browser::print_pdf(&out.join("report.html"), &pdf).unwrap();
+    let bytes = std::fs::read(&pdf).unwrap();
+    let count = |what: &[u8]| bytes.windows(what.len()).filter(|w| *w == what).count();
+    let pages = count(b"/Type /Page") - count(b"/Type /Pages");
+    assert!(pages >= 3, "the printed report has {pages} pages, one scenario needs about one");
 }

@@ -124,3 +124,24 @@ pub fn screenshot(page: &Path, png: &Path, width: u32, height: u32) -> Result<()
     }
     Ok(())
 }
+
+/// `page` printed to PDF at `pdf` (A4, the page's print styles), as a reader would print it.
+pub fn print_pdf(page: &Path, pdf: &Path) -> Result<(), String> {
+    if let Some(dir) = pdf.parent() {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    }
+    let _ = std::fs::remove_file(pdf);
+    run(
+        page,
+        &[
+            format!("--print-to-pdf={}", std::path::absolute(pdf).map_err(|e| e.to_string())?.display()),
+            "--no-pdf-header-footer".to_owned(),
+        ],
+        Duration::from_secs(120),
+    )?;
+    let bytes = std::fs::read(pdf).map_err(|e| format!("no PDF at {}: {e}", pdf.display()))?;
+    if !bytes.starts_with(b"%PDF") {
+        return Err(format!("{} is not a PDF", pdf.display()));
+    }
+    Ok(())
+}

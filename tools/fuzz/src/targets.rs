@@ -66,7 +66,7 @@ pub const KINDS: &[Kind] = &[
         form: Form::Text,
         ext: "json",
     },
-    Kind { name: "run", what: "run file (JSON): video scene, OpenSCENARIO", form: Form::Text, ext: "json" },
+    Kind { name: "run", what: "run file (JSON): report, video scene, OpenSCENARIO", form: Form::Text, ext: "json" },
     Kind {
         name: "campaign",
         what: "campaign memory (JSON): a test's learned aim and reach",
@@ -375,6 +375,19 @@ impl Context {
                 self.xosc(&text())
             }
             "run" => {
+                // The report draws whatever JSON it is given, field by field: never a panic.
+                if let Ok(run) = serde_json::from_str::<serde_json::Value>(&text()) {
+                    let input = v2t_lab::report::run::RunInput {
+                        id: "run".into(),
+                        title: "run".into(),
+                        run: &run,
+                        map: None,
+                        ground: String::new(),
+                        links: Vec::new(),
+                        facts: Vec::new(),
+                    };
+                    let _ = v2t_lab::report::run::section(&input);
+                }
                 let scene = v2t_export::video::Scene::from_run_json(&text(), path).map_err(|e| s(&e))?;
                 let _ = scene.frame_count(10);
                 let _ = scene.view(320, 180);

@@ -344,12 +344,12 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<EcuR
         EcuRun { outcome, stats, plans, gate, realism }
     };
     let mut gate_log: Vec<GateRecord> = Vec::new();
+    let mut gate_code: Option<u8> = None;
     let mut log_gate = |t_s: f64, code: Option<u8>| {
-        let Some(code) = code else { return };
+        let Some(code) = code.filter(|c| gate_code != Some(*c)) else { return };
+        gate_code = Some(code);
         let state = GateState::from_code(code).map_or_else(|_| format!("code {code}"), |g| format!("{g:?}"));
-        if gate_log.last().is_none_or(|last| last.state != state) {
-            gate_log.push(GateRecord { t_s, state });
-        }
+        gate_log.push(GateRecord { t_s, state });
     };
     let mut driver = model.driver();
     let mut io = Io {

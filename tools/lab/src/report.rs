@@ -79,13 +79,18 @@ impl Page {
     }
 }
 
-/// A table: header cells and rows of cells (HTML already escaped by the caller: use [`esc`]).
+/// A table: header cells (none: no header row) and rows of cells (HTML already escaped by the
+/// caller: use [`esc`]).
 pub fn table(class: &str, header: &[&str], rows: &[Vec<String>]) -> String {
-    let mut h = format!("<table class=\"{class}\"><thead><tr>");
-    for c in header {
-        let _ = write!(h, "<th>{c}</th>");
+    let mut h = format!("<table class=\"{class}\">");
+    if !header.is_empty() {
+        h.push_str("<thead><tr>");
+        for c in header {
+            let _ = write!(h, "<th>{c}</th>");
+        }
+        h.push_str("</tr></thead>");
     }
-    h.push_str("</tr></thead><tbody>");
+    h.push_str("<tbody>");
     for r in rows {
         h.push_str("<tr>");
         for c in r {
@@ -112,7 +117,7 @@ body{font-family:system-ui,-apple-system,'Segoe UI',sans-serif;max-width:1180px;
 h1{font-size:1.6em;margin:.2em 0}h2{font-size:1.3em;margin-top:1.6em;border-bottom:1px solid #ddd}h3{font-size:1.05em}\
 .provenance{color:#555;font-size:.92em;padding-left:1.2em}\
 table{border-collapse:collapse;margin:.6em 0}td,th{border:1px solid #d0d0d0;padding:3px 7px;text-align:right;vertical-align:top}\
-th{background:#f2f2f4}td:first-child,th:first-child{text-align:left}\
+th{background:#f2f2f4}td:first-child,th:first-child{text-align:left}.facts td{text-align:left}.facts td:first-child{color:#555;white-space:nowrap}\
 .warn{color:#b00020}.ok{color:#0a7a3e}.muted{color:#777}\
 .grid2{display:flex;flex-wrap:wrap;gap:10px;align-items:flex-start}.col{display:flex;flex-direction:column;gap:10px}\
 figure{margin:0}.scroll{overflow-x:auto;max-width:100%}svg{flex:none}.mapfig{max-width:580px}figcaption{font-size:.85em}.run{margin-bottom:2em}\

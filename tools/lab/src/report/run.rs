@@ -314,7 +314,7 @@ fn facts(input: &RunInput<'_>) -> String {
         ]);
     }
     rows.extend(input.facts.iter().map(|(k, v)| vec![esc(k), v.clone()]));
-    table("facts", &["", ""], &rows).replacen("<thead><tr><th></th><th></th></tr></thead>", "", 1)
+    table("facts", &[], &rows)
 }
 
 /// The point `s` m along a route sampled every [`v2t_sim::runner::ROUTE_STEP_M`].
