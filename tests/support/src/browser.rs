@@ -103,45 +103,31 @@ pub fn open(page: &Path) -> Result<Opened, String> {
     Ok(Opened { dom, console, wall_s })
 }
 
-/// A screenshot of `page`, `width` × `height` px, PNG at `png`.
-pub fn screenshot(page: &Path, png: &Path, width: u32, height: u32) -> Result<(), String> {
-    if let Some(dir) = png.parent() {
+/// Runs the browser on `page` with `option=<out>` and `extra`, and checks that `out` starts with
+/// `magic`.
+fn to_file(page: &Path, option: &str, out: &Path, extra: &[String], magic: &[u8]) -> Result<(), String> {
+    if let Some(dir) = out.parent() {
         std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     }
-    let _ = std::fs::remove_file(png);
-    run(
-        page,
-        &[
-            format!("--screenshot={}", std::path::absolute(png).map_err(|e| e.to_string())?.display()),
-            format!("--window-size={width},{height}"),
-            "--hide-scrollbars".to_owned(),
-        ],
-        Duration::from_secs(120),
-    )?;
-    let bytes = std::fs::read(png).map_err(|e| format!("no screenshot at {}: {e}", png.display()))?;
-    if !bytes.starts_with(b"\x89PNG") {
-        return Err(format!("{} is not a PNG", png.display()));
+    let _ = std::fs::remove_file(out);
+    let target = std::path::absolute(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let mut options = vec![format!("{option}={}", target.display())];
+    options.extend_from_slice(extra);
+    run(page, &options, Duration::from_secs(120))?;
+    let bytes = std::fs::read(out).map_err(|e| format!("nothing written to {}: {e}", out.display()))?;
+    if !bytes.starts_with(magic) {
+        return Err(format!("{} is not what {option} writes", out.display()));
     }
     Ok(())
 }
 
+/// A screenshot of `page`, `width` × `height` px, PNG at `png`.
+pub fn screenshot(page: &Path, png: &Path, width: u32, height: u32) -> Result<(), String> {
+    let extra = [format!("--window-size={width},{height}"), "--hide-scrollbars".to_owned()];
+    to_file(page, "--screenshot", png, &extra, b"\x89PNG")
+}
+
 /// `page` printed to PDF at `pdf` (A4, the page's print styles), as a reader would print it.
 pub fn print_pdf(page: &Path, pdf: &Path) -> Result<(), String> {
-    if let Some(dir) = pdf.parent() {
-        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    }
-    let _ = std::fs::remove_file(pdf);
-    run(
-        page,
-        &[
-            format!("--print-to-pdf={}", std::path::absolute(pdf).map_err(|e| e.to_string())?.display()),
-            "--no-pdf-header-footer".to_owned(),
-        ],
-        Duration::from_secs(120),
-    )?;
-    let bytes = std::fs::read(pdf).map_err(|e| format!("no PDF at {}: {e}", pdf.display()))?;
-    if !bytes.starts_with(b"%PDF") {
-        return Err(format!("{} is not a PDF", pdf.display()));
-    }
-    Ok(())
+    to_file(page, "--print-to-pdf", pdf, &["--no-pdf-header-footer".to_owned()], b"%PDF")
 }

@@ -342,7 +342,7 @@ pub fn svg(rows: &[LatencyRow], networks: &[NetworkSettings], seeds: &RangeInclu
             w - 1.4 * pad,
             h - pad,
             x0 + pad + (w - 1.4 * pad) / 2.0,
-            crate::svg_text(vut)
+            crate::report::esc(vut)
         ));
         for d in DELAYS_MS {
             out.push_str(&format!(

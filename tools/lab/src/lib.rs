@@ -79,11 +79,6 @@ pub fn parallel_map<T: Sync, R: Send>(jobs: &[T], f: impl Fn(&T) -> R + Sync) ->
     })
 }
 
-/// Text for an SVG element: `&`, `<` and `>` escaped (names of scenarios and VUT models).
-pub(crate) fn svg_text(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
-}
-
 #[cfg(test)]
 mod tests {
     #![allow(clippy::panic)]

@@ -260,7 +260,7 @@ pub fn svg(r: &TradeoffReport, scenario: &str) -> Option<String> {
     );
     out.push_str(&format!(
         "<text x=\"10\" y=\"18\" font-size=\"13\">{}: the BV's realism (W₁ to recorded human driving) against the steering error, per w_real (simulated proving ground; seeds {}–{})</text>\n",
-        crate::svg_text(scenario),
+        crate::report::esc(scenario),
         r.seeds[0],
         r.seeds[1]
     ));

@@ -55,25 +55,25 @@ impl CaseView {
     }
 }
 
-/// The VUTs of `cases` in order of first appearance.
-fn vuts(cases: &[CaseView]) -> Vec<String> {
+/// The distinct values of `key` over `cases`, in order of first appearance.
+fn distinct(cases: &[CaseView], key: impl Fn(&CaseView) -> &String) -> Vec<String> {
     let mut out: Vec<String> = Vec::new();
     for c in cases {
-        if !out.contains(&c.vut) {
-            out.push(c.vut.clone());
+        if !out.contains(key(c)) {
+            out.push(key(c).clone());
         }
     }
     out
 }
 
+/// The VUTs of `cases` in order of first appearance.
+fn vuts(cases: &[CaseView]) -> Vec<String> {
+    distinct(cases, |c| &c.vut)
+}
+
+/// The methods (or settings) of `cases` in order of first appearance.
 fn methods(cases: &[CaseView]) -> Vec<String> {
-    let mut out: Vec<String> = Vec::new();
-    for c in cases {
-        if !out.contains(&c.method) {
-            out.push(c.method.clone());
-        }
-    }
-    out
+    distinct(cases, |c| &c.method)
 }
 
 /// The experiment's printed markdown (tables, paragraphs, headings) as HTML.

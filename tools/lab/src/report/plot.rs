@@ -118,28 +118,40 @@ fn padded(lo: f64, hi: f64) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
-/// The axes, grid, tick labels and axis labels; returns the opening `<svg …>` with them.
-fn axes(
-    s: &mut String,
-    f: &Frame,
-    title: &str,
-    x_label: &str,
-    y_label: &str,
-    class: &str,
-    data: &str,
-) -> (Vec<f64>, Vec<f64>) {
-    let (w, h) = (f.width, f.height);
+/// Opens a plot's `<svg>` of `width` × `height` px with its title (tooltip and heading).
+fn open(s: &mut String, classes: &str, width: f64, height: f64, data: &str, title: &str) {
     let _ = write!(
         s,
-        "<svg class=\"plot {class}\" width=\"{w:.0}\" height=\"{h:.0}\" viewBox=\"0 0 {w:.0} {h:.0}\" role=\"img\"{data}>\
-         <title>{}</title><text class=\"ptitle\" x=\"{LEFT}\" y=\"16\">{}</text>",
-        esc(title),
+        "<svg class=\"{classes}\" width=\"{width:.0}\" height=\"{height:.0}\" viewBox=\"0 0 {width:.0} {height:.0}\" role=\"img\"{data}>\
+         <title>{0}</title><text class=\"ptitle\" x=\"{LEFT}\" y=\"16\">{0}</text>",
         esc(title)
     );
-    let xt = ticks(f.x.0, f.x.1, 6);
+}
+
+/// The horizontal grid lines of `f` at round values, with their labels on the left.
+fn y_lines(s: &mut String, f: &Frame) {
     let yt = ticks(f.y.0, f.y.1, 5);
+    let step = yt.get(1).zip(yt.first()).map_or(1.0, |(b, a)| b - a);
+    for y in &yt {
+        let py = f.py(*y);
+        let _ = write!(
+            s,
+            "<line x1=\"{:.1}\" y1=\"{py:.1}\" x2=\"{:.1}\" y2=\"{py:.1}\"/><text class=\"tick\" x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{}</text>",
+            f.left,
+            f.width - RIGHT,
+            f.left - 4.0,
+            py + 4.0,
+            tick_label(*y, step)
+        );
+    }
+}
+
+/// The axes, grid, tick labels and axis labels, in the opened `<svg …>`.
+fn axes(s: &mut String, f: &Frame, title: &str, x_label: &str, y_label: &str, class: &str, data: &str) {
+    let (w, h) = (f.width, f.height);
+    open(s, &format!("plot {class}"), w, h, data, title);
+    let xt = ticks(f.x.0, f.x.1, 6);
     let xstep = xt.get(1).zip(xt.first()).map_or(1.0, |(b, a)| b - a);
-    let ystep = yt.get(1).zip(yt.first()).map_or(1.0, |(b, a)| b - a);
     let _ = write!(s, "<g class=\"grid\">");
     for x in &xt {
         let px = f.px(*x);
@@ -151,17 +163,7 @@ fn axes(
             tick_label(*x, xstep)
         );
     }
-    for y in &yt {
-        let py = f.py(*y);
-        let _ = write!(
-            s,
-            "<line x1=\"{LEFT}\" y1=\"{py:.1}\" x2=\"{:.1}\" y2=\"{py:.1}\"/><text class=\"tick\" x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{}</text>",
-            w - RIGHT,
-            LEFT - 4.0,
-            py + 4.0,
-            tick_label(*y, ystep)
-        );
-    }
+    y_lines(s, f);
     let _ = write!(
         s,
         "</g><rect class=\"frame\" x=\"{LEFT}\" y=\"{TOP}\" width=\"{:.1}\" height=\"{:.1}\"/>\
@@ -175,7 +177,6 @@ fn axes(
         TOP + (h - TOP - BOTTOM) / 2.0,
         esc(y_label)
     );
-    (xt, yt)
 }
 
 /// The time cursor's data attributes: where t = x0 and t = x1 are in pixels.
@@ -355,15 +356,7 @@ impl Timeline {
             if self.t_range.1 - self.t_range.0 > 1e-9 { self.t_range } else { (self.t_range.0, self.t_range.0 + 1.0) };
         let f = Frame { left: TIMELINE_LEFT, x, y: (0.0, 1.0), width: WIDTH, height };
         let mut s = String::new();
-        let _ = write!(
-            s,
-            "<svg class=\"plot timeline {class}\" width=\"{w:.0}\" height=\"{height:.0}\" viewBox=\"0 0 {w:.0} {height:.0}\" role=\"img\"{}>\
-             <title>{}</title><text class=\"ptitle\" x=\"{TIMELINE_LEFT}\" y=\"16\">{}</text>",
-            cursor_data(&f),
-            esc(&self.title),
-            esc(&self.title),
-            w = WIDTH
-        );
+        open(&mut s, &format!("plot timeline {class}"), WIDTH, height, &cursor_data(&f), &self.title);
         let bottom = TOP + self.rows.len() as f64 * (ROW_H + 6.0);
         let xt = ticks(x.0, x.1, 6);
         let step = xt.get(1).zip(xt.first()).map_or(1.0, |(b, a)| b - a);
@@ -512,27 +505,9 @@ impl StripPlot {
             height: height - 40.0,
         };
         let mut s = String::new();
-        let _ = write!(
-            s,
-            "<svg class=\"plot strip {class}\" width=\"{width:.0}\" height=\"{height:.0}\" viewBox=\"0 0 {width:.0} {height:.0}\" role=\"img\">\
-             <title>{}</title><text class=\"ptitle\" x=\"{LEFT}\" y=\"16\">{}</text>",
-            esc(&self.title),
-            esc(&self.title)
-        );
-        let yt = ticks(f.y.0, f.y.1, 5);
-        let step = yt.get(1).zip(yt.first()).map_or(1.0, |(b, a)| b - a);
+        open(&mut s, &format!("plot strip {class}"), width, height, "", &self.title);
         let _ = write!(s, "<g class=\"grid\">");
-        for y in &yt {
-            let py = f.py(*y);
-            let _ = write!(
-                s,
-                "<line x1=\"{LEFT}\" y1=\"{py:.1}\" x2=\"{:.1}\" y2=\"{py:.1}\"/><text class=\"tick\" x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{}</text>",
-                width - RIGHT,
-                LEFT - 4.0,
-                py + 4.0,
-                tick_label(*y, step)
-            );
-        }
+        y_lines(&mut s, &f);
         let _ = write!(
             s,
             "</g><text class=\"axis\" transform=\"translate(13 {:.1}) rotate(-90)\" text-anchor=\"middle\">{}</text>",
