@@ -128,6 +128,21 @@ fn open(s: &mut String, classes: &str, width: f64, height: f64, data: &str, titl
     );
 }
 
+/// The vertical grid lines of `f` at round values down to `bottom`, with their labels below.
+fn x_lines(s: &mut String, f: &Frame, bottom: f64) {
+    let xt = ticks(f.x.0, f.x.1, 6);
+    let step = xt.get(1).zip(xt.first()).map_or(1.0, |(b, a)| b - a);
+    for x in &xt {
+        let px = f.px(*x);
+        let _ = write!(
+            s,
+            "<line x1=\"{px:.1}\" y1=\"{TOP}\" x2=\"{px:.1}\" y2=\"{bottom:.1}\"/><text class=\"tick\" x=\"{px:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{}</text>",
+            bottom + 14.0,
+            tick_label(*x, step)
+        );
+    }
+}
+
 /// The horizontal grid lines of `f` at round values, with their labels on the left.
 fn y_lines(s: &mut String, f: &Frame) {
     let yt = ticks(f.y.0, f.y.1, 5);
@@ -150,19 +165,8 @@ fn y_lines(s: &mut String, f: &Frame) {
 fn axes(s: &mut String, f: &Frame, title: &str, x_label: &str, y_label: &str, class: &str, data: &str) {
     let (w, h) = (f.width, f.height);
     open(s, &format!("plot {class}"), w, h, data, title);
-    let xt = ticks(f.x.0, f.x.1, 6);
-    let xstep = xt.get(1).zip(xt.first()).map_or(1.0, |(b, a)| b - a);
     let _ = write!(s, "<g class=\"grid\">");
-    for x in &xt {
-        let px = f.px(*x);
-        let _ = write!(
-            s,
-            "<line x1=\"{px:.1}\" y1=\"{TOP}\" x2=\"{px:.1}\" y2=\"{:.1}\"/><text class=\"tick\" x=\"{px:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{}</text>",
-            h - BOTTOM,
-            h - BOTTOM + 14.0,
-            tick_label(*x, xstep)
-        );
-    }
+    x_lines(s, f, h - BOTTOM);
     y_lines(s, f);
     let _ = write!(
         s,
@@ -358,18 +362,8 @@ impl Timeline {
         let mut s = String::new();
         open(&mut s, &format!("plot timeline {class}"), WIDTH, height, &cursor_data(&f), &self.title);
         let bottom = TOP + self.rows.len() as f64 * (ROW_H + 6.0);
-        let xt = ticks(x.0, x.1, 6);
-        let step = xt.get(1).zip(xt.first()).map_or(1.0, |(b, a)| b - a);
         let _ = write!(s, "<g class=\"grid\">");
-        for t in &xt {
-            let px = f.px(*t);
-            let _ = write!(
-                s,
-                "<line x1=\"{px:.1}\" y1=\"{TOP}\" x2=\"{px:.1}\" y2=\"{bottom:.1}\"/><text class=\"tick\" x=\"{px:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{}</text>",
-                bottom + 13.0,
-                tick_label(*t, step)
-            );
-        }
+        x_lines(&mut s, &f, bottom);
         let _ = write!(
             s,
             "</g><text class=\"axis\" x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">time (s)</text>",
