@@ -119,7 +119,8 @@ pub fn run(a: SimArgs) -> anyhow::Result<()> {
         (crate::regulate::cloud_regulated_run(&a.cloud(), &scenario, &vut, a.seed)?, None)
     } else if a.regulated {
         let run = regulated(&a, &scenario, &vut)?;
-        (run.outcome, Some(run.plans))
+        let plans = run.plans();
+        (run.outcome, Some(plans))
     } else {
         (v2t_lab::sim::run_reference(&scenario, &vut, a.seed)?, None)
     };

@@ -184,7 +184,14 @@ pub struct RegulatedRun {
     /// Each BV's last "τ out of reach" report of the run.
     pub below_reach: Vec<Option<BelowReach>>,
     /// Each BV's decisions over the run (status, predicted PET).
-    pub plans: Vec<Vec<v2t_sim::recording::PlanRecord>>,
+    pub decisions: Vec<Vec<crate::controllers::LoggedDecision>>,
+}
+
+impl RegulatedRun {
+    /// Each BV's decisions as the onboard runtime's `/plans` records.
+    pub fn plans(&self) -> Vec<Vec<v2t_sim::recording::PlanRecord>> {
+        self.decisions.iter().map(|bv| bv.iter().map(|d| d.record()).collect()).collect()
+    }
 }
 
 /// Why a regulated run did not run.
@@ -227,7 +234,7 @@ pub fn regulated_run(
         outcome,
         aims,
         below_reach: reports.iter().map(|r| r.get()).collect(),
-        plans: logs.iter().map(|l| l.take()).collect(),
+        decisions: logs.iter().map(|l| l.take()).collect(),
     })
 }
 

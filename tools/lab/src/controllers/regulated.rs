@@ -25,8 +25,43 @@ pub struct RegulatedBv {
     last: Option<Decision>,
     /// The last "τ out of reach" the regulator reported in this run (shared with whoever asked).
     below_reach: Rc<Cell<Option<BelowReach>>>,
-    /// Every decision of the run, as the onboard runtime publishes them (shared with whoever asked).
-    log: Rc<RefCell<Vec<v2t_sim::recording::PlanRecord>>>,
+    /// Every decision of the run (shared with whoever asked).
+    log: Rc<RefCell<Vec<LoggedDecision>>>,
+}
+
+/// One decision of an in-process regulated BV, kept as it was made (no allocation in the control
+/// step); [`LoggedDecision::record`] makes the record the onboard runtime publishes of it.
+#[derive(Debug, Clone, Copy)]
+pub struct LoggedDecision {
+    /// Simulated time, s.
+    pub t_s: f64,
+    /// The BV's arc length the decision started from, m.
+    pub s_m: f64,
+    /// The BV's speed it started from, m/s.
+    pub v_mps: f64,
+    /// The decision.
+    pub decision: Decision,
+    /// How long it took, µs.
+    pub solve_us: f64,
+}
+
+impl LoggedDecision {
+    /// The decision as the onboard runtime's `/plans` record.
+    pub fn record(&self) -> v2t_sim::recording::PlanRecord {
+        let d = &self.decision;
+        v2t_sim::recording::PlanRecord {
+            t_s: self.t_s,
+            prior_id: 0,
+            status: format!("{:?}", d.status),
+            s_m: self.s_m,
+            v_mps: self.v_mps,
+            accel_mps2: d.accel_mps2,
+            predicted_pet_s: d.predicted_pet_s,
+            below_reach: d.below_reach.map(|b| format!("{:?}", b.cause)),
+            pet_bound_s: d.below_reach.and_then(|b| b.pet_bound_s),
+            solve_us: self.solve_us,
+        }
+    }
 }
 
 /// Period at which the BV's reference speed profile is sampled for the regulator's realism term, s.
@@ -67,7 +102,7 @@ impl RegulatedBv {
     }
 
     /// Where every decision of the run will be (the regulator's status and predicted PET over time).
-    pub fn decision_log(&self) -> Rc<RefCell<Vec<v2t_sim::recording::PlanRecord>>> {
+    pub fn decision_log(&self) -> Rc<RefCell<Vec<LoggedDecision>>> {
         Rc::clone(&self.log)
     }
 
@@ -180,16 +215,11 @@ impl BvController for RegulatedBv {
         let vut = Measured { s_m: obs.vut.s_m, v_mps: obs.vut.state.speed_mps, age_s: obs.vut.age_s };
         let started = std::time::Instant::now();
         let d = decide(&mut self.regulator, bv, conflict, self.target, obs.t_s, own, vut, self.last_accel);
-        self.log.borrow_mut().push(v2t_sim::recording::PlanRecord {
+        self.log.borrow_mut().push(LoggedDecision {
             t_s: obs.t_s,
-            prior_id: 0,
-            status: format!("{:?}", d.status),
             s_m: own.s_m,
             v_mps: own.v_mps,
-            accel_mps2: d.accel_mps2,
-            predicted_pet_s: d.predicted_pet_s,
-            below_reach: d.below_reach.map(|b| format!("{:?}", b.cause)),
-            pet_bound_s: d.below_reach.and_then(|b| b.pet_bound_s),
+            decision: d,
             solve_us: started.elapsed().as_secs_f64() * 1e6,
         });
         self.last_accel = d.accel_mps2;
