@@ -61,6 +61,13 @@ pub struct Limits {
     pub max_decel_mps2: f64,
 }
 
+impl From<&v2t_model::vehicle::VehicleLimits> for Limits {
+    /// The regulator's model of a vehicle: its longitudinal limits.
+    fn from(l: &v2t_model::vehicle::VehicleLimits) -> Self {
+        Self { max_speed_mps: l.max_speed_mps, max_accel_mps2: l.max_accel_mps2, max_decel_mps2: l.max_decel_mps2 }
+    }
+}
+
 /// Regulator settings, as written in `config/regulator/*.toml`. The BV and VUT limits are not
 /// part of the file: they come from the vehicle files (see [`RegulatorParams::with_limits`]).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]

@@ -187,12 +187,7 @@ pub fn load(path: &Path) -> Result<Loaded, EdgeError> {
     let vut_vehicle: VehicleConfig = load_toml(&file(&edge.vut_vehicle)).map_err(|e| input(path, e))?;
     let regulator: v2t_game::regulator::RegulatorParams =
         load_toml(&file(&edge.regulator)).map_err(|e| input(path, e))?;
-    let lim = |l: &v2t_model::vehicle::VehicleLimits| v2t_game::regulator::Limits {
-        max_speed_mps: l.max_speed_mps,
-        max_accel_mps2: l.max_accel_mps2,
-        max_decel_mps2: l.max_decel_mps2,
-    };
-    let regulator = regulator.with_limits(lim(&vehicle.limits), lim(&vut_vehicle.limits));
+    let regulator = regulator.with_limits((&vehicle.limits).into(), (&vut_vehicle.limits).into());
     let tracker: v2t_track::TrackerConfig = load_toml(&file(&edge.tracker)).map_err(|e| input(path, e))?;
     let gate: v2t_can::gate::GateConfig = load_toml(&file(&edge.gate)).map_err(|e| input(path, e))?;
     let gate_for_vehicle = gate.validate_for(&vehicle);

@@ -3,14 +3,16 @@
 //! turning a received one back into the paths, zone and target the regulator and the tracker use
 //! ([`PriorContext`]). Every refusal is a [`PriorError`] that names what failed.
 
+use v2t_game::reference::ReferenceSample;
+use v2t_game::regulation::{Context, Zone};
 use v2t_map::drivable::DrivableArea;
+use v2t_model::TargetError;
 use v2t_model::geometry::Point2;
 use v2t_model::grounded::AgentRole;
-use v2t_model::metrics::{ConflictKind, ConflictOptions, Dimensions, OccupancyInterval, conflict_zones, nearest_zone};
+use v2t_model::metrics::{ConflictOptions, Dimensions, OccupancyInterval, conflict_zones, nearest_zone};
 use v2t_model::path::{PathError, ReferencePath};
 use v2t_model::validate::{Validate, ValidationError};
 use v2t_model::vehicle::VehicleLimits;
-use v2t_model::{Target, TargetError};
 use v2t_wire::link::PriorUpload;
 use v2t_wire::{
     ActivePrior, Code, CodeError, Header, MAX_PATH_POINTS, PriorCodeError, ProfileSample, Vec2, Vector, ZoneKind,
@@ -267,25 +269,22 @@ fn within_limits(bv: &v2t_model::prior::AgentTrajectory, dt: f64, l: &VehicleLim
     Ok(())
 }
 
-/// A received prior, checked and turned into paths.
+/// A received prior, checked and turned into the regulator's [`Context`] (paths, zone, target, the
+/// BV's timing); it reads as that context.
 #[derive(Debug, Clone)]
 pub struct PriorContext {
     /// Its identifier.
     pub prior_id: u64,
-    /// The BV's reference path.
-    pub bv_path: ReferencePath,
-    /// The VUT's route.
-    pub vut_path: ReferencePath,
-    /// Zone along the BV's path.
-    pub zone_bv: OccupancyInterval,
-    /// Zone along the VUT's route.
-    pub zone_vut: OccupancyInterval,
-    /// Crossing or merge.
-    pub zone_kind: ConflictKind,
-    /// Target PET and who passes first.
-    pub target: Target,
-    /// Reference speed over arc length: (s, v), s increasing.
-    profile: Vec<(f64, f64)>,
+    /// What the regulator and the tracker use of it.
+    pub context: Context,
+}
+
+impl std::ops::Deref for PriorContext {
+    type Target = Context;
+
+    fn deref(&self) -> &Context {
+        &self.context
+    }
 }
 
 impl PriorContext {
@@ -293,44 +292,26 @@ impl PriorContext {
     pub fn new(prior: &ActivePrior) -> Result<Self, PriorError> {
         prior.check().map_err(PriorError::Malformed)?;
         let target = prior.target()?;
-        let zone_kind = ZoneKind::from_code(prior.zone_kind)?.into();
+        let kind = ZoneKind::from_code(prior.zone_kind)?.into();
         let path = |pts: &[Vec2], who: &'static str| {
             let points: Vec<Point2> = pts.iter().map(|p| Point2 { x: p.x_m, y: p.y_m }).collect();
             ReferencePath::from_points(&points).map_err(|source| PriorError::Path { who, source })
         };
-        let mut profile: Vec<(f64, f64)> = Vec::with_capacity(prior.bv_profile.len());
-        for q in prior.bv_profile.as_slice() {
-            // Keep s strictly increasing (a standstill in the reference repeats s).
-            if profile.last().is_none_or(|(s, _)| q.s_m > *s) {
-                profile.push((q.s_m, q.v_mps.max(0.0)));
-            }
-        }
-        Ok(Self {
-            prior_id: prior.prior_id,
-            bv_path: path(prior.bv_path.as_slice(), "BV")?,
-            vut_path: path(prior.vut_path.as_slice(), "VUT")?,
-            zone_bv: OccupancyInterval { enter_s_m: prior.bv_zone_enter_s_m, exit_s_m: prior.bv_zone_exit_s_m },
-            zone_vut: OccupancyInterval { enter_s_m: prior.vut_zone_enter_s_m, exit_s_m: prior.vut_zone_exit_s_m },
-            zone_kind,
+        let zone = Zone {
+            bv: OccupancyInterval { enter_s_m: prior.bv_zone_enter_s_m, exit_s_m: prior.bv_zone_exit_s_m },
+            vut: OccupancyInterval { enter_s_m: prior.vut_zone_enter_s_m, exit_s_m: prior.vut_zone_exit_s_m },
+            kind,
+        };
+        let timing =
+            prior.bv_profile.as_slice().iter().map(|q| ReferenceSample { t_s: q.t_s, s_m: q.s_m, v_mps: q.v_mps });
+        let context = Context::new(
+            path(prior.bv_path.as_slice(), "BV")?,
+            path(prior.vut_path.as_slice(), "VUT")?,
+            zone,
             target,
-            profile,
-        })
-    }
-
-    /// The reference speed where the BV is, m/s (linear in arc length; the ends hold).
-    pub fn reference_speed_at(&self, s_m: f64) -> f64 {
-        let (Some(first), Some(last)) = (self.profile.first(), self.profile.last()) else { return 0.0 };
-        if s_m <= first.0 {
-            return first.1;
-        }
-        if s_m >= last.0 {
-            return last.1;
-        }
-        let i = self.profile.partition_point(|(s, _)| *s <= s_m);
-        match (self.profile.get(i.saturating_sub(1)), self.profile.get(i)) {
-            (Some(a), Some(b)) => a.1 + (b.1 - a.1) * (s_m - a.0) / (b.0 - a.0),
-            _ => last.1,
-        }
+            timing,
+        );
+        Ok(Self { prior_id: prior.prior_id, context })
     }
 }
 

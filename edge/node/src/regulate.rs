@@ -9,14 +9,10 @@
 use std::time::Duration;
 
 use iceoryx2::service::Service;
-use v2t_game::reference::ReferenceSample;
-use v2t_game::regulator::{
-    BelowReachCause, PathState, Regulator, RegulatorInput, RegulatorParams, RegulatorStatus, curve_speed_limit,
-};
-use v2t_model::geometry::Point2;
-use v2t_model::path::ReferencePath;
+use v2t_game::regulation::Measurement;
+use v2t_game::regulator::{BelowReachCause, RegulatorParams, RegulatorStatus};
 use v2t_wire::{
-    ActivePrior, BelowReachCode, BvState, Code, Header, NodeKind, PlanStatus, RegulatedPlan, Vector, VutState, services,
+    ActivePrior, BelowReachCode, BvState, Code, Header, NodeKind, PlanStatus, RegulatedPlan, VutState, services,
 };
 
 use crate::clock::{now_ns, secs_between};
@@ -26,35 +22,14 @@ use crate::heart::Heart;
 use crate::ports::{Bus, latest, send};
 use crate::prior::PriorContext;
 
-/// Where a vehicle is along a path, remembered between cycles so the projection never jumps to
-/// another branch of the path.
-#[derive(Debug, Clone, Copy, Default)]
-struct Tracked {
-    s_m: Option<f64>,
-}
-
-impl Tracked {
-    fn project(&mut self, path: &ReferencePath, x: f64, y: f64) -> Option<f64> {
-        let q = Point2 { x, y };
-        let f = match self.s_m {
-            Some(hint) => path.project_near(q, hint, 15.0),
-            None => path.project(q),
-        }?;
-        self.s_m = Some(f.s_m);
-        Some(f.s_m)
-    }
-}
-
-/// The regulator with the prior it regulates around. Pure: time comes in as arguments.
+/// The regulator with the prior it regulates around: [`v2t_game::regulation::Regulation`] (the
+/// one adapter the lab runs too) between the bus's states and plans. Pure: time comes in as
+/// arguments.
 #[derive(Debug)]
 pub struct Regulation {
-    regulator: Regulator,
-    prior: Option<PriorContext>,
-    bv: Tracked,
-    vut: Tracked,
-    last_accel: f64,
+    inner: v2t_game::regulation::Regulation,
+    prior_id: Option<u64>,
     header: Header,
-    lat_accel_mps2: f64,
 }
 
 fn below_reach_code(c: BelowReachCause) -> BelowReachCode {
@@ -78,48 +53,39 @@ pub fn status_code(s: RegulatorStatus) -> PlanStatus {
     }
 }
 
+/// A state on the bus as the regulator measures it at `now_ns`.
+fn measured(px_m: f64, py_m: f64, speed_mps: f64, stamp_ns: u64, now_ns: u64) -> Measurement {
+    Measurement { x_m: px_m, y_m: py_m, speed_mps, age_s: secs_between(stamp_ns, now_ns) }
+}
+
 impl Regulation {
     /// A regulator with `params` and no prior yet, for a BV whose lateral acceleration is limited
     /// to `lat_accel_mps2` (its plans slow down for the curves of the path ahead).
     pub fn new(params: RegulatorParams, lat_accel_mps2: f64) -> Result<Self, EdgeError> {
-        let regulator = Regulator::new(params)?;
-        Ok(Self {
-            regulator,
-            prior: None,
-            bv: Tracked::default(),
-            vut: Tracked::default(),
-            last_accel: 0.0,
-            header: Header::default(),
-            lat_accel_mps2,
-        })
+        let inner = v2t_game::regulation::Regulation::new(params, lat_accel_mps2)?;
+        Ok(Self { inner, prior_id: None, header: Header::default() })
     }
 
-    /// Takes `prior` if it is new and well formed; a broken one leaves the active prior in place.
+    /// Takes `prior` if it is new and well formed; a broken one (its timing included) leaves the
+    /// active prior in place.
     pub fn set_prior(&mut self, prior: &ActivePrior) -> Result<bool, EdgeError> {
-        if self.prior.as_ref().is_some_and(|p| p.prior_id == prior.prior_id) {
+        if self.prior_id == Some(prior.prior_id) {
             return Ok(false);
         }
         let ctx = PriorContext::new(prior)?;
-        // The prior's timing along the BV's path: the realism term's reference (`w_real`). Checked
-        // before it replaces anything, so a refused prior leaves the active one whole.
-        let timing =
-            prior.bv_profile.as_slice().iter().map(|q| ReferenceSample { t_s: q.t_s, s_m: q.s_m, v_mps: q.v_mps });
-        self.regulator.set_reference(timing).map_err(crate::prior::PriorError::Invalid)?;
-        self.prior = Some(ctx);
-        self.regulator.reset();
-        self.bv = Tracked::default();
-        self.vut = Tracked::default();
+        self.inner.set_context(ctx.context).map_err(crate::prior::PriorError::Invalid)?;
+        self.prior_id = Some(prior.prior_id);
         Ok(true)
     }
 
-    /// The active prior.
-    pub fn prior(&self) -> Option<&PriorContext> {
-        self.prior.as_ref()
+    /// The active prior's context.
+    pub fn context(&self) -> Option<&v2t_game::regulation::Context> {
+        self.inner.context()
     }
 
     /// One decision at `now_ns` from the BV's state and the VUT's (if any has arrived).
     pub fn decide(&mut self, bv: &BvState, vut: Option<&VutState>, now_ns: u64) -> RegulatedPlan {
-        let fallback = self.regulator.params().fallback_decel_mps2;
+        let fallback = self.inner.params().fallback_decel_mps2;
         let mut plan = RegulatedPlan {
             header: Header { seq: self.header.seq + 1, stamp_ns: bv.header.stamp_ns },
             state_seq: bv.header.seq,
@@ -136,40 +102,18 @@ impl Regulation {
             solve_ns: 0,
         };
         self.header = plan.header;
-        let Some(ctx) = self.prior.as_ref() else { return plan };
-        plan.prior_id = ctx.prior_id;
-        let Some(bv_s) = (if bv.is_finite() { self.bv.project(&ctx.bv_path, bv.px_m, bv.py_m) } else { None }) else {
+        let (Some(prior_id), true) = (self.prior_id, self.inner.context().is_some()) else { return plan };
+        plan.prior_id = prior_id;
+        if !bv.is_finite() {
             plan.status = PlanStatus::Fallback.code();
             return plan;
-        };
-        plan.s0_m = bv_s;
-        let vut_seen = vut.filter(|v| v.is_finite()).and_then(|v| {
-            let s = self.vut.project(&ctx.vut_path, v.px_m, v.py_m)?;
-            Some((s, v))
-        });
-        let Some((vut_s, vut)) = vut_seen else {
-            // Without the VUT there is nothing to regulate against: minimal-risk deceleration.
-            plan.status = PlanStatus::Stale.code();
-            return plan;
-        };
-        let bv_age = secs_between(bv.header.stamp_ns, now_ns).max(0.0);
-        let vut_age = secs_between(vut.header.stamp_ns, now_ns).max(0.0);
-        let v_bv = bv.speed_mps.max(0.0);
-        let v_vut = vut.speed_mps.max(0.0);
-        let input = RegulatorInput {
-            t_s: now_ns as f64 * 1e-9,
-            bv: PathState { s_m: bv_s + v_bv * bv_age, v_mps: v_bv, age_s: bv_age },
-            vut: PathState { s_m: vut_s + v_vut * vut_age, v_mps: v_vut, age_s: vut_age },
-            bv_accel_mps2: self.last_accel,
-            zone_bv: ctx.zone_bv,
-            zone_vut: ctx.zone_vut,
-            zone_kind: ctx.zone_kind,
-            target: ctx.target,
-            reference_speed_mps: ctx.reference_speed_at(bv_s),
-        };
-        let lat = self.lat_accel_mps2;
-        let d = self.regulator.decide_on_path(&input, &|s| curve_speed_limit(&ctx.bv_path, s, lat));
-        self.last_accel = d.accel_mps2;
+        }
+        let own = measured(bv.px_m, bv.py_m, bv.speed_mps, bv.header.stamp_ns, now_ns);
+        let vut =
+            vut.filter(|v| v.is_finite()).map(|v| measured(v.px_m, v.py_m, v.speed_mps, v.header.stamp_ns, now_ns));
+        let Some(step) = self.inner.decide(now_ns as f64 * 1e-9, &own, vut.as_ref()) else { return plan };
+        let d = step.decision;
+        plan.s0_m = step.bv_s_m.unwrap_or(0.0);
         plan.status = status_code(d.status).code();
         plan.accel_mps2 = d.accel_mps2;
         if let Some(pet) = d.predicted_pet_s {

@@ -197,9 +197,9 @@ impl RegulatedRun {
 /// Why a regulated run did not run.
 #[derive(Debug, thiserror::Error)]
 pub enum RegulatedRunError {
-    /// The regulator refused its settings.
-    #[error("regulator: {0}")]
-    Regulator(#[from] v2t_game::qp::QpError),
+    /// The regulated BV could not be built (its settings, or the prior it regulates around).
+    #[error(transparent)]
+    Regulated(#[from] crate::controllers::RegulatedBvError),
     /// The world could not run it.
     #[error(transparent)]
     Run(#[from] RunError),

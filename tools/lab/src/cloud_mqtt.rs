@@ -81,14 +81,7 @@ impl CloudLink for MqttCloudLink {
         self.epoch_ms
     }
 
-    fn exchange(
-        &mut self,
-        _sc: &Scenario,
-        _bv_index: usize,
-        t_s: f64,
-        reports: Vec<Vec<u8>>,
-        stats: &mut CloudLinkStats,
-    ) -> Vec<(f64, Vec<u8>)> {
+    fn exchange(&mut self, t_s: f64, reports: Vec<Vec<u8>>, stats: &mut CloudLinkStats) -> Vec<(f64, Vec<u8>)> {
         // The simulation waits for the wall clock: this cycle happens at epoch + t.
         let due = crate::controllers::clock_ms(self.epoch_ms, t_s);
         let now = unix_ms();
@@ -151,7 +144,7 @@ pub fn serve_regulator(
         }
         stats.states += 1;
         let now_s = (unix_ms() as f64 - epoch_ms as f64) / 1000.0;
-        if let Some(frame) = cloud.decide(scenario, now_s, epoch_ms)
+        if let Some(frame) = cloud.decide(now_s, epoch_ms)
             && mqtt.publish(&plans, frame, false).is_ok()
         {
             stats.plans += 1;

@@ -10,5 +10,5 @@ pub use cloud::{
     CloudBvError, CloudLink, CloudLinkStats, CloudRegulatedBv, CloudRegulator, PLAN_TIMEOUT_S, SimulatedNetwork,
     VUT_ID, clock_ms,
 };
-pub use regulated::{LoggedDecision, RegulatedBv};
+pub use regulated::{LoggedDecision, RegulatedBv, RegulatedBvError};
 pub use tracked::TrackedBv;

@@ -12,7 +12,7 @@
 use v2t_edge::prior::{PriorChecks, PriorContext, PriorError, Refused, from_upload, path_points};
 use v2t_model::metrics::ConflictZone;
 use v2t_model::prior::TrajectoryPrior;
-use v2t_model::vehicle::{VehicleConfig, VehicleLimits};
+use v2t_model::vehicle::VehicleConfig;
 use v2t_sim::config::SimSettings;
 use v2t_sim::scenario::{Scenario, ScenarioError, ScenarioPaths, SpeedProfile};
 use v2t_sim::vut::VutModel;
@@ -78,7 +78,7 @@ pub fn from_prior(
     settings: SimSettings,
     vut_model: VutModel,
 ) -> Result<Scenario, WorldError> {
-    let ctx = PriorContext::new(prior)?;
+    let ctx = PriorContext::new(prior)?.context;
     let profile: Vec<[f64; 2]> = prior.bv_profile.as_slice().iter().map(|q| [q.t_s, q.v_mps]).collect();
     let bv_end_s = profile.last().map_or(0.0, |[t, _]| *t);
     let vut_end_s = ctx.vut_path.length() / prior.vut_speed_mps.max(1.0);
@@ -131,22 +131,15 @@ pub fn prior_of_card(
     // What the cloud would send for this target: the card's speed profile re-timed for it (a
     // prior is timed for its target; a card's profile is not).
     let reference = scenario.realism_reference(bv_index).unwrap_or_else(|| bv.reference.clone());
-    for [t_s, s_m, v_mps] in reference.samples(scenario.duration_s, 1.0 / PROFILE_RATE_HZ, prior.bv_profile.capacity())
-    {
+    // Every PROFILE_RATE_HZ, or as often as the whole run fits the prior's samples.
+    let capacity = prior.bv_profile.capacity();
+    let period = (1.0 / PROFILE_RATE_HZ).max(scenario.duration_s / capacity.saturating_sub(1).max(1) as f64);
+    for [t_s, s_m, v_mps] in reference.samples(scenario.duration_s, period, capacity) {
         let sample = ProfileSample { t_s, s_m, v_mps };
         prior.bv_profile.push(sample).map_err(|_| PriorError::Capacity { what: "profile" })?;
     }
     prior.check().map_err(PriorError::Malformed)?;
     Ok(prior)
-}
-
-/// The regulator's model of a vehicle's longitudinal limits.
-pub fn regulator_limits(l: &VehicleLimits) -> v2t_game::regulator::Limits {
-    v2t_game::regulator::Limits {
-        max_speed_mps: l.max_speed_mps,
-        max_accel_mps2: l.max_accel_mps2,
-        max_decel_mps2: l.max_decel_mps2,
-    }
 }
 
 #[cfg(test)]

@@ -22,10 +22,8 @@
 use std::cell::Cell;
 use std::rc::Rc;
 
-use v2t_game::qp::QpError;
-use v2t_game::regulator::{Regulator, RegulatorParams};
-use v2t_model::geometry::Point2;
-use v2t_model::path::ReferencePath;
+use v2t_game::regulation::{Measurement, Regulation};
+use v2t_game::regulator::RegulatorParams;
 use v2t_sim::bv::BvController;
 use v2t_sim::control::pure_pursuit;
 use v2t_sim::network::{Channel, NetworkSettings};
@@ -82,14 +80,7 @@ pub trait CloudLink: std::fmt::Debug {
     /// Hands this cycle's reports (telemetry frames) to the network at simulation time `t_s` and
     /// returns the plan frames that reached the BV by then, with their arrival times (simulation
     /// time), in order of arrival. `stats` takes what the link knows of the cloud and the losses.
-    fn exchange(
-        &mut self,
-        sc: &Scenario,
-        bv_index: usize,
-        t_s: f64,
-        reports: Vec<Vec<u8>>,
-        stats: &mut CloudLinkStats,
-    ) -> Vec<(f64, Vec<u8>)>;
+    fn exchange(&mut self, t_s: f64, reports: Vec<Vec<u8>>, stats: &mut CloudLinkStats) -> Vec<(f64, Vec<u8>)>;
 }
 
 /// The cloud in the same process, behind a simulated network ([`v2t_sim::network`]): every report
@@ -108,14 +99,7 @@ impl CloudLink for SimulatedNetwork {
         SIM_EPOCH_MS
     }
 
-    fn exchange(
-        &mut self,
-        sc: &Scenario,
-        _bv_index: usize,
-        t_s: f64,
-        reports: Vec<Vec<u8>>,
-        stats: &mut CloudLinkStats,
-    ) -> Vec<(f64, Vec<u8>)> {
+    fn exchange(&mut self, t_s: f64, reports: Vec<Vec<u8>>, stats: &mut CloudLinkStats) -> Vec<(f64, Vec<u8>)> {
         for r in reports {
             self.up.send(t_s, r);
         }
@@ -126,7 +110,7 @@ impl CloudLink for SimulatedNetwork {
             }
         }
         if let Some(at) = decide_at
-            && let Some(frame) = self.cloud.decide(sc, at, SIM_EPOCH_MS)
+            && let Some(frame) = self.cloud.decide(at, SIM_EPOCH_MS)
         {
             self.down.send(at + self.processing_s, frame);
         }
@@ -160,17 +144,14 @@ pub struct CloudRegulatedBv {
 /// The cloud's side: the regulator of one BV, what it last heard, and the key it signs with.
 #[derive(Debug)]
 pub struct CloudRegulator {
-    regulator: Regulator,
-    bv_index: usize,
+    /// The adapter the vehicle runs, in the cloud.
+    regulation: Regulation,
     key: SigningKey,
     fleet: String,
     bv_id: String,
     seq: u64,
     bv: Option<Telemetry>,
     vut: Option<Telemetry>,
-    bv_s: Option<f64>,
-    vut_s: Option<f64>,
-    last_accel: f64,
     decisions: u64,
     stale_decisions: u64,
 }
@@ -294,9 +275,9 @@ pub fn plan_at(plan: &CloudPlan, t_ms: u64) -> Option<PlanSample> {
 /// Why a cloud-regulated BV cannot be built.
 #[derive(Debug, thiserror::Error)]
 pub enum CloudBvError {
-    /// The regulator's QPs.
-    #[error("regulator: {0}")]
-    Regulator(#[from] QpError),
+    /// The regulator: its QPs, or the prior it regulates around.
+    #[error(transparent)]
+    Regulated(#[from] super::regulated::RegulatedBvError),
     /// The tracker's longitudinal loop (the BV's limits).
     #[error("tracker: {0}")]
     Tracker(#[from] v2t_track::TrackError),
@@ -326,17 +307,13 @@ impl CloudRegulator {
             return Err(CloudBvError::NoBv(bv_index));
         }
         Ok(Self {
-            regulator: super::regulated::regulator_for(params, scenario, bv_index)?,
-            bv_index,
+            regulation: super::regulated::regulation_for(params, scenario, bv_index)?,
             key,
             fleet: fleet.to_owned(),
             bv_id: bv_id.to_owned(),
             seq: 0,
             bv: None,
             vut: None,
-            bv_s: None,
-            vut_s: None,
-            last_accel: 0.0,
             decisions: 0,
             stale_decisions: 0,
         })
@@ -364,53 +341,31 @@ impl CloudRegulator {
 
     /// One decision at simulation time `now_s` (the link's clock reads `epoch_ms` at time 0) on
     /// the latest states: the sealed plan frame.
-    pub fn decide(&mut self, sc: &Scenario, now_s: f64, epoch_ms: u64) -> Option<Vec<u8>> {
+    pub fn decide(&mut self, now_s: f64, epoch_ms: u64) -> Option<Vec<u8>> {
         let (bv, vut) = (self.bv.as_ref()?, self.vut.as_ref()?);
-        let (setup, conflict) = (sc.bvs.get(self.bv_index)?, sc.conflict_of(self.bv_index)?);
-        let project = |path: &ReferencePath, t: &Telemetry, hint: Option<f64>| {
-            let q = Point2 { x: t.px_m, y: t.py_m };
-            match hint {
-                Some(h) => path.project_near(q, h, 10.0 + 2.0 * t.speed_mps.abs().min(100.0)),
-                None => path.project(q),
-            }
-            .map(|f| f.s_m)
-        };
-        let bv_s = project(&setup.agent.route, bv, self.bv_s)?;
-        let vut_s = project(&sc.vut.agent.route, vut, self.vut_s)?;
-        self.bv_s = Some(bv_s);
-        self.vut_s = Some(vut_s);
         let now_ms = clock_ms(epoch_ms, now_s);
-        let measured = |t: &Telemetry, s_m: f64| super::regulated::Measured {
-            s_m,
-            v_mps: t.speed_mps,
+        let measured = |t: &Telemetry| Measurement {
+            x_m: t.px_m,
+            y_m: t.py_m,
+            speed_mps: t.speed_mps,
             age_s: now_ms.saturating_sub(t.stamp_ms) as f64 / 1000.0,
         };
-        let (own, them) = (measured(bv, bv_s), measured(vut, vut_s));
-        let d = super::regulated::decide(
-            &mut self.regulator,
-            setup,
-            conflict,
-            sc.target,
-            now_s,
-            own,
-            them,
-            self.last_accel,
-        );
+        let step = self.regulation.decide(now_s, &measured(bv), Some(&measured(vut)))?;
+        let d = step.decision;
         // Where the plan starts: the BV brought to now, as the decision took it.
-        let bv_now = own.s_now_m();
+        let bv_now = step.input.map_or(step.bv_s_m.unwrap_or(0.0), |i| i.bv.s_m);
         self.decisions += 1;
         if d.status == v2t_game::regulator::RegulatorStatus::Stale {
             self.stale_decisions += 1;
         }
-        self.last_accel = d.accel_mps2;
-        let accel = self.regulator.planned_accels(&d).map(<[f64]>::to_vec).unwrap_or_default();
+        let accel = self.regulation.planned_accels(&d).map(<[f64]>::to_vec).unwrap_or_default();
         self.seq += 1;
         let plan = CloudPlan {
             state_seq: bv.seq,
             t0_ms: now_ms,
             s0_m: bv_now,
             v0_mps: bv.speed_mps.clamp(0.0, 150.0),
-            dt_s: self.regulator.params().dt_s,
+            dt_s: self.regulation.params().dt_s,
             accel_mps2: accel,
             status: v2t_edge::regulate::status_code(d.status).code(),
             predicted_pet_s: d.predicted_pet_s,
@@ -448,7 +403,7 @@ impl BvController for CloudRegulatedBv {
                 reports.push(frame);
             }
         }
-        for (at, frame) in self.link.exchange(sc, obs.bv_index, t, reports, &mut self.stats) {
+        for (at, frame) in self.link.exchange(t, reports, &mut self.stats) {
             match self.rx.open(&frame, Arrival::Plan, clock_ms(epoch, at)) {
                 Ok(CloudMessage { body: CloudBody::Plan(plan), .. }) => {
                     self.stats.plans_accepted += 1;

@@ -1,27 +1,26 @@
-//! The regulator (`v2t-game`) as a BV controller of the simulated proving ground: the regulator
-//! decides the longitudinal motion every control period, pure pursuit keeps the BV on its path.
+//! The regulator (`v2t-game`) as a BV controller of the simulated proving ground: the adapter the
+//! vehicle runs ([`v2t_game::regulation::Regulation`]) decides the longitudinal motion every
+//! control period from the prior the BV would have received ([`crate::world::prior_of_card`],
+//! decoded as the BV decodes it), pure pursuit keeps the BV on its path.
 
 use std::cell::{Cell, RefCell};
 use std::rc::Rc;
+use v2t_edge::prior::{PriorContext, PriorError};
 use v2t_game::qp::QpError;
-use v2t_game::reference::{MAX_REFERENCE_SAMPLES, ReferenceSample};
-
-use v2t_game::regulator::{
-    BelowReach, Decision, Limits, PathState, Regulator, RegulatorInput, RegulatorParams, curve_speed_limit,
-};
-use v2t_model::Target;
+use v2t_game::regulation::{Measurement, Regulation};
+use v2t_game::regulator::{BelowReach, Decision, Limits, RegulatorParams};
 use v2t_sim::bv::BvController;
 use v2t_sim::control::pure_pursuit;
-use v2t_sim::observation::BvObservation;
+use v2t_sim::observation::{BvObservation, Perceived};
 use v2t_sim::plant::ActuationRequest;
-use v2t_sim::scenario::{BvSetup, Conflict};
+use v2t_sim::scenario::Scenario;
+
+use crate::world::WorldError;
 
 /// A regulated BV.
 #[derive(Debug)]
 pub struct RegulatedBv {
-    regulator: Regulator,
-    target: Target,
-    last_accel: f64,
+    regulation: Regulation,
     last: Option<Decision>,
     /// The last "τ out of reach" the regulator reported in this run (shared with whoever asked).
     below_reach: Rc<Cell<Option<BelowReach>>>,
@@ -64,23 +63,23 @@ impl LoggedDecision {
     }
 }
 
-/// Period at which the BV's reference speed profile is sampled for the regulator's realism term, s.
-const REFERENCE_PERIOD_S: f64 = 0.1;
+/// Why a regulated BV cannot be built.
+#[derive(Debug, thiserror::Error)]
+pub enum RegulatedBvError {
+    /// The regulator refused its settings.
+    #[error("regulator: {0}")]
+    Regulator(#[from] QpError),
+    /// The scenario gives this BV no prior the BV would accept (its timing included).
+    #[error("prior: {0}")]
+    Prior(#[from] WorldError),
+}
 
 impl RegulatedBv {
     /// A regulator with `params` for BV `bv_index` of `scenario`, aiming at the scenario's target,
-    /// its realism term around the BV's prior or a card's speed profile re-timed for the target
-    /// ([`v2t_sim::scenario::Scenario::realism_reference`]; sampled here, once).
-    pub fn new(
-        params: RegulatorParams,
-        scenario: &v2t_sim::scenario::Scenario,
-        bv_index: usize,
-    ) -> Result<Self, QpError> {
-        let regulator = regulator_for(params, scenario, bv_index)?;
+    /// around the prior the BV would have received ([`regulation_for`]).
+    pub fn new(params: RegulatorParams, scenario: &Scenario, bv_index: usize) -> Result<Self, RegulatedBvError> {
         Ok(Self {
-            regulator,
-            target: scenario.target,
-            last_accel: 0.0,
+            regulation: regulation_for(params, scenario, bv_index)?,
             last: None,
             below_reach: Rc::default(),
             log: Rc::default(),
@@ -91,8 +90,7 @@ impl RegulatedBv {
     /// [`v2t_game::campaign`]), told what earlier runs showed about reach.
     #[must_use]
     pub fn aiming(mut self, aim: v2t_model::Target, known: Option<BelowReach>) -> Self {
-        self.target = aim;
-        self.regulator.set_known_below_reach(known);
+        self.regulation.aim(aim, known);
         self
     }
 
@@ -108,11 +106,7 @@ impl RegulatedBv {
 
     /// `settings` with the limits of BV `bv_index` and the VUT of `scenario` (unchanged when the
     /// scenario has no such BV).
-    pub fn params_for(
-        settings: &RegulatorParams,
-        scenario: &v2t_sim::scenario::Scenario,
-        bv_index: usize,
-    ) -> RegulatorParams {
+    pub fn params_for(settings: &RegulatorParams, scenario: &Scenario, bv_index: usize) -> RegulatorParams {
         match Self::limits_for(scenario, bv_index) {
             Some((bv, vut)) => settings.with_limits(bv, vut),
             None => *settings,
@@ -120,13 +114,9 @@ impl RegulatedBv {
     }
 
     /// Regulator limits from the scenario's vehicles.
-    pub fn limits_for(scenario: &v2t_sim::scenario::Scenario, bv_index: usize) -> Option<(Limits, Limits)> {
-        let lim = |l: &v2t_model::vehicle::VehicleLimits| Limits {
-            max_speed_mps: l.max_speed_mps,
-            max_accel_mps2: l.max_accel_mps2,
-            max_decel_mps2: l.max_decel_mps2,
-        };
-        Some((lim(&scenario.bvs.get(bv_index)?.agent.vehicle.limits), lim(&scenario.vut.agent.vehicle.limits)))
+    pub fn limits_for(scenario: &Scenario, bv_index: usize) -> Option<(Limits, Limits)> {
+        let bv = &scenario.bvs.get(bv_index)?.agent.vehicle.limits;
+        Some((bv.into(), (&scenario.vut.agent.vehicle.limits).into()))
     }
 
     /// The last decision.
@@ -135,69 +125,27 @@ impl RegulatedBv {
     }
 }
 
-/// A regulator with `params` for BV `bv_index` of `scenario`, its realism term around the BV's
-/// prior or a card's speed profile re-timed for the target
-/// ([`v2t_sim::scenario::Scenario::realism_reference`]; sampled here, once).
-pub(crate) fn regulator_for(
+/// The adapter the vehicle runs, with `params`, for BV `bv_index` of `scenario`: around the prior
+/// that BV would have received from the cloud ([`crate::world::prior_of_card`]: its path, the
+/// card's speed profile re-timed for the target, the VUT's route, their zone), decoded as the BV
+/// decodes it ([`PriorContext`]). A timing the regulator refuses is an error, not a regulator
+/// without its realism term.
+pub(crate) fn regulation_for(
     params: RegulatorParams,
-    scenario: &v2t_sim::scenario::Scenario,
+    scenario: &Scenario,
     bv_index: usize,
-) -> Result<Regulator, QpError> {
-    let mut regulator = Regulator::new(params)?;
-    if let Some(profile) = scenario.realism_reference(bv_index) {
-        let period = REFERENCE_PERIOD_S.max(scenario.duration_s / (MAX_REFERENCE_SAMPLES - 1) as f64);
-        let samples = profile
-            .samples(scenario.duration_s, period, MAX_REFERENCE_SAMPLES)
-            .map(|[t_s, s_m, v]| ReferenceSample { t_s, s_m, v_mps: v.max(0.0) });
-        // A reference the regulator refuses leaves it without the realism term: it still regulates.
-        let _ = regulator.set_reference(samples);
-    }
-    Ok(regulator)
+) -> Result<Regulation, RegulatedBvError> {
+    let bv = scenario.bvs.get(bv_index).ok_or(WorldError::NoBv(bv_index))?;
+    let prior = crate::world::prior_of_card(scenario, bv_index, 0, 0)?;
+    let ctx = PriorContext::new(&prior).map_err(WorldError::from)?;
+    let mut regulation = Regulation::new(params, bv.agent.vehicle.limits.max_lat_accel_mps2)?;
+    regulation.set_context(ctx.context).map_err(|e| WorldError::from(PriorError::Invalid(e)))?;
+    Ok(regulation)
 }
 
-/// A vehicle as measured along its own path: arc length, speed and the measurement's age.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Measured {
-    pub s_m: f64,
-    pub v_mps: f64,
-    pub age_s: f64,
-}
-
-impl Measured {
-    /// Arc length brought to now, at constant speed.
-    pub fn s_now_m(&self) -> f64 {
-        self.s_m + self.v_mps * self.age_s
-    }
-}
-
-/// One decision of `regulator` for BV `bv` in `conflict` at time `t_s`: both measurements brought
-/// to `t_s` at constant speed, the BV's curves capping its plan. The one recipe of the onboard
-/// BV and the cloud's.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn decide(
-    regulator: &mut Regulator,
-    bv: &BvSetup,
-    conflict: &Conflict,
-    target: Target,
-    t_s: f64,
-    own: Measured,
-    vut: Measured,
-    bv_accel_mps2: f64,
-) -> Decision {
-    let now = |m: Measured| PathState { s_m: m.s_now_m(), v_mps: m.v_mps, age_s: m.age_s };
-    let input = RegulatorInput {
-        t_s,
-        bv: now(own),
-        vut: now(vut),
-        bv_accel_mps2,
-        zone_bv: conflict.zone.bv,
-        zone_vut: conflict.zone.vut,
-        zone_kind: conflict.zone.kind,
-        target,
-        reference_speed_mps: bv.reference.speed_at(t_s),
-    };
-    let lat = bv.agent.vehicle.limits.max_lat_accel_mps2;
-    regulator.decide_on_path(&input, &|s| curve_speed_limit(&bv.agent.route, s, lat))
+/// What the simulator perceived of a vehicle, as the regulator measures it.
+pub(crate) fn measurement(p: &Perceived) -> Measurement {
+    Measurement { x_m: p.state.px, y_m: p.state.py, speed_mps: p.state.speed_mps, age_s: p.age_s }
 }
 
 impl BvController for RegulatedBv {
@@ -207,29 +155,131 @@ impl BvController for RegulatedBv {
 
     fn control(&mut self, obs: &BvObservation<'_>) -> ActuationRequest {
         let sc = obs.scenario;
-        let (Some(bv), Some(conflict)) = (sc.bvs.get(obs.bv_index), sc.conflict_of(obs.bv_index)) else {
-            return ActuationRequest { accel_mps2: -2.0, steer_rad: 0.0 };
-        };
-        let vehicle = &bv.agent.vehicle;
-        let own = Measured { s_m: obs.own.s_m, v_mps: obs.own.state.speed_mps, age_s: obs.own.age_s };
-        let vut = Measured { s_m: obs.vut.s_m, v_mps: obs.vut.state.speed_mps, age_s: obs.vut.age_s };
+        let fallback = ActuationRequest { accel_mps2: -self.regulation.params().fallback_decel_mps2, steer_rad: 0.0 };
+        let Some(bv) = sc.bvs.get(obs.bv_index) else { return fallback };
         let started = std::time::Instant::now();
-        let d = decide(&mut self.regulator, bv, conflict, self.target, obs.t_s, own, vut, self.last_accel);
+        let own = measurement(&obs.own);
+        let Some(step) = self.regulation.decide(obs.t_s, &own, Some(&measurement(&obs.vut))) else { return fallback };
+        let d = step.decision;
         self.log.borrow_mut().push(LoggedDecision {
             t_s: obs.t_s,
-            s_m: own.s_m,
-            v_mps: own.v_mps,
+            s_m: step.bv_s_m.unwrap_or(obs.own.s_m),
+            v_mps: own.speed_mps,
             decision: d,
             solve_us: started.elapsed().as_secs_f64() * 1e6,
         });
-        self.last_accel = d.accel_mps2;
         self.last = Some(d);
         if d.below_reach.is_some() {
             self.below_reach.set(d.below_reach);
         }
         ActuationRequest {
             accel_mps2: d.accel_mps2,
-            steer_rad: pure_pursuit(&bv.agent.route, &obs.own.state, obs.own.s_m, vehicle),
+            steer_rad: pure_pursuit(&bv.agent.route, &obs.own.state, obs.own.s_m, &bv.agent.vehicle),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use v2t_edge::regulate::{Regulation as OnboardRegulation, status_code};
+    use v2t_model::{Style, Target};
+    use v2t_sim::vut::VutModel;
+    use v2t_wire::{BvState, Code as _, Header, VutState};
+
+    /// The in-process BV and, beside it on the same inputs, the onboard node's code path: every
+    /// decision of a closed-loop run compared bit for bit.
+    #[derive(Debug)]
+    struct Twin {
+        lab: RegulatedBv,
+        onboard: OnboardRegulation,
+        /// Decisions compared, and every one that differed.
+        tally: Rc<RefCell<(usize, Vec<String>)>>,
+    }
+
+    impl BvController for Twin {
+        fn name(&self) -> &str {
+            "twin"
+        }
+
+        fn control(&mut self, obs: &BvObservation<'_>) -> ActuationRequest {
+            // The onboard clock counts nanoseconds (from 10 s before the run here, so that no stamp
+            // is negative): both sides get the instants it can express.
+            let now_ns = 10_000_000_000 + (obs.t_s * 1e9).round() as u64;
+            let stamp = |p: &Perceived| now_ns - (p.age_s * 1e9).round() as u64;
+            let (bv_ns, vut_ns) = (stamp(&obs.own), stamp(&obs.vut));
+            let secs = |stamp_ns: u64| (now_ns - stamp_ns) as f64 * 1e-9;
+            let mut same = *obs;
+            same.t_s = now_ns as f64 * 1e-9;
+            same.own.age_s = secs(bv_ns);
+            same.vut.age_s = secs(vut_ns);
+            let lab = self.lab.control(&same);
+            let (o, v) = (&obs.own.state, &obs.vut.state);
+            let bv = BvState {
+                header: Header { seq: 1, stamp_ns: bv_ns },
+                px_m: o.px,
+                py_m: o.py,
+                theta_rad: o.theta_rad,
+                speed_mps: o.speed_mps,
+                ..BvState::default()
+            };
+            let vut = VutState {
+                header: Header { seq: 1, stamp_ns: vut_ns },
+                px_m: v.px,
+                py_m: v.py,
+                theta_rad: v.theta_rad,
+                speed_mps: v.speed_mps,
+            };
+            let plan = self.onboard.decide(&bv, Some(&vut), now_ns);
+            let d = self.lab.last_decision().copied();
+            let lab_status = d.map(|d| status_code(d.status).code());
+            let differ = d.map(|d| d.accel_mps2.to_bits()) != Some(plan.accel_mps2.to_bits())
+                || lab_status != Some(plan.status)
+                || d.and_then(|d| d.predicted_pet_s).map(f64::to_bits)
+                    != (plan.has_predicted_pet == 1).then_some(plan.predicted_pet_s.to_bits());
+            let mut tally = self.tally.borrow_mut();
+            if differ {
+                tally.1.push(format!("t {:.3}: lab {d:?}, onboard {plan:?}", obs.t_s));
+            }
+            tally.0 += 1;
+            lab
+        }
+    }
+
+    fn card(name: &str, target: Target) -> Scenario {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+        let mut sc = v2t_sim::files::load_scenario(&root.join("config/scenarios").join(name)).unwrap();
+        sc.target = target;
+        sc
+    }
+
+    #[test]
+    fn the_lab_and_the_onboard_node_decide_bit_identically_on_the_same_inputs() {
+        let cases = [
+            ("left_turn_basic.toml", Target::new(2.0, Style::Rush).unwrap()),
+            ("left_turn_basic.toml", Target::new(2.5, Style::Yield).unwrap()),
+            ("left_turn_vut.toml", Target::new(2.0, Style::Yield).unwrap()),
+            ("cut_in_basic.toml", Target::new(3.0, Style::Rush).unwrap()),
+        ];
+        for (name, target) in cases {
+            let sc = card(name, target);
+            let params = RegulatedBv::params_for(&RegulatorParams::default(), &sc, 0);
+            let lat = sc.bvs[0].agent.vehicle.limits.max_lat_accel_mps2;
+            let mut onboard = OnboardRegulation::new(params, lat).unwrap();
+            // What the cloud would send this BV: the prior the lab's BV regulates around.
+            onboard.set_prior(&crate::world::prior_of_card(&sc, 0, 7, 0).unwrap()).unwrap();
+            let tally = Rc::default();
+            let twin = Twin { lab: RegulatedBv::new(params, &sc, 0).unwrap(), onboard, tally: Rc::clone(&tally) };
+            let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(twin)];
+            let out = v2t_sim::runner::run(&sc, &mut bvs, VutModel::IdmNormal.driver().as_mut(), 6).unwrap();
+            assert!(out.result.collision.is_none(), "{name}");
+            let (compared, mismatches) = &*tally.borrow();
+            assert!(
+                mismatches.is_empty(),
+                "{name} {target:?}: {} of {compared} differ: {mismatches:?}",
+                mismatches.len()
+            );
+            assert!(*compared > 100, "{name}: only {compared} decisions compared");
         }
     }
 }
