@@ -1,39 +1,14 @@
 //! The guidance hot path allocates nothing once its workspace is built (a counting global
 //! allocator; its own test binary so that no other test allocates concurrently).
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing, unsafe_code)]
-
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
 
 use v2t_diffusion::guidance::normalized::{ControlNormalization, GuidanceStep};
 use v2t_diffusion::guidance::{Anchor, ConflictWindow, Guidance, GuidanceConfig, GuidanceContext, GuidanceWorkspace};
 use v2t_model::geometry::Point2;
 use v2t_model::kinematics::{Control, State};
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-// SAFETY: forwards to the system allocator unchanged, only counting calls.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: v2t_test_support::alloc::Counting = v2t_test_support::alloc::Counting;
 
 #[test]
 fn energy_and_grad_and_the_guided_correction_do_not_allocate() {
@@ -63,7 +38,7 @@ fn energy_and_grad_and_the_guided_correction_do_not_allocate() {
     let step = GuidanceStep { scale: 0.01, max_step_norm: 1.0 };
     // Warm up once, then count.
     g.energy_and_grad(&mut ws, &x0s, &u, &mut grad).unwrap();
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let before = v2t_test_support::alloc::total();
     assert!(before > 0, "the counting allocator is in use");
     for _ in 0..10 {
         let e = g.energy_and_grad(&mut ws, &x0s, &u, &mut grad).unwrap();
@@ -71,6 +46,6 @@ fn energy_and_grad_and_the_guided_correction_do_not_allocate() {
         let c = g.guide_clean_sample(&mut ws, &norm, &step, &x0s, &z0, &mut z1).unwrap();
         std::hint::black_box(c);
     }
-    let after = ALLOCATIONS.load(Ordering::Relaxed);
+    let after = v2t_test_support::alloc::total();
     assert_eq!(after - before, 0, "allocations in the hot path");
 }

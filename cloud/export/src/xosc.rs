@@ -289,23 +289,8 @@ fn check(s: &ExportScenario) -> Result<(), XoscError> {
     Ok(())
 }
 
-/// `text` with the five XML special characters escaped, for attribute values and text.
-pub fn escape(text: &str) -> String {
-    let mut out = String::with_capacity(text.len());
-    for c in text.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&apos;"),
-            // Control characters other than tab, newline and return are not allowed in XML 1.0.
-            c if c.is_control() && !matches!(c, '\t' | '\n' | '\r') => out.push(' '),
-            c => out.push(c),
-        }
-    }
-    out
-}
+/// `text` escaped for attribute values and text (the project's one escape).
+pub use v2t_model::text::xml_escape as escape;
 
 /// A number as written: at most 6 decimals, no trailing zeros, never `-0`.
 pub fn num(x: f64) -> String {
@@ -643,8 +628,8 @@ mod tests {
 
     #[test]
     fn escaping_covers_the_five_entities_and_control_characters() {
-        assert_eq!(escape("a & b < c > d \"e\" 'f'"), "a &amp; b &lt; c &gt; d &quot;e&quot; &apos;f&apos;");
-        assert_eq!(escape("τ 3 s\tok\u{1}"), "τ 3 s\tok ");
+        assert_eq!(escape("a & b < c > d \"e\" 'f'"), "a &amp; b &lt; c &gt; d &quot;e&quot; &#39;f&#39;");
+        assert_eq!(escape("τ 3 s\tok\u{1}"), "τ 3 s&#9;ok ");
         assert_eq!(escape("&amp;"), "&amp;amp;");
         let doc = format!("<x v=\"{}\"/>", escape("<&\"'>"));
         assert_eq!(roxmltree::Document::parse(&doc).unwrap().root_element().attribute("v"), Some("<&\"'>"));

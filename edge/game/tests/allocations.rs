@@ -2,48 +2,16 @@
 //! cycle; what remains comes from inside Clarabel's `solve`, which this test measures on a bare
 //! QP and then bounds the regulator by (at most five solves per decision).
 
-#![allow(unsafe_code, clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)] // test code
-
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)] // test code
 
 use v2t_game::qp::{EventKind, LongitudinalQp, QpInput, QpShape};
 use v2t_game::reference::ReferenceSample;
 use v2t_game::regulator::{Regulator, RegulatorParams};
 use v2t_model::{Style, Target};
-
-thread_local! {
-    static COUNT: Cell<u64> = const { Cell::new(0) };
-}
-
-struct Counting;
-
-// SAFETY: forwards every call to the system allocator unchanged; only counts, per thread.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        let _ = COUNT.try_with(|c| c.set(c.get() + 1));
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        let _ = COUNT.try_with(|c| c.set(c.get() + 1));
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(p, l, n) }
-    }
-}
+use v2t_test_support::alloc::count;
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn count<R>(f: impl FnOnce() -> R) -> (R, u64) {
-    let before = COUNT.with(Cell::get);
-    let r = f();
-    (r, COUNT.with(Cell::get) - before)
-}
+static GLOBAL: v2t_test_support::alloc::Counting = v2t_test_support::alloc::Counting;
 
 #[test]
 fn allocations_per_decision_come_only_from_the_solver() {

@@ -1,41 +1,14 @@
 //! The tracker allocates nothing per cycle.
 
-#![allow(unsafe_code, clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)] // test code
-
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)] // test code
 
 use v2t_model::kinematics::State;
 use v2t_model::path::PathBuilder;
 use v2t_model::vehicle::VehicleConfig;
 use v2t_track::{PlanSample, Tracker, TrackerConfig};
 
-thread_local! {
-    static COUNT: Cell<u64> = const { Cell::new(0) };
-}
-
-struct Counting;
-
-// SAFETY: forwards every call to the system allocator unchanged; only counts, per thread.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        let _ = COUNT.try_with(|c| c.set(c.get() + 1));
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        let _ = COUNT.try_with(|c| c.set(c.get() + 1));
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(p, l, n) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: v2t_test_support::alloc::Counting = v2t_test_support::alloc::Counting;
 
 #[test]
 fn a_tracking_cycle_allocates_nothing() {
@@ -44,7 +17,7 @@ fn a_tracking_cycle_allocates_nothing() {
     let mut tracker = Tracker::try_new(config, &vehicle).unwrap();
     let path = PathBuilder::new(0.0, 0.0, 0.0).line(30.0).arc(25.0, 1.5).line(30.0).build(0.5).unwrap();
     let mut state = State { px: 0.0, py: 0.4, theta_rad: 0.05, speed_mps: 9.0 };
-    let before = COUNT.with(Cell::get);
+    let before = v2t_test_support::alloc::on_this_thread();
     for k in 0..200 {
         let t = k as f64 * 0.1;
         let plan = PlanSample { s_m: 10.0 * t, v_mps: 10.0, a_mps2: 0.0 };
@@ -55,5 +28,5 @@ fn a_tracking_cycle_allocates_nothing() {
         state.py += state.speed_mps * state.theta_rad.sin() * 0.1;
         state.speed_mps += out.accel_mps2 * 0.1;
     }
-    assert_eq!(COUNT.with(Cell::get) - before, 0);
+    assert_eq!(v2t_test_support::alloc::on_this_thread() - before, 0);
 }

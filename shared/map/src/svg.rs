@@ -5,6 +5,7 @@
 use std::fmt::Write;
 
 use v2t_model::geometry::Point2;
+use v2t_model::text::xml_escape;
 
 use crate::Map;
 use crate::library::{AnchorKind, FragmentKind, TopologyLibrary};
@@ -142,6 +143,3 @@ pub fn render(map: &Map, lib: &TopologyLibrary) -> String {
     s
 }
 
-fn xml_escape(t: &str) -> String {
-    t.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
-}

@@ -11,6 +11,7 @@
 //! - [`metrics`]: conflict zones, post-encroachment time (PET), time to collision, distances;
 //! - [`vehicle`]: vehicle geometry and limits;
 //! - [`target`]: the test target, τ and style, with its one range;
+//! - [`text`]: the one escape of the XML and HTML the project writes;
 //! - [`validate`]: range checks that name the field at fault.
 //!
 //! ```
@@ -30,6 +31,7 @@ pub mod prior;
 pub mod realism;
 pub mod semantics;
 pub mod target;
+pub mod text;
 pub mod validate;
 pub mod vehicle;
 

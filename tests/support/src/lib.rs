@@ -8,8 +8,13 @@
 //! file named by [`NOT_RUN_LOG`] when that is set (the script lists them in its summary), and
 //! returns before doing anything. Without [`ALLOW_MISSING`], a missing tool fails the test with
 //! the command that installs it.
+//!
+//! It also holds the counting global allocator ([`alloc`]) of the tests that a control cycle
+//! allocates nothing, and of `v2t-bench game`.
 
 #![allow(clippy::panic)] // test support: a missing tool fails the calling test
+
+pub mod alloc;
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};

@@ -19,21 +19,8 @@ pub mod experiment;
 pub mod plot;
 pub mod run;
 
-/// Text for HTML (element content and attribute values).
-pub fn esc(s: &str) -> String {
-    let mut out = String::with_capacity(s.len());
-    for c in s.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&#39;"),
-            c => out.push(c),
-        }
-    }
-    out
-}
+/// Text for HTML (element content and attribute values): the project's one escape.
+pub use v2t_model::text::xml_escape as esc;
 
 /// An HTML page of the report.
 #[derive(Debug, Clone, Default)]

@@ -1,5 +1,7 @@
 //! SUMO additional files: the vehicle types a run uses.
 
+use v2t_model::text::xml_escape as escape;
+
 use std::path::Path;
 
 use crate::SumoError;
@@ -49,26 +51,6 @@ fn is_xml_name(name: &str) -> bool {
         && chars.all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | ':' | '-' | '.'))
 }
 
-/// `text` escaped for a double-quoted XML attribute (whitespace other than spaces kept as
-/// character references, which attribute normalisation would otherwise turn into spaces).
-fn escape(text: &str) -> String {
-    let mut out = String::with_capacity(text.len());
-    for c in text.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&apos;"),
-            '\n' => out.push_str("&#10;"),
-            '\r' => out.push_str("&#13;"),
-            '\t' => out.push_str("&#9;"),
-            c => out.push(c),
-        }
-    }
-    out
-}
-
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
@@ -81,7 +63,7 @@ mod tests {
     #[test]
     fn values_are_escaped() {
         let xml = vtype_xml("a\"b", &attrs(&[("length", "4.5"), ("name", "<x & 'y'>\n")]));
-        assert_eq!(xml, "<vType id=\"a&quot;b\" length=\"4.5\" name=\"&lt;x &amp; &apos;y&apos;&gt;&#10;\"/>");
+        assert_eq!(xml, "<vType id=\"a&quot;b\" length=\"4.5\" name=\"&lt;x &amp; &#39;y&#39;&gt;&#10;\"/>");
         let doc = roxmltree::Document::parse(&xml).unwrap();
         assert_eq!(doc.root_element().attribute("name"), Some("<x & 'y'>\n"));
         assert_eq!(doc.root_element().attribute("id"), Some("a\"b"));
