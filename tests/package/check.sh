@@ -3,7 +3,8 @@
 #
 #   tests/package/check.sh [--no-build]
 #
-# 1. scripts/package-deb builds it (release);
+# 1. scripts/package-deb builds it (release), and packs the same binary again into an absolute and
+#    a relative --out (relative to where it is run from);
 # 2. it is unpacked into a throw-away root (dpkg-deb -x: nothing is installed on this machine);
 # 3. its control data, every file it must carry, that every /etc file is a conffile, and that no
 #    key (the demo pair or any *.key) is in it;
@@ -28,6 +29,18 @@ trap 'rm -rf "$root"' EXIT
 dpkg-deb -x "$deb" "$root"
 dpkg-deb -e "$deb" "$root/DEBIAN"
 fail() { echo "package check: $*" >&2; exit 1; }
+
+echo "== package: --out absolute, and relative to where it runs"
+outs="$(mktemp -d "${TMPDIR:-/tmp}/v2t-deb-out.XXXXXX")"
+trap 'rm -rf "$root" "$outs"' EXIT
+repo="$(pwd)"
+mkdir "$outs/here"
+made="$(scripts/package-deb --no-build --out "$outs/abs" | tail -n 1)"
+[ "$made" = "$outs/abs/$(basename "$deb")" ] && [ -s "$made" ] || fail "package-deb --out $outs/abs made '$made'"
+made="$(cd "$outs/here" && "$repo/scripts/package-deb" --no-build --out rel | tail -n 1)"
+[ "$made" = "$outs/here/rel/$(basename "$deb")" ] && [ -s "$made" ] \
+  || fail "package-deb --out rel, run in $outs/here, made '$made'"
+rm -rf "$outs"
 
 echo "== control data"
 control="$root/DEBIAN/control"

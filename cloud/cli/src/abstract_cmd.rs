@@ -6,6 +6,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use v2t_files::{out, outln};
 use v2t_model::semantics::ScenarioSemantics;
 use v2t_vlm::config::{ENV_API_KEY, ENV_BASE_URL, ENV_MODEL};
 use v2t_vlm::frames::MAX_FRAMES;
@@ -52,13 +53,13 @@ pub fn run(a: AbstractCmd) -> anyhow::Result<()> {
         sampling: a.sampling,
     };
     let result = abstract_video(&args, |name| std::env::var(name).ok())?;
-    print!("{}", report(&result));
+    out!("{}", report(&result))?;
     if let Some(dir) = &args.record {
-        println!("recorded {}", dir.display());
+        outln!("recorded {}", dir.display())?;
     }
     if let Some(path) = a.out {
         write_semantics(&path, &result.semantics)?;
-        println!("wrote {}", path.display());
+        outln!("wrote {}", path.display())?;
     }
     Ok(())
 }

@@ -9,6 +9,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
+use v2t_files::outln;
 use v2t_game::campaign::{CampaignMemory, RunRecord};
 use v2t_model::{Style, Target};
 
@@ -88,16 +89,16 @@ pub fn run(c: CampaignCommand) -> anyhow::Result<()> {
             match load(&a.test.memory)? {
                 Some(m) => match m.case(&a.test.scenario, a.test.bv, target) {
                     Some(case) => {
-                        println!("{}", case.aim(target).tau_s());
+                        outln!("{}", case.aim(target).tau_s())?;
                         eprintln!("{}", v2t_lab::campaign::case_line(case, target));
                     }
                     None => {
-                        println!("{}", target.tau_s());
+                        outln!("{}", target.tau_s())?;
                         eprintln!("no run of this test against {} yet: aim at τ", m.vut);
                     }
                 },
                 None => {
-                    println!("{}", target.tau_s());
+                    outln!("{}", target.tau_s())?;
                     eprintln!("{} does not exist yet: run 1 aims at τ", a.test.memory.display());
                 }
             }
@@ -106,17 +107,17 @@ pub fn run(c: CampaignCommand) -> anyhow::Result<()> {
         CampaignCommand::Record(a) => record(a),
         CampaignCommand::Show { memory } => {
             let m = load(&memory)?.ok_or_else(|| Usage(format!("{}: no such memory file", memory.display())))?;
-            println!("campaign memory of VUT `{}` in `{}`: {} tests", m.vut, m.world, m.cases.len());
+            outln!("campaign memory of VUT `{}` in `{}`: {} tests", m.vut, m.world, m.cases.len())?;
             for c in &m.cases {
                 if let Ok(target) = Target::new(c.tau_s, c.style) {
-                    println!(
+                    outln!(
                         "  {} BV {} {} τ {:.2} s: {}",
                         c.scenario,
                         c.bv,
                         c.style,
                         c.tau_s,
                         v2t_lab::campaign::case_line(&c.memory, target)
-                    );
+                    )?;
                 }
             }
             Ok(())
@@ -141,7 +142,7 @@ fn record(a: RecordArgs) -> anyhow::Result<()> {
     case.record(target, RunRecord { aim_s: a.aim, pet_s: a.pet, order_ok: !a.opposite_order, collision: a.collision });
     let line = v2t_lab::campaign::case_line(case, target);
     save(&a.test.memory, &memory)?;
-    println!("{line}");
+    outln!("{line}")?;
     Ok(())
 }
 

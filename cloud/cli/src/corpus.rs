@@ -8,6 +8,7 @@ use v2t_diffusion::import::{commonroad, csv};
 use v2t_diffusion::lanes::LaneletNetwork;
 use v2t_diffusion::mining::MiningOptions;
 use v2t_diffusion::recorded::{self, ImportOptions, RecordedCorpus, RecordedStats};
+use v2t_files::{out, outln};
 
 use crate::Usage;
 
@@ -139,7 +140,7 @@ fn reference(a: ReferenceArgs) -> anyhow::Result<()> {
     let r = HumanReference::from_vehicles(provenance, dt, &vehicles);
     r.validate().map_err(|e| Usage(format!("the reference: {e}")))?;
     for c in &r.classes {
-        println!("{:?}: {} vehicles, {} samples", c.class, c.vehicles, c.samples);
+        outln!("{:?}: {} vehicles, {} samples", c.class, c.vehicles, c.samples)?;
     }
     crate::write_json(&a.out, &r)
 }
@@ -221,14 +222,14 @@ fn import(a: ImportArgs) -> anyhow::Result<()> {
     }
     recorded::write_file(&corpus, &a.out)?;
     let s = corpus.stats();
-    println!(
+    outln!(
         "imported {} files: {} tracks ({} vehicles), {} interaction episodes; wrote {}",
         files.len(),
         s.tracks,
         s.vehicles,
         s.episodes,
         a.out.display()
-    );
+    )?;
     Ok(())
 }
 
@@ -284,7 +285,7 @@ fn stats(a: StatsArgs) -> anyhow::Result<()> {
         all.episodes.extend(c.episodes);
     }
     let s = all.stats();
-    print!("{}", stats_table(&s));
+    out!("{}", stats_table(&s))?;
     if let Some(path) = a.json {
         crate::write_json(&path, &s)?;
     }

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use v2t_files::shipped;
+use v2t_files::{outln, shipped};
 use v2t_sim::vut::VutModel;
 
 /// `demo`'s arguments.
@@ -32,6 +32,6 @@ pub fn run(a: DemoArgs) -> anyhow::Result<()> {
         weights: PathBuf::from(shipped::WEIGHTS),
     };
     let summary = v2t_lab::demo::run(&opts)?;
-    println!("wrote {0}/report.html and {0}/summary.json in {1:.1} s", a.out.display(), summary.wall_s);
+    outln!("wrote {0}/report.html and {0}/summary.json in {1:.1} s", a.out.display(), summary.wall_s)?;
     Ok(())
 }

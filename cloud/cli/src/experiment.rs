@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
 use clap::ValueEnum as _;
-use v2t_files::{load_toml, shipped};
+use v2t_files::{load_toml, out, outln, shipped};
 use v2t_game::regulator::RegulatorParams;
 use v2t_lab::methods::{self, Comparison, PaperScenario, Setup};
 use v2t_lab::{steer, tradeoff};
@@ -205,7 +205,7 @@ fn write_report(a: &ExperimentArgs, provenance: &[String], body: &str) -> anyhow
     page.provenance.push(format!("Command: video2track {}", std::env::args().skip(1).collect::<Vec<_>>().join(" ")));
     page.body = body.to_owned();
     std::fs::write(path, page.html()).with_context(|| format!("writing {}", path.display()))?;
-    println!("wrote {}", path.display());
+    outln!("wrote {}", path.display())?;
     Ok(())
 }
 
@@ -329,9 +329,9 @@ fn tradeoff(a: ExperimentArgs) -> anyhow::Result<()> {
     let seeds = seeds(&a);
     let provenance = provenance(model, human, &seeds);
     let report = tradeoff::sweep(&setup, &scenarios, &taus, &weights, &models, seeds, provenance)?;
-    println!("{}", report.provenance);
+    outln!("{}", report.provenance)?;
     let md = tradeoff::markdown(&report);
-    print!("{md}");
+    out!("{md}")?;
     if a.report.is_some() {
         let cases = v2t_lab::report::experiment::from_tradeoff(&report);
         let mut body = v2t_lab::report::experiment::body(&md, &cases);
@@ -349,7 +349,7 @@ fn tradeoff(a: ExperimentArgs) -> anyhow::Result<()> {
                 let path =
                     dir.join(format!("tradeoff_{}.svg", rec.name.replace(|c: char| !c.is_ascii_alphanumeric(), "_")));
                 std::fs::write(&path, svg).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-                println!("wrote {}", path.display());
+                outln!("wrote {}", path.display())?;
             }
         }
     }
@@ -386,18 +386,18 @@ fn four_methods(a: ExperimentArgs) -> anyhow::Result<()> {
         | Experiment::Latency => Vec::new(),
         _ => scenarios.iter().map(|r| (r.name.clone(), r.semantics.pet_label_s)).collect(),
     };
-    println!(
+    outln!(
         "{}; TroubleMaker-like regulates in the cloud across the simulated \"{}\" network ({})\n",
         provenance(model, human, &seeds),
         world.baseline_network.name,
         world.baseline_network.source
-    );
+    )?;
     let mut md = methods::markdown(&summary, &labels);
     let steering = methods::steering_errors(&cases);
     if a.which == Experiment::Steerability {
         md.push_str(&methods::steering_markdown(&steering));
     }
-    print!("{md}");
+    out!("{md}")?;
     let provenance_line = format!(
         "{}; TroubleMaker-like regulates in the cloud across the simulated \"{}\" network ({})",
         provenance(model, human, &seeds),
@@ -430,9 +430,9 @@ fn latency(a: ExperimentArgs) -> anyhow::Result<()> {
     let seeds = seeds(&a);
     let cases = v2t_lab::latency::run_all(&setup, &scenarios, &networks, &models, seeds.clone())?;
     let rows = v2t_lab::latency::summarize(&cases, &networks);
-    println!("{}; networks simulated (presets named below)\n", provenance(model, human, &seeds));
+    outln!("{}; networks simulated (presets named below)\n", provenance(model, human, &seeds))?;
     let md = v2t_lab::latency::markdown(&rows, &cases, &networks);
-    print!("{md}");
+    out!("{md}")?;
     let mut body = v2t_lab::report::experiment::body(&md, &v2t_lab::report::experiment::from_latency(&cases));
     body.push_str(&format!(
         "<h2>Steering error against the delay</h2>{}",
@@ -442,7 +442,7 @@ fn latency(a: ExperimentArgs) -> anyhow::Result<()> {
     if let Some(path) = &a.svg {
         std::fs::write(path, v2t_lab::latency::svg(&rows, &networks, &seeds))
             .with_context(|| format!("writing {}", path.display()))?;
-        println!("\nwrote {}", path.display());
+        outln!("\nwrote {}", path.display())?;
     }
     if let Some(path) = a.json {
         write_json(&path, &serde_json::json!({ "networks": networks, "cases": cases, "summary": rows }))?;
@@ -519,9 +519,9 @@ fn campaign(a: ExperimentArgs) -> anyhow::Result<()> {
     let provenance_line = cards
         .provenance(&a, &seeds, "the regulator's and the campaign memory's constants")?
         .replace("; seeds", "; campaigns: seeds");
-    println!("{provenance_line}");
+    outln!("{provenance_line}")?;
     let md = v2t_lab::campaign::markdown(&report);
-    print!("{md}");
+    out!("{md}")?;
     if a.report.is_some() {
         let mut body = v2t_lab::report::experiment::campaign_learning(&report);
         body.push_str(&v2t_lab::report::experiment::body(&md, &v2t_lab::report::experiment::from_campaign(&report)));
@@ -535,7 +535,7 @@ fn campaign(a: ExperimentArgs) -> anyhow::Result<()> {
             let text = v2t_lab::campaign::memory_json(memory)?;
             std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
         }
-        println!("\nwrote {} memory files under {}", memories.len(), dir.display());
+        outln!("\nwrote {} memory files under {}", memories.len(), dir.display())?;
     }
     if let Some(path) = a.json {
         write_json(&path, &report)?;
@@ -552,9 +552,9 @@ fn regulator_on_cards(a: ExperimentArgs) -> anyhow::Result<()> {
     let report =
         steer::steerability(&cards.settings, &cards.scenarios, &cards.targets, &vuts, seeds.clone(), reach_seed);
     let provenance_line = cards.provenance(&a, &seeds, "the regulator's settings")?;
-    println!("{provenance_line}");
+    outln!("{provenance_line}")?;
     let md = steer::steer_markdown(&report);
-    print!("{md}");
+    out!("{md}")?;
     write_report(
         &a,
         &[provenance_line],

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use v2t_files::shipped;
+use v2t_files::{outln, shipped};
 
 /// `export`'s commands.
 #[derive(Debug, clap::Subcommand)]
@@ -42,7 +42,7 @@ pub fn run(command: ExportCommand) -> anyhow::Result<()> {
     let done = v2t_export::file::export_xosc(&args)?;
     let s = &done.scenario;
     let bvs = s.agents.iter().filter(|a| a.role == v2t_model::grounded::AgentRole::Bv).count();
-    println!(
+    outln!(
         "{} `{}`: {} agents ({bvs} following trajectories), {:.1} s, τ {} s, {}; map {}",
         s.kind.describe(),
         s.name,
@@ -51,7 +51,7 @@ pub fn run(command: ExportCommand) -> anyhow::Result<()> {
         s.tau_s,
         s.style,
         done.map_path
-    );
-    println!("wrote {}", out.display());
+    )?;
+    outln!("wrote {}", out.display())?;
     Ok(())
 }

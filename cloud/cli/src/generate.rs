@@ -8,7 +8,7 @@ use serde::Serialize;
 use v2t_diffusion::generate::{GenerateOptions, PriorMetrics, Summary, best, generate, summarize};
 use v2t_diffusion::guidance::GuidanceWeights;
 use v2t_diffusion::sample::{GuidanceSchedule, Method, SamplerOptions};
-use v2t_files::shipped;
+use v2t_files::{out, outln, shipped};
 
 use crate::write_json;
 
@@ -184,7 +184,7 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
     let started = std::time::Instant::now();
     let (generated, redrawn) = generate(&model, &map, &scenario, &options)?;
     let summary = summarize(&generated, redrawn, started.elapsed().as_secs_f64());
-    print!("{REPORT_HEADER}{}", report(&summary, a.guidance));
+    out!("{REPORT_HEADER}{}", report(&summary, a.guidance))?;
     let none_meets = !generated.iter().any(|g| v2t_diffusion::generate::shortfalls(&g.metrics).is_empty());
     let writes_prior = a.out.is_some() || a.all.is_some();
     if let Some(path) = &a.json_metrics {
@@ -212,12 +212,12 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
         for (i, v) in generated.iter().enumerate() {
             write_prior(&dir.join(format!("variant-{i:03}.json")), &v.prior)?;
         }
-        println!("wrote {} variants to {}", generated.len(), dir.display());
+        outln!("wrote {} variants to {}", generated.len(), dir.display())?;
     }
     if let Some(path) = &a.out {
         let chosen = best(&generated).ok_or_else(|| anyhow::anyhow!("no variant generated"))?;
         write_prior(path, &chosen.prior)?;
-        println!("wrote {}", path.display());
+        outln!("wrote {}", path.display())?;
     }
     Ok(())
 }

@@ -7,6 +7,7 @@ use std::path::PathBuf;
 
 use anyhow::Context as _;
 use serde::Serialize;
+use v2t_files::out;
 use v2t_ground::{Candidate, Grounding};
 
 /// `ground`'s arguments.
@@ -39,10 +40,10 @@ pub fn run(a: GroundArgs) -> anyhow::Result<()> {
         eprintln!("warning: {}: {w}", a.map.display());
     }
     let ranking = v2t_ground::rank(&inspection.library, &sem);
-    print!("{}", ranking_report(&ranking, a.top));
+    out!("{}", ranking_report(&ranking, a.top))?;
     let grounding = v2t_ground::ground(&inspection.map, &inspection.library, &sem)
         .with_context(|| format!("grounding {} on {}", a.semantics.display(), a.map.display()))?;
-    print!("{}", report(&grounding));
+    out!("{}", report(&grounding))?;
     if let Some(path) = a.out {
         crate::write_json(&path, &grounding.scenario)?;
     }

@@ -6,6 +6,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::Context as _;
+use v2t_files::outln;
 use v2t_model::{Style, Target};
 use v2t_supervisor::link::{BvEvent, Connection, Signer};
 use v2t_supervisor::serve::ServeOptions;
@@ -92,12 +93,12 @@ impl OneShotArgs {
 fn verdict(bv: &str, answer: Option<BvEvent>) -> anyhow::Result<()> {
     match answer {
         Some(e) if e.verdict == "accepted" => {
-            println!("{bv}: accepted {}", e.detail);
+            outln!("{bv}: accepted {}", e.detail)?;
             Ok(())
         }
         Some(e) => Err(anyhow::anyhow!("{bv} refused it: {}", e.detail)),
         None => {
-            println!("sent");
+            outln!("sent")?;
             Ok(())
         }
     }
@@ -114,8 +115,8 @@ pub struct KeygenArgs {
 /// Makes the key pair and says where it went.
 pub fn keygen(a: KeygenArgs) -> anyhow::Result<()> {
     let vk = v2t_supervisor::link::keygen(&a.out)?;
-    println!("wrote {0}/cloud.key (secret, mode 600) and {0}/cloud.pub", a.out.display());
-    println!("public key {}: name cloud.pub as `cloud_key` in every BV's [uplink] section", key_to_hex(vk.as_bytes()));
+    outln!("wrote {0}/cloud.key (secret, mode 600) and {0}/cloud.pub", a.out.display())?;
+    outln!("public key {}: name cloud.pub as `cloud_key` in every BV's [uplink] section", key_to_hex(vk.as_bytes()))?;
     Ok(())
 }
 
@@ -196,7 +197,7 @@ pub struct UploadArgs {
 pub fn upload(a: UploadArgs) -> anyhow::Result<()> {
     let id = a.prior_id.unwrap_or_else(|| (v2t_supervisor::link::unix_ms() % 1_000_000_000).max(1));
     let up = v2t_supervisor::link::prior_from_file(&a.priors, a.agent.as_deref(), (a.tau, a.style), a.valid_s, id)?;
-    println!(
+    outln!(
         "prior {id}: {} agents, {:.1} s, τ {} s, {:?}, {} drives {}",
         up.prior.agents.len(),
         up.prior.duration_s(),
@@ -204,7 +205,7 @@ pub fn upload(a: UploadArgs) -> anyhow::Result<()> {
         up.prior.style,
         a.bv,
         up.bv_agent
-    );
+    )?;
     a.shot.send(&a.bv, CloudBody::Prior(up))
 }
 

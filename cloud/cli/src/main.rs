@@ -2,13 +2,15 @@
 //! work (grounding, generation, exports, supervision, the lab) and prints what they return; every
 //! command lives in its own module with its arguments.
 //!
-//! Exit codes: 0 the work is done; 1 the work failed (a server, a tool, a run that did not finish,
+//! Exit codes: 0 the work is done (or stdout's reader stopped reading, `| head`: the command ends
+//! quietly there, see [`v2t_files::stdout`]); 1 the work failed (a server, a tool, a run that did not finish,
 //! a replay that differs); 2 bad input or usage (a file that does not read, parse or validate, an
 //! option out of range), always with a message naming the file, the field and the bound.
 
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use v2t_files::outln;
 
 mod abstract_cmd;
 mod campaign;
@@ -189,6 +191,8 @@ fn bad_input(err: &anyhow::Error) -> bool {
 fn main() -> ExitCode {
     match execute(Cli::parse().command) {
         Ok(()) => ExitCode::SUCCESS,
+        // The reader of stdout went away (`| head`): nothing more to say, and nothing failed.
+        Err(err) if v2t_files::stdout::closed(err.as_ref()) => ExitCode::SUCCESS,
         Err(err) => {
             eprintln!("error: {}", v2t_files::error_chain(err.as_ref()));
             ExitCode::from(if bad_input(&err) { 2 } else { 1 })
@@ -201,7 +205,7 @@ pub(crate) fn write_json(path: &std::path::Path, value: &impl serde::Serialize) 
     use anyhow::Context as _;
     let text = serde_json::to_string_pretty(value).context("serializing")?;
     std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
-    println!("wrote {}", path.display());
+    outln!("wrote {}", path.display())?;
     Ok(())
 }
 

@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use serde::Serialize;
+use v2t_files::{out, outln};
 use v2t_map::Inspection;
 use v2t_map::library::{AnchorKind, FragmentKind, TopologyLibrary};
 
@@ -31,14 +32,14 @@ pub fn run(command: MapCommand) -> anyhow::Result<()> {
     use anyhow::Context as _;
     let MapCommand::Inspect { map, json: json_out, svg, annotations } = command;
     let inspection = v2t_map::inspect(&map, annotations.as_deref())?;
-    print!("{}", report(&map, &inspection));
+    out!("{}", report(&map, &inspection))?;
     if let Some(path) = json_out {
         crate::write_json(&path, &json(&map, &inspection))?;
     }
     if let Some(path) = svg {
         let text = v2t_map::svg::render(&inspection.map, &inspection.library);
         std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
-        println!("wrote {}", path.display());
+        outln!("wrote {}", path.display())?;
     }
     Ok(())
 }

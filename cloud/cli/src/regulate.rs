@@ -6,6 +6,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+use v2t_files::outln;
 use v2t_game::regulator::RegulatorParams;
 use v2t_lab::cloud_mqtt::{self, MqttCloudLink};
 use v2t_lab::controllers::{CloudRegulatedBv, CloudRegulator, RegulatedBv};
@@ -115,7 +116,7 @@ pub fn cloud_regulated_run(
     let bv = match (&c.network, &c.broker) {
         (Some(path), _) => {
             let network: v2t_sim::network::NetworkSettings = v2t_files::load_toml(path)?;
-            println!("BV 0 regulated in the cloud across the simulated network {} ({})", network.name, network.source);
+            outln!("BV 0 regulated in the cloud across the simulated network {} ({})", network.name, network.source)?;
             CloudRegulatedBv::new(params, scenario, 0, &network, seed)?
         }
         (None, Some(broker)) => {
@@ -130,10 +131,10 @@ pub fn cloud_regulated_run(
                 .ok_or_else(|| Usage(format!("{}: not a public key (64 hex digits)", key_path.display())))?;
             let s = settings(broker, format!("v2t-sim-{}-{}", c.bv_id, std::process::id()))?;
             let mqtt = cloud_mqtt::connect(&s, topics::bv(&c.fleet, &c.bv_id, topics::PLAN), Duration::from_secs(10))?;
-            println!(
+            outln!(
                 "BV 0 ({}) regulated by the cloud process through {broker}, in real time from Unix ms {start}",
                 c.bv_id
-            );
+            )?;
             let link = MqttCloudLink::new(mqtt, &c.fleet, &c.bv_id, start);
             CloudRegulatedBv::with_link(params, scenario, 0, Box::new(link), key, &c.fleet, &c.bv_id)?
         }
@@ -143,10 +144,15 @@ pub fn cloud_regulated_run(
     let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(bv)];
     let outcome = vut.run(scenario, &mut bvs, seed)?;
     let r = report.get();
-    println!(
+    outln!(
         "link: {} cycles, {} on the minimal-risk fallback; plans accepted {}, refused {}; lost up {}, down {}",
-        r.cycles, r.fallback_cycles, r.plans_accepted, r.plans_refused, r.up_lost, r.down_lost
-    );
+        r.cycles,
+        r.fallback_cycles,
+        r.plans_accepted,
+        r.plans_refused,
+        r.up_lost,
+        r.down_lost
+    )?;
     Ok(outcome)
 }
 
@@ -161,12 +167,17 @@ pub fn run(a: RegulateArgs) -> anyhow::Result<()> {
     let mut cloud = CloudRegulator::new(params, &scenario, 0, key, &a.fleet, &a.bv_id)?;
     let s = settings(&a.broker, format!("v2t-regulate-{}-{}", a.bv_id, std::process::id()))?;
     let mqtt = cloud_mqtt::connect(&s, topics::bv(&a.fleet, &a.bv_id, topics::TELEMETRY), Duration::from_secs(10))?;
-    println!(
+    outln!(
         "regulating {} of fleet {} ({}, {}) through {} from Unix ms {}",
-        a.bv_id, a.fleet, scenario.name, scenario.target, a.broker, a.start_unix_ms
-    );
+        a.bv_id,
+        a.fleet,
+        scenario.name,
+        scenario.target,
+        a.broker,
+        a.start_unix_ms
+    )?;
     let stats = cloud_mqtt::serve_regulator(&mut cloud, &scenario, &mqtt, &a.fleet, &a.bv_id, a.start_unix_ms);
     mqtt.disconnect();
-    println!("heard {} BV states, published {} plans ({} on stale states)", stats.states, stats.plans, stats.stale);
+    outln!("heard {} BV states, published {} plans ({} on stale states)", stats.states, stats.plans, stats.stale)?;
     Ok(())
 }

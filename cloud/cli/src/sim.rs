@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use v2t_files::{out, outln};
 use v2t_sim::recording;
 use v2t_sim::vut::VutModel;
 
@@ -124,11 +125,11 @@ pub fn run(a: SimArgs) -> anyhow::Result<()> {
     } else {
         (v2t_lab::sim::run_reference(&scenario, &vut, a.seed)?, None)
     };
-    print!("{}", v2t_lab::sim::report(&outcome, vut.world()));
+    out!("{}", v2t_lab::sim::report(&outcome, vut.world()))?;
     let realism = match &human {
         Some(h) => {
             let r = v2t_sim::realism::measure_run(&scenario, &outcome, h).map_err(|e| crate::Usage(e.to_string()))?;
-            print!("{}", v2t_lab::sim::realism_report(&r, h));
+            out!("{}", v2t_lab::sim::realism_report(&r, h))?;
             Some(r)
         }
         None => None,
@@ -136,7 +137,7 @@ pub fn run(a: SimArgs) -> anyhow::Result<()> {
     if let Some(path) = &a.mcap {
         let first = plans.as_ref().and_then(|p| p.first()).map_or(&[][..], Vec::as_slice);
         recording::write_with_plans(&outcome, first, path)?;
-        println!("wrote {}", path.display());
+        outln!("wrote {}", path.display())?;
     }
     #[derive(serde::Serialize)]
     struct Output<'a> {
@@ -163,7 +164,7 @@ pub fn run(a: SimArgs) -> anyhow::Result<()> {
             &[("run (JSON)", a.json.as_deref()), ("recording (MCAP)", a.mcap.as_deref())],
         );
         std::fs::write(path, page).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
-        println!("wrote {}", path.display());
+        outln!("wrote {}", path.display())?;
     }
     Ok(())
 }
@@ -184,7 +185,7 @@ fn regulated(
     };
     if let Some(m) = &memory {
         for i in 0..scenario.bvs.len() {
-            println!("campaign, BV {i} before the run: {}", line(m, i));
+            outln!("campaign, BV {i} before the run: {}", line(m, i))?;
         }
     }
     let run = campaign::regulated_run(&settings, scenario, vut, a.seed, memory.as_ref())?;
@@ -196,15 +197,15 @@ fn regulated(
                 b.pet_bound_s.map_or_else(String::new, |x| format!(", PET bound {x:.2} s"))
             )
         });
-        println!("BV {i} regulated, aiming at {:.2} s for τ {:.2} s{reach}", aim.tau_s(), scenario.target.tau_s());
+        outln!("BV {i} regulated, aiming at {:.2} s for τ {:.2} s{reach}", aim.tau_s(), scenario.target.tau_s())?;
     }
     if let (Some(m), Some(path)) = (memory.as_mut(), &a.campaign) {
         campaign::record_run(m, scenario, &run);
         crate::campaign::save(path, m)?;
         for i in 0..scenario.bvs.len() {
-            println!("campaign, BV {i} after the run: {}", line(m, i));
+            outln!("campaign, BV {i} after the run: {}", line(m, i))?;
         }
-        println!("wrote {}", path.display());
+        outln!("wrote {}", path.display())?;
     }
     Ok(run)
 }
@@ -222,11 +223,14 @@ pub struct ReplayArgs {
 /// Measures the recording again; an error when anything differs.
 pub fn replay(a: ReplayArgs) -> anyhow::Result<()> {
     let r = recording::replay(&a.recording).map_err(crate::BadFile::of)?;
-    print!("{}", recording::report(&a.recording, &r));
-    if let Some(path) = a.json {
-        write_json(&path, &r.recomputed)?;
-    }
-    if r.matches() { Ok(()) } else { anyhow::bail!("the recomputed metrics differ from the recorded ones") }
+    let printed =
+        out!("{}", recording::report(&a.recording, &r)).map_err(anyhow::Error::from).and_then(|()| match a.json {
+            Some(path) => write_json(&path, &r.recomputed),
+            None => Ok(()),
+        });
+    // Metrics that differ are the answer (exit 1) even when stdout's reader went away early.
+    anyhow::ensure!(r.matches(), "the recomputed metrics differ from the recorded ones");
+    printed
 }
 
 /// `render`'s arguments.
@@ -259,7 +263,7 @@ pub fn render(a: RenderArgs) -> anyhow::Result<()> {
     let scene = video::load_scene(&a.run, a.card.as_deref(), a.map.as_deref())?;
     let done = video::encode(&scene, &opts, &a.out, Path::new("ffmpeg"))?;
     let (t0, t1) = scene.time_span();
-    println!(
+    outln!(
         "{}: {} vehicles, {:.1} s  |  {} frames at {} fps, {}x{}, {}",
         scene.name,
         scene.vehicles.len(),
@@ -269,7 +273,7 @@ pub fn render(a: RenderArgs) -> anyhow::Result<()> {
         done.width,
         done.height,
         done.encoder
-    );
-    println!("wrote {}", a.out.display());
+    )?;
+    outln!("wrote {}", a.out.display())?;
     Ok(())
 }

@@ -10,6 +10,7 @@ use v2t_diffusion::recorded::{self, RecordedCorpus};
 use v2t_diffusion::synth::{SyntheticCorpus, from_jsonl, generate_corpus};
 use v2t_diffusion::train::{Dataset, TrainMetrics, TrainOptions, Trainer};
 use v2t_diffusion::weights;
+use v2t_files::{out, outln};
 
 use crate::Usage;
 
@@ -103,14 +104,14 @@ pub fn train(a: TrainCmd) -> anyhow::Result<()> {
         return Err(Usage(format!("--recorded-repeat {}: must lie in 1..=100", args.recorded_repeat)).into());
     }
     let done = run_training(&args)?;
-    println!(
+    outln!(
         "trained {} parameters in {:.0} s, held-out loss {:.4}; wrote {} and {}",
         done.parameters,
         done.elapsed_s,
         done.heldout_loss,
         done.weights.display(),
         done.metrics.display()
-    );
+    )?;
     Ok(())
 }
 
@@ -118,7 +119,7 @@ pub fn train(a: TrainCmd) -> anyhow::Result<()> {
 pub fn realism(a: RealismCmd) -> anyhow::Result<()> {
     let args = RealismArgs { weights: a.weights, corpus: a.corpus, windows: a.windows, seed: a.seed };
     let rows = realism_rows(&args)?;
-    print!("{}", realism_table(&rows));
+    out!("{}", realism_table(&rows))?;
     if let Some(path) = a.json {
         crate::write_json(&path, &rows)?;
     }

@@ -28,6 +28,7 @@ fn replaying_the_shipped_cassettes_writes_their_semantics_byte_for_byte() {
     for (name, video, pet, kind) in [
         ("cut_in", "cut_in_4.70.mp4", "4.70", "cut_in"),
         ("left_turn", "left_turn_2.90.mp4", "2.90", "unprotected_left_turn"),
+        ("left_turn_vut", "left_turn_vut_2.40.mp4", "2.40", "unprotected_left_turn"),
     ] {
         let out = dir.join(format!("{name}.json"));
         let cassette = format!("config/vlm/cassettes/{name}");

@@ -824,3 +824,71 @@ fn every_command_follows_one_exit_code_rule() {
     assert_eq!(o.status.code(), Some(1), "{}", text(&o).1);
     assert!(text(&o).1.contains("exists already"), "{}", text(&o).1);
 }
+
+/// `video2track … | head`: a reader that closes stdout before the command is done ends the command
+/// quietly with 0 (nothing failed and the input was fine), never with `println!`'s panic (101).
+#[test]
+fn a_closed_stdout_ends_a_command_quietly() {
+    use std::io::BufRead as _;
+    use std::process::{Command, Stdio};
+    let spawn = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_video2track"))
+            .args(args)
+            .current_dir(repo())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    let quiet = |args: &[&str], o: std::process::Output| {
+        let (_, err) = text(&o);
+        assert!(!err.contains("panicked") && !err.contains("Broken pipe"), "{args:?}: {err}");
+        assert_eq!(o.status.code(), Some(0), "{args:?}: {err}");
+    };
+    // Closed before the command has written anything: its first line meets the closed pipe.
+    let commands: [&[&str]; 4] = [
+        &["sim", "config/scenarios/cut_in_basic.toml"],
+        &["map", "inspect", "config/maps/proving_ground.xodr"],
+        &["ground", "config/examples/semantics_cut_in.json"],
+        &["--help"],
+    ];
+    for args in commands {
+        let mut child = spawn(args);
+        drop(child.stdout.take());
+        quiet(args, child.wait_with_output().unwrap());
+    }
+    // `| head -1`: one line read, then the reader goes; the run goes on writing its JSON and says
+    // so on the closed pipe.
+    let scratch = tempdir("closed-stdout");
+    let json = scratch.path().join("run.json");
+    let args = ["sim", "config/scenarios/cut_in_basic.toml", "--json", s(&json)];
+    let mut child = spawn(&args);
+    let mut first = String::new();
+    std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut first).unwrap();
+    assert!(!first.trim().is_empty(), "no first line");
+    quiet(&args, child.wait_with_output().unwrap());
+}
+
+/// `map inspect` on an OpenDRIVE file whose every road is refused names the file (exit 2).
+#[test]
+fn map_inspect_names_a_file_without_a_usable_road() {
+    let scratch = tempdir("no-road");
+    let map = scratch.path().join("every_road_refused.xodr");
+    std::fs::write(
+        &map,
+        r#"<?xml version="1.0"?><OpenDRIVE><header revMajor="1" revMinor="4" name="t"/>
+<road id="1" length="50" junction="-1">
+  <planView><geometry s="0" x="0" y="0" hdg="0" length="50"><spiral/></geometry></planView>
+  <lanes><laneSection s="0">
+    <center><lane id="0" type="none"/></center>
+    <right><lane id="-1" type="driving"><width sOffset="0" a="3.5" b="0" c="0" d="0"/></lane></right>
+  </laneSection></lanes>
+</road></OpenDRIVE>"#,
+    )
+    .unwrap();
+    let o = video2track(&["map", "inspect", s(&map)]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains(s(&map)) && err.contains("no usable road"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+}

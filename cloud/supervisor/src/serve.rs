@@ -382,11 +382,20 @@ pub struct ServeOptions {
     pub prior_valid_s: f64,
 }
 
+/// A console line on stdout, dropped when it cannot be written: a reader that went away (`| head`,
+/// a `tee` that died) must neither panic nor stop the supervisor the BVs rely on; `quit` and Ctrl-C
+/// still abort every BV.
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        let _ = v2t_files::outln!($($arg)*);
+    }};
+}
+
 /// Runs the supervisor until `quit`, Ctrl-C (`stop` set) or an error.
 pub fn serve(mut opts: ServeOptions, stop: &Arc<AtomicBool>) -> Result<(), LinkError> {
     if let Some(addr) = opts.embedded {
         start_embedded_broker(addr)?;
-        println!("serve: embedded broker listening on mqtt://{addr}");
+        say!("serve: embedded broker listening on mqtt://{addr}");
     }
     let fleet_id = opts.signer.fleet().to_owned();
     let subscribe = [topics::TELEMETRY, topics::HEARTBEAT, topics::EVENT]
@@ -412,13 +421,14 @@ pub fn serve(mut opts: ServeOptions, stop: &Arc<AtomicBool>) -> Result<(), LinkE
     let mut next_table = Instant::now() + opts.status_period;
     let mut next_prior_id = (unix_ms() % 1_000_000_000).max(1);
     let mut connected = false;
-    println!(
+    say!(
         "serve: fleet `{fleet_id}`, broker {}:{}; `help` lists the commands",
-        opts.connection.broker.host, opts.connection.broker.port
+        opts.connection.broker.host,
+        opts.connection.broker.port
     );
     loop {
         if stop.load(Ordering::SeqCst) {
-            println!("serve: interrupted: aborting every BV");
+            say!("serve: interrupted: aborting every BV");
             return abort_all_and_wait(&mqtt, &mut opts.signer, &mut fleet, &mut log);
         }
         if let Some(ev) = mqtt.wait(Duration::from_millis(20)) {
@@ -426,22 +436,22 @@ pub fn serve(mut opts: ServeOptions, stop: &Arc<AtomicBool>) -> Result<(), LinkE
             match ev {
                 LinkEvent::Connected => {
                     connected = true;
-                    println!("serve: connected to the broker");
+                    say!("serve: connected to the broker");
                 }
                 LinkEvent::Down(why) => {
                     if connected {
-                        println!("serve: broker lost: {why}; reconnecting");
+                        say!("serve: broker lost: {why}; reconnecting");
                     }
                     connected = false;
                 }
                 LinkEvent::Frame { topic, payload, arrived_ms } => {
                     match fleet.on_message(&topic, &payload, now, arrived_ms) {
-                        Ok(Change::Online(bv)) => println!("serve: {bv} online"),
+                        Ok(Change::Online(bv)) => say!("serve: {bv} online"),
                         // A summary of refused garbage says so itself ("N frames refused in 1.0 s: …").
-                        Ok(Change::Event(e)) if e.seq.is_none() => println!("serve: {}: {}", e.bv_id, e.detail),
-                        Ok(Change::Event(e)) => println!("serve: {} {} {}", e.bv_id, e.verdict, e.detail),
+                        Ok(Change::Event(e)) if e.seq.is_none() => say!("serve: {}: {}", e.bv_id, e.detail),
+                        Ok(Change::Event(e)) => say!("serve: {} {} {}", e.bv_id, e.verdict, e.detail),
                         Ok(Change::Quiet) => {}
-                        Err(why) => println!("serve: ignored a message: {why}"),
+                        Err(why) => say!("serve: ignored a message: {why}"),
                     }
                     if let Some(w) = log.as_mut() {
                         let _ = writeln!(w, "{}", log_line(&topic, &payload, arrived_ms));
@@ -453,15 +463,17 @@ pub fn serve(mut opts: ServeOptions, stop: &Arc<AtomicBool>) -> Result<(), LinkE
             match parse_console(&line) {
                 Ok(None) => {}
                 Ok(Some(ConsoleCommand::Quit)) => {
-                    println!("serve: quit: aborting every BV");
+                    say!("serve: quit: aborting every BV");
                     return abort_all_and_wait(&mqtt, &mut opts.signer, &mut fleet, &mut log);
                 }
-                Ok(Some(ConsoleCommand::Help)) => println!("{HELP}"),
-                Ok(Some(ConsoleCommand::Status)) => print!("{}", fleet.table(Instant::now())),
+                Ok(Some(ConsoleCommand::Help)) => say!("{HELP}"),
+                Ok(Some(ConsoleCommand::Status)) => {
+                    let _ = v2t_files::out!("{}", fleet.table(Instant::now()));
+                }
                 Ok(Some(ConsoleCommand::Send { bv, command })) => {
                     match send(&mqtt, &mut opts.signer, &bv, CloudBody::Command(command)) {
-                        Ok(seq) => println!("serve: sent {command:?} to {bv} (seq {seq})"),
-                        Err(e) => println!("serve: {e}"),
+                        Ok(seq) => say!("serve: sent {command:?} to {bv} (seq {seq})"),
+                        Err(e) => say!("serve: {e}"),
                     }
                 }
                 Ok(Some(ConsoleCommand::Upload { file, bv, tau_s, style, agent })) => {
@@ -478,17 +490,17 @@ pub fn serve(mut opts: ServeOptions, stop: &Arc<AtomicBool>) -> Result<(), LinkE
                             send(&mqtt, &mut opts.signer, &bv, CloudBody::Prior(up)).map(|seq| (text, seq))
                         });
                     match sent {
-                        Ok((text, seq)) => println!("serve: sent {text} to {bv} (seq {seq})"),
-                        Err(e) => println!("serve: upload refused here: {e}"),
+                        Ok((text, seq)) => say!("serve: sent {text} to {bv} (seq {seq})"),
+                        Err(e) => say!("serve: upload refused here: {e}"),
                     }
                 }
-                Err(why) => println!("serve: {why}"),
+                Err(why) => say!("serve: {why}"),
             }
         }
         if !opts.status_period.is_zero() && Instant::now() >= next_table {
             next_table += opts.status_period;
             if !fleet.bvs.is_empty() {
-                print!("{}", fleet.table(Instant::now()));
+                let _ = v2t_files::out!("{}", fleet.table(Instant::now()));
             }
         }
         let _ = std::io::stdout().flush();
@@ -528,7 +540,7 @@ fn abort_all_and_wait(
         if let Ok(Change::Event(e)) = fleet.on_message(&topic, &payload, Instant::now(), arrived_ms)
             && e.seq.is_some_and(|s| seqs.contains(&s))
         {
-            println!("serve: {} {} {}", e.bv_id, e.verdict, e.detail);
+            say!("serve: {} {} {}", e.bv_id, e.verdict, e.detail);
             waiting.retain(|b| *b != e.bv_id);
         }
     }
@@ -538,7 +550,7 @@ fn abort_all_and_wait(
     mqtt.disconnect();
     std::thread::sleep(Duration::from_millis(50));
     if waiting.is_empty() {
-        println!("serve: every BV confirmed the abort");
+        say!("serve: every BV confirmed the abort");
         Ok(())
     } else {
         Err(LinkError::Refused(format!("no abort confirmation from {} within 2 s", waiting.join(", "))))

@@ -13,7 +13,8 @@
 //! before the check, as the paper prescribes.
 //!
 //! Every exchange can be recorded into a cassette and replayed offline through the same code
-//! ([`cassette`]). `config/vlm/cassettes/` ships two hand-written ones for the paper's scenarios:
+//! ([`cassette`]). `config/vlm/cassettes/` ships three hand-written ones: the paper's cut-in and
+//! left turn, and the left turn with the VUT turning:
 //!
 //! ```
 //! use std::path::Path;

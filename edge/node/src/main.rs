@@ -18,6 +18,7 @@ use iceoryx2::prelude::ipc;
 use v2t_edge::NodeRole;
 use v2t_edge::config::{Loaded, Overrides, load_for_process};
 use v2t_edge::error::EdgeError;
+use v2t_files::{out, outln};
 use v2t_wire::SafetyAction;
 
 #[derive(Debug, Parser)]
@@ -113,10 +114,10 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             use v2t_edge::operator::{StopWait, stop_and_wait};
             match stop_and_wait::<ipc::Service>(&loaded(&common)?, std::time::Duration::from_secs_f64(wait_s))? {
                 StopWait::Stopped { after_s } => {
-                    println!("stopped: the BV stands, its gate stopped, {after_s:.1} s after the request")
+                    outln!("stopped: the BV stands, its gate stopped, {after_s:.1} s after the request")?
                 }
                 StopWait::NoRuntime => {
-                    println!("no BV state within 1 s: no runtime is running here, nothing to wait for")
+                    outln!("no BV state within 1 s: no runtime is running here, nothing to wait for")?
                 }
                 StopWait::TimedOut { speed_mps, gate } => anyhow::bail!(
                     "the BV still moves at {speed_mps:.2} m/s (gate {gate:?}) {wait_s} s after the minimal-risk stop was requested"
@@ -130,9 +131,13 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Cmd::Estop(c) => v2t_edge::operator::request::<ipc::Service>(&loaded(&c)?, SafetyAction::EStop)?,
         Cmd::Check(c) => {
             let report = v2t_edge::check::run(&c.config, overrides(&c), &v2t_edge::check::Machine::this_one());
-            print!("{report}");
-            // A failed check is bad input, like a configuration the runtime refuses (2).
-            return Ok(if report.failed() { ExitCode::from(2) } else { ExitCode::SUCCESS });
+            let printed = out!("{report}");
+            // A failed check is bad input, like a configuration the runtime refuses (2), even when
+            // stdout's reader went away before the report's end.
+            if report.failed() {
+                return Ok(ExitCode::from(2));
+            }
+            printed?;
         }
     }
     Ok(ExitCode::SUCCESS)
@@ -141,6 +146,8 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
 fn main() -> ExitCode {
     match run(Cli::parse()) {
         Ok(code) => code,
+        // stdout's reader went away (`| head`): nothing more to say, and nothing failed.
+        Err(e) if v2t_files::stdout::closed(e.as_ref()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("v2t-edge: {}", v2t_files::error_chain(e.as_ref()));
             // Bad configuration is bad input (2); anything else is a failure of the work (1).

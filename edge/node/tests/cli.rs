@@ -204,3 +204,26 @@ fn the_uplink_does_not_start_without_a_valid_cloud_key() {
         assert!(line(&report, "FAIL uplink.cloud_key:").contains("the uplink does not start without it"), "{report}");
     }
 }
+
+/// `v2t-edge check … | head`: a reader that closes stdout early changes nothing but the report it
+/// does not read: the exit code stays the check's (0 passed, 2 failed), never `println!`'s panic.
+#[test]
+fn check_on_a_closed_stdout_keeps_its_exit_code_without_a_panic() {
+    use std::process::Stdio;
+    let cfg = config_dir().join("edge/bv1.toml");
+    for more in [&[][..], &["--can-iface", "nonexistent0"]] {
+        let (code, report) = check(&cfg, more);
+        let mut child = Command::new(env!("CARGO_BIN_EXE_v2t-edge"))
+            .args(["check", "--config", cfg.to_str().unwrap()])
+            .args(more)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Closed before the report is written.
+        drop(child.stdout.take());
+        let o = child.wait_with_output().unwrap();
+        assert!(!stderr(&o).contains("panicked"), "{more:?}: {}", stderr(&o));
+        assert_eq!(o.status.code(), code, "{more:?}: {}\n(with stdout open: {report})", stderr(&o));
+    }
+}

@@ -22,6 +22,7 @@
 //! ```
 
 mod documents;
+pub mod stdout;
 
 /// An error and its causes as one line, `outer: cause: cause`, for a binary's last words: a cause
 /// whose text its parent already shows (an error that prints its source) is not repeated.

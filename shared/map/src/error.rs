@@ -42,6 +42,15 @@ pub enum MapError {
         /// The element name.
         kind: String,
     },
+    /// A file's text is not a usable map (what [`Map::load`](crate::Map::load) says of a file that
+    /// reads but does not parse): the file, then why.
+    #[error("{path}: {error}")]
+    File {
+        /// The file.
+        path: String,
+        /// Why (not a cause of its own: the message shows it).
+        error: Box<MapError>,
+    },
     /// Annotations that do not fit the map.
     #[error("annotations {path}: {message}")]
     Annotations {

@@ -112,11 +112,12 @@ impl Map {
         }
     }
 
-    /// Reads and parses an `.xodr` file.
+    /// Reads and parses an `.xodr` file; every error names the file.
     pub fn load(path: &Path) -> Result<Self, MapError> {
         let xml = std::fs::read_to_string(path)
             .map_err(|source| MapError::Io { path: path.display().to_string(), source })?;
         let stem = path.file_stem().map_or_else(|| "map".to_owned(), |s| s.to_string_lossy().into_owned());
         Self::parse(&xml, &stem)
+            .map_err(|error| MapError::File { path: path.display().to_string(), error: Box::new(error) })
     }
 }

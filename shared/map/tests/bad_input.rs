@@ -137,6 +137,21 @@ fn a_map_without_a_usable_road_is_an_error() {
     assert!(e.to_string().contains("no usable road"), "{e}");
 }
 
+#[test]
+fn a_file_that_does_not_parse_is_named_in_the_error() {
+    let dir = std::env::temp_dir().join(format!("v2t-map-bad-input-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("every_road_refused.xodr");
+    std::fs::write(&path, doc(&[road("1", 0.0, "", "<spiral/>", "3.5")])).unwrap();
+    let e = Map::load(&path).unwrap_err().to_string();
+    std::fs::write(&path, "<OpenDRIVE>").unwrap();
+    let xml = Map::load(&path).unwrap_err().to_string();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let shown = path.display().to_string();
+    assert!(e.starts_with(&shown) && e.contains("no usable road"), "{e}");
+    assert!(xml.starts_with(&shown) && xml.contains("not OpenDRIVE XML"), "{xml}");
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
 

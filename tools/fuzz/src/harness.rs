@@ -151,7 +151,8 @@ impl Watchdog {
                 if started != 0 && now_ms().saturating_sub(started) > timeout.as_millis() as u64 {
                     let (label, path) = watched.current.lock().map(|c| c.clone()).unwrap_or_default();
                     let kept = keep(&findings, &label, &path);
-                    println!(
+                    // Dropped when stdout's reader went away: the exit code says it.
+                    let _ = v2t_files::outln!(
                         "HANG: {label} ran past {} s; the input is kept as {}",
                         timeout.as_secs_f64(),
                         kept.display()

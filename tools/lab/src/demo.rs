@@ -14,6 +14,7 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 use serde_json::Value;
+use v2t_files::outln;
 use v2t_vlm::{Mode, VlmConfig, VlmError};
 
 mod report;
@@ -102,6 +103,9 @@ pub enum DemoError {
     /// A binary of the onboard runtime or the lab is missing.
     #[error("{0} is not built: run `cargo build --release` first")]
     NotBuilt(PathBuf),
+    /// The progress lines could not be written (stdout's reader went away: `| head`).
+    #[error("printing the demo's progress")]
+    Stdout(#[from] v2t_files::stdout::StdoutError),
 }
 
 /// How the demo runs.
@@ -197,7 +201,7 @@ pub fn run(opts: &DemoOptions) -> Result<Summary, DemoError> {
     let mut scenarios = Vec::new();
     let mut runs = Vec::new();
     for (i, sc) in SCENARIOS.iter().enumerate() {
-        println!("[{}/{}] {}", i + 1, SCENARIOS.len(), sc.name);
+        outln!("[{}/{}] {}", i + 1, SCENARIOS.len(), sc.name)?;
         let (summary, run, grounded) = run_one(opts, sc, &inspection, &model)?;
         scenarios.push(summary);
         runs.push((run, grounded));
@@ -236,14 +240,14 @@ fn run_one(
     let sem = sc.replayed_semantics().map_err(|e| fail("abstract")(e.to_string()))?;
     save("semantics.json", pretty(&sem))?;
     let interaction = sem.interacting_bvs.first().map_or("?", |b| b.interaction_type.as_str());
-    println!("  semantics   {interaction}, PET label {:.2} s (replayed cassette)", sem.pet_label_s);
+    outln!("  semantics   {interaction}, PET label {:.2} s (replayed cassette)", sem.pet_label_s)?;
 
     // Grounding on the proving ground.
     let g =
         v2t_ground::ground(&inspection.map, &inspection.library, &sem).map_err(|e| fail("ground")(e.to_string()))?;
     let grounded = g.scenario;
     save("grounded.json", pretty(&grounded))?;
-    println!("  grounded    on {} (τ {:.2} s, {:?})", grounded.fragment_id, grounded.tau_s, grounded.style);
+    outln!("  grounded    on {} (τ {:.2} s, {:?})", grounded.fragment_id, grounded.tau_s, grounded.style)?;
 
     // The prior.
     let gen_options =
@@ -257,13 +261,13 @@ fn run_one(
     let prior = chosen.prior.clone();
     save("prior.json", pretty(&prior))?;
     save("prior_metrics.json", pretty(&gen_summary))?;
-    println!(
+    outln!(
         "  prior       {} variants in {:.2} s, median anchor error {:.2} m, {:.1} s",
         gen_summary.variants,
         gen_summary.sampling_s,
         gen_summary.median_anchor_error_m,
         prior.duration_s()
-    );
+    )?;
 
     // OpenSCENARIO.
     v2t_export::file::export_xosc(&v2t_export::file::XoscArgs {
@@ -289,14 +293,14 @@ fn run_one(
     let opts_video = v2t_export::video::RenderOptions { fps: 10, width: 640 };
     match scene.and_then(|scene| v2t_export::video::encode(&scene, &opts_video, &video, Path::new("ffmpeg"))) {
         Ok(_) => files.push(video.display().to_string()),
-        Err(e) => println!("  video       not rendered: {e}"),
+        Err(e) => outln!("  video       not rendered: {e}")?,
     }
     let text = std::fs::read_to_string(&run_json).map_err(|e| fail("closed loop")(e.to_string()))?;
     let run: Value = serde_json::from_str(&text).map_err(|e| fail("closed loop")(e.to_string()))?;
     let r = at(&run, "/result");
     let pet = at(r, "/pet_min_s").as_f64();
     let fidelity = pet.map(|p| (p - sc.pet_label_s).abs() / sc.pet_label_s);
-    println!(
+    outln!(
         "  closed loop PET_min {} (video {:.2} s, error {}), order {}, collision {}",
         pet.map_or_else(|| "none".into(), |p| format!("{p:.2} s")),
         sc.pet_label_s,
@@ -307,19 +311,18 @@ fn run_one(
             "NOT as the style asks"
         },
         if at(r, "/collision").is_null() { "none" } else { "YES" }
-    );
+    )?;
     let bv_realism = run.pointer("/realism/vehicles/1").cloned().filter(|v| !v.is_null());
     if let Some(v) = &bv_realism {
         match v.pointer("/realism/w1_accel_mps2").and_then(Value::as_f64) {
-            Some(a) => println!(
+            Some(a) => outln!(
                 "  BV realism ({}): W₁ accel {a:.3} m/s², W₁ jerk {:.3} m/s³ against recorded human driving",
                 at(v, "/class").as_str().unwrap_or("?"),
                 at(v, "/realism/w1_jerk_mps3").as_f64().unwrap_or(f64::NAN)
-            ),
-            None => println!(
-                "  BV realism ({}): no human reference for this class",
-                at(v, "/class").as_str().unwrap_or("?")
-            ),
+            )?,
+            None => {
+                outln!("  BV realism ({}): no human reference for this class", at(v, "/class").as_str().unwrap_or("?"))?
+            }
         }
     }
     let summary = ScenarioSummary {

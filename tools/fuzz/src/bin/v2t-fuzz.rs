@@ -55,7 +55,10 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     if cli.list {
         for k in KINDS {
-            println!("{:16} {}", k.name, k.what);
+            // A reader that went away (`| head`) has what it wanted.
+            if v2t_files::outln!("{:16} {}", k.name, k.what).is_err() {
+                break;
+            }
         }
         return ExitCode::SUCCESS;
     }
@@ -82,10 +85,16 @@ fn main() -> ExitCode {
         regressions: Some(cli.regressions.unwrap_or_else(|| cli.repo.join("tests/fuzz/regressions"))),
         findings: cli.findings,
     };
-    let result = Context::new(&cli.repo, &cli.work).and_then(|ctx| run(&ctx, &plan, |line| println!("{line}")));
+    // Lines stdout cannot take (its reader went away: `| head`) are dropped, never a panic: the
+    // run goes on to its verdict, the exit code.
+    let result = Context::new(&cli.repo, &cli.work).and_then(|ctx| {
+        run(&ctx, &plan, |line| {
+            let _ = v2t_files::outln!("{line}");
+        })
+    });
     match result {
         Ok(report) => {
-            print!("\n{}", report.table());
+            let _ = v2t_files::out!("\n{}", report.table());
             if let Some(path) = &cli.json
                 && let Err(e) = serde_json::to_string_pretty(&report)
                     .map_err(anyhow::Error::from)

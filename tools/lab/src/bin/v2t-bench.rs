@@ -12,44 +12,21 @@
 //! Both run release builds on this machine; their figures go into `docs/BENCHMARKS.md` with the
 //! command. They are never timed assertions in tests.
 
-use std::alloc::{GlobalAlloc, Layout, System};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use anyhow::Context as _;
 use clap::{Parser, Subcommand};
 use v2t_edge::config::{Overrides, load_for_process};
+use v2t_files::{out, outln};
 
 /// Counts heap allocations, so that `game` can report allocations per decision (this binary only:
 /// the onboard runtime uses the system allocator untouched).
-struct Counting;
-static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
-
-// SAFETY: forwards every call to the system allocator unchanged and only counts.
-#[allow(unsafe_code)]
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(p, l, n) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: v2t_test_support::alloc::Counting = v2t_test_support::alloc::Counting;
 
 fn allocations() -> u64 {
-    ALLOCATIONS.load(Ordering::Relaxed)
+    v2t_test_support::alloc::total()
 }
 
 /// Video2Track benches of the onboard runtime and the regulator.
@@ -129,7 +106,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let opts = LatencyOptions { scenario: &scenario, min_samples, load: &load };
             let report = latency(&cfg, programs, &opts)?;
             drop(load);
-            println!("{}", report.table());
+            outln!("{}", report.table())?;
             if let Some(path) = json {
                 write_json(&path, &report)?;
             }
@@ -137,13 +114,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Bench::Spin { parent } => v2t_lab::bench_latency::spin(parent),
         Bench::Netdelay { listen, upstream, delay_ms } => {
             let listener = std::net::TcpListener::bind(listen).with_context(|| format!("cannot listen on {listen}"))?;
-            println!("netdelay: {listen} -> {upstream}, {delay_ms} ms each way");
+            outln!("netdelay: {listen} -> {upstream}, {delay_ms} ms each way")?;
             let delay = std::time::Duration::from_millis(delay_ms);
             v2t_lab::netdelay::serve(&listener, upstream, delay, delay)?;
         }
         Bench::Game { json } => {
             let figures = v2t_lab::bench_game::run_bench(allocations).map_err(|e| anyhow::anyhow!("{e}"))?;
-            print!("{}", v2t_lab::bench_game::table(&figures));
+            out!("{}", v2t_lab::bench_game::table(&figures))?;
             if let Some(path) = json {
                 write_json(&path, &figures)?;
             }
@@ -155,6 +132,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
 fn main() -> ExitCode {
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
+        // stdout's reader went away (`| head`): nothing more to say, and nothing failed.
+        Err(e) if v2t_files::stdout::closed(e.as_ref()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("v2t-bench: {}", v2t_files::error_chain(e.as_ref()));
             // A configuration or scenario file at fault is bad input (2); the rest failed work (1).

@@ -15,6 +15,7 @@ use anyhow::Context as _;
 use clap::Parser;
 use iceoryx2::prelude::ipc;
 use v2t_edge::config::{Overrides, load_for_process};
+use v2t_files::{out, outln};
 use v2t_lab::ecu::{EcuError, EcuOptions, EcuSource};
 use v2t_model::Style;
 use v2t_sim::vut::VutModel;
@@ -100,9 +101,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     let report_map = cli.map.clone();
     let map = match &cli.report {
         Some(_) => Some(v2t_map::Map::load(&report_map).map_err(|e| {
+            // The origin names the file; the map's error names it too.
+            let message = match e {
+                v2t_map::MapError::File { error, .. } => error.to_string(),
+                e => e.to_string(),
+            };
             EcuError::Input(v2t_files::InputError::Config(v2t_files::ConfigError::Parse {
                 origin: report_map.display().to_string(),
-                message: e.to_string(),
+                message,
             }))
         })?),
         _ => None,
@@ -147,7 +153,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     let v2t_lab::ecu::EcuRun { outcome, stats, plans, gate, realism } = v2t_lab::ecu::run::<ipc::Service>(&cfg, &opts)?;
     let r = &outcome.result;
     let pet = r.pet_min_s.map_or_else(|| "none".to_owned(), |p| format!("{p:.2} s"));
-    println!(
+    outln!(
         "{}: VUT {}, PET_min {pet} (τ {:.2} s, {}), completed {}, collision {}, frames ok {} rejected {}, ECU timeout steps {}, late steps {} ({})",
         r.scenario,
         r.vut_model,
@@ -160,9 +166,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         stats.timeout_steps,
         stats.late_steps,
         world.place()
-    );
+    )?;
     if let (Some(r), Some(h)) = (&realism, &opts.human) {
-        print!("{}", v2t_lab::sim::realism_report(r, h));
+        out!("{}", v2t_lab::sim::realism_report(r, h))?;
     }
     if let Some(path) = &cli.mcap {
         v2t_sim::recording::write_with_plans(&outcome, &plans, path)?;
@@ -198,6 +204,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
 fn main() -> ExitCode {
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
+        // stdout's reader went away (`| head`): nothing more to say, and nothing failed.
+        Err(e) if v2t_files::stdout::closed(e.as_ref()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("v2t-sim-ecu: {}", v2t_files::error_chain(e.as_ref()));
             let bad_input = e.chain().any(|c| c.downcast_ref::<EcuError>().is_some_and(EcuError::is_input));
