@@ -220,10 +220,35 @@ impl RealismStats {
 }
 
 impl RunStats {
-    /// The steering error `|meanPET^min − τ| / τ`; `None` without a measured PET.
+    /// The steering error of the mean, `|meanPET^min − τ| / τ`; `None` without a measured PET.
+    /// Overshoot and undershoot of single runs cancel in it: see [`Self::single_runs`].
     pub fn error_rel(&self, tau_s: f64) -> Option<f64> {
         self.mean_pet_min_s.map(|m| (m - tau_s).abs() / tau_s)
     }
+
+    /// Every run scored on its own against τ: the mean of `|PET^min − τ| / τ` over the runs and
+    /// the share of runs within ±10 % of τ (a run without a measured PET, or that failed, counts
+    /// as error 1 and outside; a failed run counts among the unmeasured). `None` without a run.
+    pub fn single_runs(&self, tau_s: f64) -> Option<SingleRuns> {
+        let runs = self.repeats.max(self.pets_s.len());
+        (runs > 0).then(|| {
+            let errs = self.pets_s.iter().map(|p| (p - tau_s).abs() / tau_s);
+            let missing = (runs - self.pets_s.len()) as f64;
+            SingleRuns {
+                mean_error_rel: (errs.clone().sum::<f64>() + missing) / runs as f64,
+                within_10_frac: errs.filter(|e| *e <= 0.10).count() as f64 / runs as f64,
+            }
+        })
+    }
+}
+
+/// Runs scored one by one against τ.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SingleRuns {
+    /// Mean of the single runs' `|PET − τ| / τ` (no PET: 1).
+    pub mean_error_rel: f64,
+    /// Share of the runs within ±10 % of τ.
+    pub within_10_frac: f64,
 }
 
 #[cfg(test)]
@@ -231,6 +256,23 @@ mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
     use v2t_model::Style;
+
+    #[test]
+    fn single_runs_are_scored_one_by_one_and_do_not_cancel() {
+        let mut t = Tally::default();
+        for pet in [1.6, 2.4, 2.1] {
+            t.add(&run(Some(pet), false, true));
+        }
+        t.add(&run(None, false, true));
+        t.add_failed();
+        let s = t.stats();
+        // The mean of the three PETs is τ within 1.7 %: overshoot and undershoot cancel.
+        assert!(s.error_rel(2.0).unwrap() < 0.02);
+        let single = s.single_runs(2.0).unwrap();
+        assert!((single.mean_error_rel - (0.2 + 0.2 + 0.05 + 1.0 + 1.0) / 5.0).abs() < 1e-12);
+        assert!((single.within_10_frac - 0.2).abs() < 1e-12);
+        assert!(Tally::default().stats().single_runs(2.0).is_none());
+    }
 
     fn run(pet: Option<f64>, collision: bool, order_ok: bool) -> RunResult {
         RunResult {

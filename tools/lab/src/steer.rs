@@ -14,7 +14,7 @@ use v2t_sim::scenario::Scenario;
 
 use crate::controllers::RegulatedBv;
 use crate::reach::{Reach, reach};
-use crate::stats::{RunStats, Tally};
+use crate::stats::{RunStats, SingleRuns, Tally};
 use crate::vut::{Vut, World};
 
 /// Targets τ of the steerability experiment, s.
@@ -43,6 +43,8 @@ pub struct SteerCase {
     pub stats: RunStats,
     /// `|meanPET^min − τ| / τ`.
     pub error_rel: Option<f64>,
+    /// Every run scored on its own against τ.
+    pub single: Option<SingleRuns>,
     /// Whether some BV lands within ±10 % of τ in the asked order against this VUT: an open-loop
     /// profile of [`crate::reach`]'s grid did, or these regulated runs did on average (safely, in
     /// the asked order: they are a BV too). `None` when the grid was not run.
@@ -77,6 +79,9 @@ pub struct VutErrors {
     pub all: (f64, f64),
     /// Cases whose τ some BV reached, and the mean and largest error over them (when measured).
     pub reachable: Option<(usize, f64, f64)>,
+    /// Single runs of its cases (of the reachable ones when reach was measured): the mean of their
+    /// errors and the share within ±10 % of τ.
+    pub single_runs: SingleRuns,
 }
 
 impl SteerCase {
@@ -97,6 +102,25 @@ fn mean_max<'a>(cases: impl Iterator<Item = &'a SteerCase>) -> (f64, f64) {
     let errs: Vec<f64> = cases.map(|c| c.error_rel.unwrap_or(1.0)).collect();
     let mean = if errs.is_empty() { 0.0 } else { errs.iter().sum::<f64>() / errs.len() as f64 };
     (mean, errs.iter().copied().fold(0.0, f64::max))
+}
+
+/// The single runs of `cases` pooled (each case weighted by its runs): mean error and share within
+/// ±10 % of τ.
+fn single_runs<'a>(cases: impl Iterator<Item = &'a SteerCase>) -> SingleRuns {
+    let (mut runs, mut err, mut within) = (0.0, 0.0, 0.0);
+    for c in cases {
+        if let Some(s) = c.single {
+            let n = c.stats.repeats.max(c.stats.pets_s.len()) as f64;
+            runs += n;
+            err += s.mean_error_rel * n;
+            within += s.within_10_frac * n;
+        }
+    }
+    if runs > 0.0 {
+        SingleRuns { mean_error_rel: err / runs, within_10_frac: within / runs }
+    } else {
+        SingleRuns { mean_error_rel: 0.0, within_10_frac: 0.0 }
+    }
 }
 
 /// One case: one run per seed, every BV regulated by `settings` (with the
@@ -135,6 +159,7 @@ pub fn steer_case(
         world: vut.world(),
         tau_s: target.tau_s(),
         error_rel: stats.error_rel(target.tau_s()),
+        single: stats.single_runs(target.tau_s()),
         stats,
         reachable: None,
     }
@@ -199,6 +224,7 @@ pub fn steerability(
                     let (mean, max) = mean_max(mine().filter(|c| c.reachable == Some(true)));
                     (mine().filter(|c| c.reachable == Some(true)).count(), mean, max)
                 }),
+                single_runs: single_runs(mine().filter(|c| reach_seed.is_none() || c.reachable == Some(true))),
             }
         })
         .collect();
@@ -208,7 +234,7 @@ pub fn steerability(
 /// A markdown table of the report.
 pub fn steer_markdown(r: &SteerReport) -> String {
     let mut out = String::from(
-        "| scenario | style | VUT | τ (s) | mean PET_min (s) | PET^min_track (s) | error | collisions | overlaps | order ok | no PET | τ reachable |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| scenario | style | VUT | τ (s) | mean PET_min (s) | PET^min_track (s) | error of the mean | single-run error | single runs within 10 % | collisions | overlaps | order ok | no PET | τ reachable |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let f = |x: Option<f64>| x.map_or_else(|| "—".to_owned(), |v| format!("{v:.2}"));
     for c in &r.cases {
@@ -218,7 +244,7 @@ pub fn steer_markdown(r: &SteerReport) -> String {
             None => "not measured",
         };
         out.push_str(&format!(
-            "| {} | {} | {} | {:.1} | {} | {} | {} | {} | {} | {:.2} | {} | {reachable} |\n",
+            "| {} | {} | {} | {:.1} | {} | {} | {} | {} | {} | {} | {} | {:.2} | {} | {reachable} |\n",
             c.scenario,
             c.style,
             c.vut,
@@ -226,6 +252,8 @@ pub fn steer_markdown(r: &SteerReport) -> String {
             f(c.stats.mean_pet_min_s),
             f(c.stats.pet_min_track_s),
             c.error_rel.map_or_else(|| "—".to_owned(), |e| format!("{:.1} %", 100.0 * e)),
+            c.single.map_or_else(|| "—".to_owned(), |s| format!("{:.1} %", 100.0 * s.mean_error_rel)),
+            c.single.map_or_else(|| "—".to_owned(), |s| format!("{:.0} %", 100.0 * s.within_10_frac)),
             c.stats.collisions,
             c.stats.zone_overlaps,
             c.stats.order_ok_frac,
@@ -252,18 +280,20 @@ pub fn steer_markdown(r: &SteerReport) -> String {
             r.cases.len() - n
         ));
     }
-    out.push_str("\nPer VUT (each case's mean PET over that VUT's runs only; never pooled across VUTs):\n\n| VUT | cases | mean error | max error | cases τ reachable | mean error, reachable | max error, reachable |\n|---|---|---|---|---|---|---|\n");
+    out.push_str("\nPer VUT (each case's mean PET over that VUT's runs only; never pooled across VUTs; single runs: every run scored on its own, over the reachable cases when reach was measured):\n\n| VUT | cases | mean error | max error | cases τ reachable | mean error, reachable | max error, reachable | single-run mean error | single runs within 10 % |\n|---|---|---|---|---|---|---|---|---|\n");
     for v in &r.per_vut {
         let (n, mean, max) = v.reachable.map_or_else(
             || ("not measured".to_owned(), "—".to_owned(), "—".to_owned()),
             |(n, mean, max)| (n.to_string(), format!("{:.1} %", 100.0 * mean), format!("{:.1} %", 100.0 * max)),
         );
         out.push_str(&format!(
-            "| {} | {} | {:.1} % | {:.1} % | {n} | {mean} | {max} |\n",
+            "| {} | {} | {:.1} % | {:.1} % | {n} | {mean} | {max} | {:.1} % | {:.0} % |\n",
             v.vut,
             v.cases,
             100.0 * v.all.0,
-            100.0 * v.all.1
+            100.0 * v.all.1,
+            100.0 * v.single_runs.mean_error_rel,
+            100.0 * v.single_runs.within_10_frac
         ));
     }
     if let Some(worst) = r.per_vut.iter().map(|v| v.reachable.map_or(v.all.0, |x| x.1)).reduce(f64::max) {
