@@ -336,8 +336,12 @@ fn tradeoff(a: ExperimentArgs) -> anyhow::Result<()> {
         let cases = v2t_lab::report::experiment::from_tradeoff(&report);
         let mut body = v2t_lab::report::experiment::body(&md, &cases);
         for rec in &scenarios {
-            if let Some(svg) = tradeoff::svg(&report, &rec.name) {
-                body.push_str(&format!("<h2>Trade-off front, {}</h2>{svg}", v2t_lab::report::esc(&rec.name)));
+            if let Some(figure) = tradeoff::figure(&report, &rec.name) {
+                body.push_str(&format!(
+                    "<h2>Trade-off front, {}</h2>{}",
+                    v2t_lab::report::esc(&rec.name),
+                    figure.svg()
+                ));
             }
         }
         write_report(&a, std::slice::from_ref(&report.provenance), &body)?;
@@ -436,7 +440,7 @@ fn latency(a: ExperimentArgs) -> anyhow::Result<()> {
     let mut body = v2t_lab::report::experiment::body(&md, &v2t_lab::report::experiment::from_latency(&cases));
     body.push_str(&format!(
         "<h2>Steering error against the delay</h2>{}",
-        v2t_lab::latency::svg(&rows, &networks, &seeds)
+        v2t_lab::latency::figure(&rows, &networks, &seeds).svg()
     ));
     write_report(&a, &[format!("{}; networks simulated", provenance(model, human, &seeds))], &body)?;
     if let Some(path) = &a.svg {

@@ -276,7 +276,10 @@ fn the_realism_tradeoff_sweeps_the_weight_and_draws_the_front() {
     // human driving to be measured against; the BV turning left has none.
     for name in ["cut_in", "left_turn_vut"] {
         let svg = std::fs::read_to_string(dir.join(format!("tradeoff_{name}.svg"))).unwrap();
-        assert!(svg.starts_with("<svg") && svg.matches("<polyline").count() == 4, "{name}: 2 panels × 2 methods");
+        assert!(
+            svg.starts_with("<svg") && svg.matches("class=\"series\"").count() == 6,
+            "{name}: 2 panels × (2 methods and Diffusion-only)"
+        );
     }
     assert!(!dir.join("tradeoff_left_turn.svg").exists(), "no human left turns: no front to draw");
 }
@@ -421,7 +424,7 @@ fn the_latency_experiment_compares_onboard_and_cloud_per_network() {
     assert_eq!(doc["summary"].as_array().unwrap().len(), 14);
     assert_eq!(doc["networks"].as_array().unwrap().len(), 13);
     let plot = std::fs::read_to_string(&svg).unwrap();
-    assert_eq!(plot.matches("<polyline").count(), 3, "onboard, cloud without and with loss: {plot}");
+    assert_eq!(plot.matches("class=\"series\"").count(), 3, "onboard, cloud without and with loss: {plot}");
 }
 
 /// One run with the regulator in the cloud across a simulated network, and a network file out of

@@ -26,6 +26,7 @@ use v2t_sim::vut::VutModel;
 
 use crate::controllers::{CloudRegulatedBv, RegulatedBv};
 use crate::methods::{MethodsError, PaperScenario, Setup, priors, scenario_of_prior};
+use crate::report::plot::{Figure, LinePlot, Marker, Series, colour};
 use crate::stats::{RunStats, Tally};
 
 /// The sweep's one-way delays, ms.
@@ -308,114 +309,81 @@ pub fn markdown(rows: &[LatencyRow], cases: &[LatencyCase], networks: &[NetworkS
     out
 }
 
-/// The steering error against the one-way delay as an SVG: one panel per VUT model; onboard
-/// (one value, every delay), cloud without loss and cloud with loss.
-pub fn svg(rows: &[LatencyRow], networks: &[NetworkSettings], seeds: &RangeInclusive<u64>) -> String {
+/// The steering error against the one-way delay: one plot per VUT model; onboard (one value,
+/// every delay), cloud without loss and cloud with loss.
+pub fn figure(rows: &[LatencyRow], networks: &[NetworkSettings], seeds: &RangeInclusive<u64>) -> Figure {
     let mut vuts: Vec<&str> = rows.iter().map(|r| r.vut.as_str()).collect();
     vuts.dedup();
-    let (w, h, pad) = (300.0, 240.0, 48.0);
     let x_max = DELAYS_MS.iter().copied().fold(0.0, f64::max).max(1.0);
-    // Ticks every 1, 2, 5, 10, … % (four or five of them), the axis up to the next tick.
-    let top = rows.iter().map(|r| 100.0 * r.mean_error_rel).fold(0.0, f64::max).max(1.0);
+    // Up to the next of 1, 2, 5, 10, … % that leaves four or five steps, with room for the legend.
+    let top = 1.15 * rows.iter().map(|r| 100.0 * r.mean_error_rel).fold(0.0, f64::max).max(1.0);
     let step = [1.0, 2.0, 5.0, 10.0, 20.0, 50.0].into_iter().find(|s| top / s <= 5.0).unwrap_or(100.0);
-    let ticks = (top / step).ceil().max(1.0);
-    let y_max = step * ticks;
-    let mut out = format!(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{:.0}\" height=\"{:.0}\" font-family=\"sans-serif\" font-size=\"11\">\n<text x=\"8\" y=\"16\" font-size=\"13\">Mean steering error against the one-way network delay, per VUT model: the regulator onboard and in the cloud (simulated proving ground and network; seeds {}–{})</text>\n",
-        w * vuts.len() as f64,
-        h + 60.0,
-        seeds.start(),
-        seeds.end()
-    );
-    let series: [(&str, &str, Option<f64>); 3] = [
-        ("onboard", "#1f77b4", None),
-        ("cloud, no loss", "#d62728", Some(0.0)),
-        ("cloud, 5 % loss", "#ff7f0e", Some(0.05)),
-    ];
-    for (i, vut) in vuts.iter().enumerate() {
-        let x0 = i as f64 * w;
-        let sx = |d: f64| x0 + pad + (w - 1.4 * pad) * d / x_max;
-        let sy = |e: f64| 30.0 + (h - pad) * (1.0 - e / y_max);
-        out.push_str(&format!(
-            "<rect x=\"{:.1}\" y=\"30\" width=\"{:.1}\" height=\"{:.1}\" fill=\"none\" stroke=\"#999\"/>\n<text x=\"{:.1}\" y=\"44\" text-anchor=\"middle\">{}</text>\n",
-            x0 + pad,
-            w - 1.4 * pad,
-            h - pad,
-            x0 + pad + (w - 1.4 * pad) / 2.0,
-            crate::report::esc(vut)
-        ));
-        for d in DELAYS_MS {
-            out.push_str(&format!(
-                "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{d:.0}</text>\n",
-                sx(d),
-                h - pad + 44.0
-            ));
-        }
-        for k in 0..=ticks as u32 {
-            let e = step * f64::from(k);
-            out.push_str(&format!(
-                "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{e:.0}</text>\n",
-                x0 + pad - 4.0,
-                sy(e) + 4.0
-            ));
-        }
-        out.push_str(&format!(
-            "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">one-way delay (ms)</text>\n<text x=\"{:.1}\" y=\"{:.1}\" transform=\"rotate(-90 {:.1} {:.1})\" text-anchor=\"middle\">steering error (%)</text>\n",
-            x0 + pad + (w - 1.4 * pad) / 2.0,
-            h + 14.0,
-            x0 + 14.0,
-            30.0 + (h - pad) / 2.0,
-            x0 + 14.0,
-            30.0 + (h - pad) / 2.0
-        ));
-        for (name, colour, loss) in series {
-            let points: Vec<(f64, f64)> = match loss {
-                None => rows
-                    .iter()
-                    .find(|r| r.vut == *vut && r.deployment == Deployment::Onboard)
-                    .map(|r| DELAYS_MS.iter().map(|&d| (d, 100.0 * r.mean_error_rel)).collect())
-                    .unwrap_or_default(),
-                Some(loss) => networks
-                    .iter()
-                    .filter_map(|n| match n.uplink.delay {
-                        v2t_sim::network::Delay::Constant { ms }
-                            if n.uplink.loss == loss && n.uplink.jitter_ms == 0.0 =>
-                        {
-                            let r = rows
-                                .iter()
-                                .find(|r| r.vut == *vut && r.deployment == Deployment::Cloud && r.network == n.name)?;
-                            Some((ms, 100.0 * r.mean_error_rel))
-                        }
-                        _ => None,
-                    })
-                    .collect(),
+    let y_max = step * (top / step).ceil().max(1.0);
+    let series: [(&str, Option<f64>); 3] =
+        [("onboard", None), ("cloud, no loss", Some(0.0)), ("cloud, 5 % loss", Some(0.05))];
+    let panels = vuts
+        .iter()
+        .map(|vut| {
+            let lines = series
+                .iter()
+                .enumerate()
+                .map(|(i, (name, loss))| {
+                    let points = match loss {
+                        None => rows
+                            .iter()
+                            .find(|r| r.vut == *vut && r.deployment == Deployment::Onboard)
+                            .map(|r| DELAYS_MS.iter().map(|&d| (d, 100.0 * r.mean_error_rel)).collect())
+                            .unwrap_or_default(),
+                        Some(loss) => cloud_points(rows, networks, vut, *loss),
+                    };
+                    Series { marker: Some(Marker::Dot), ..Series::line(*name, points, colour(i)) }
+                })
+                .collect();
+            let plot = LinePlot {
+                title: (*vut).to_owned(),
+                x_label: "one-way delay (ms)".into(),
+                y_label: "steering error (%)".into(),
+                series: lines,
+                levels: Vec::new(),
+                y_range: Some((0.0, y_max)),
+                x_range: Some((-0.03 * x_max, 1.03 * x_max)),
+                cursor: false,
+                markers: false,
             };
-            let path: Vec<String> = points.iter().map(|&(d, e)| format!("{:.1},{:.1}", sx(d), sy(e))).collect();
-            out.push_str(&format!(
-                "<polyline points=\"{}\" fill=\"none\" stroke=\"{colour}\" stroke-width=\"1.5\"/>\n",
-                path.join(" ")
-            ));
-            for &(d, e) in &points {
-                out.push_str(&format!(
-                    "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"2.5\" fill=\"{colour}\"/>\n",
-                    sx(d),
-                    sy(e)
-                ));
-            }
-            if i == 0 {
-                let y = 56.0 + 14.0 * series.iter().position(|s| s.0 == name).unwrap_or(0) as f64;
-                out.push_str(&format!(
-                    "<rect x=\"{:.1}\" y=\"{:.1}\" width=\"10\" height=\"10\" fill=\"{colour}\"/><text x=\"{:.1}\" y=\"{:.1}\">{name}</text>\n",
-                    x0 + pad + 6.0,
-                    y - 9.0,
-                    x0 + pad + 20.0,
-                    y
-                ));
-            }
-        }
+            (plot, "latency".to_owned())
+        })
+        .collect();
+    Figure {
+        title: format!(
+            "Mean steering error against the one-way network delay, per VUT model: the regulator onboard and in the \
+             cloud (simulated proving ground and network; seeds {}–{})",
+            seeds.start(),
+            seeds.end()
+        ),
+        panels,
+        columns: 2,
     }
-    out.push_str("</svg>\n");
-    out
+}
+
+/// The figure as a file of its own (`experiment latency --svg`).
+pub fn svg(rows: &[LatencyRow], networks: &[NetworkSettings], seeds: &RangeInclusive<u64>) -> String {
+    figure(rows, networks, seeds).file()
+}
+
+/// The cloud regulator's mean error (%) against the constant delay (ms) of the networks without
+/// jitter that lose `loss` of the messages.
+fn cloud_points(rows: &[LatencyRow], networks: &[NetworkSettings], vut: &str, loss: f64) -> Vec<(f64, f64)> {
+    networks
+        .iter()
+        .filter_map(|n| match n.uplink.delay {
+            v2t_sim::network::Delay::Constant { ms } if n.uplink.loss == loss && n.uplink.jitter_ms == 0.0 => {
+                let r =
+                    rows.iter().find(|r| r.vut == vut && r.deployment == Deployment::Cloud && r.network == n.name)?;
+                Some((ms, 100.0 * r.mean_error_rel))
+            }
+            _ => None,
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -474,7 +442,12 @@ mod tests {
         assert!(md.contains("VUT model a") && md.contains("| cloud | 100 ms, loss 5 % | 1 | 100.0 %"), "{md}");
         assert!(md.contains("Collisions: 0"));
         let svg = svg(&rows, &nets, &(6..=10));
-        assert_eq!(svg.matches("<polyline").count(), 6, "{svg}");
-        assert!(svg.contains("seeds 6–10") && svg.contains(">b</text>"));
+        assert_eq!(svg.matches("class=\"series\"").count(), 6, "{svg}");
+        assert!(svg.contains("seeds 6–10") && svg.contains(">b</text>") && svg.contains(">one-way delay (ms)<"));
+        assert!(
+            svg.starts_with("<svg")
+                && svg.contains("xmlns=")
+                && !figure(&rows, &nets, &(6..=10)).svg().contains("xmlns=")
+        );
     }
 }

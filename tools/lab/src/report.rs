@@ -46,10 +46,11 @@ impl Page {
         let _ = write!(
             h,
             "<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\"><meta name=\"viewport\" content=\"width=device-width\">\
-             <meta name=\"generator\" content=\"Video2Track {}\"><title>{}</title><style>{CSS}</style></head><body>\
+             <meta name=\"generator\" content=\"Video2Track {}\"><title>{}</title><style>{CSS}{}</style></head><body>\
              <header><h1>{}</h1>",
             env!("CARGO_PKG_VERSION"),
             esc(&self.title),
+            plot::CSS,
             esc(&self.title)
         );
         if !self.provenance.is_empty() {
@@ -109,12 +110,6 @@ th{background:#f2f2f4}td:first-child,th:first-child{text-align:left}.facts td{te
 .grid2{display:flex;flex-wrap:wrap;gap:10px;align-items:flex-start}.col{display:flex;flex-direction:column;gap:10px}\
 figure{margin:0}.scroll{overflow-x:auto;max-width:100%}svg{flex:none}.mapfig{max-width:580px}figcaption{font-size:.85em}.run{margin-bottom:2em}\
 svg{background:#fff;border:1px solid #e2e2e2}svg.map{background:#eef0ea}\
-.plot text{font-size:11px;fill:#333}.plot .rowlabel{font-size:11px}.plot .ptitle{font-size:12px;font-weight:600}.plot .axis{font-size:11px;fill:#222}\
-.plot .grid line{stroke:#ececec}.plot .frame{fill:none;stroke:#999}.plot .series{fill:none;stroke-width:1.8}\
-.plot .level{stroke:#c00;stroke-dasharray:6 4}.plot .levellabel{fill:#c00}.plot .cursor{stroke:#444;stroke-width:1}\
-.plot .rowbg{fill:#f6f6f6}.plot .gap path{fill:none;stroke:#c00}.plot .gap text{fill:#c00}\
-.plot .box{fill:#dfe7f2;stroke:#5577aa}.plot .median{stroke:#223;stroke-width:2}.plot .reference{stroke:#c00;stroke-width:2}\
-.plot .unreachable{fill:#fbe9e9}.plot .barlabel{fill:#fff;font-size:10px}\
 .controls{display:flex;align-items:center;gap:8px;flex-wrap:wrap;margin:.4em 0}.controls input[type=range]{width:420px}\
 .controls button{font-size:12px;padding:2px 6px}.readout{font-family:ui-monospace,monospace;font-size:12px}\
 .links a{margin-right:1em}details{margin:.3em 0}summary{cursor:pointer}\

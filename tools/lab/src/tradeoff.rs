@@ -18,6 +18,7 @@ use v2t_model::Target;
 use v2t_sim::vut::VutModel;
 
 use crate::methods::{self, Method, MethodCase, MethodsError, PaperScenario, Setup};
+use crate::report::plot::{Figure, LinePlot, Marker, Series, colour};
 use crate::stats::{RealismMeans, RealismStats};
 
 /// The realism weights swept by default (`w_adv = 1`).
@@ -237,10 +238,11 @@ pub fn markdown(r: &TradeoffReport) -> String {
     out
 }
 
-/// The front of one scenario as an SVG: the BV's W₁ of acceleration (left) and of jerk (right)
-/// against the worst VUT model's mean steering error in that scenario, one line per regulated
-/// method through its weights, Diffusion-only as a single point. `None` when the scenario's BV has no measured realism.
-pub fn svg(r: &TradeoffReport, scenario: &str) -> Option<String> {
+/// The front of one scenario: the BV's W₁ of acceleration (left) and of jerk (right) against the
+/// worst VUT model's mean steering error in that scenario, one line per regulated method through
+/// its weights, Diffusion-only as a single point. `None` when the scenario's BV has no measured
+/// realism.
+pub fn figure(r: &TradeoffReport, scenario: &str) -> Option<Figure> {
     let realism = |p: &TradeoffPoint| -> Option<RealismMeans> {
         p.realism.iter().find(|(n, _)| n == scenario).and_then(|(_, s)| s.as_ref()).and_then(|s| s.means)
     };
@@ -251,94 +253,134 @@ pub fn svg(r: &TradeoffReport, scenario: &str) -> Option<String> {
     if pts.is_empty() {
         return None;
     }
-    let (w, h, pad) = (440.0, 320.0, 56.0);
     let x_max = pts.iter().map(|(p, _)| error(p)).fold(1.0, f64::max) * 1.1;
-    let mut out = format!(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\" font-family=\"sans-serif\" font-size=\"12\">\n",
-        2.0 * w,
-        h + 40.0
-    );
-    out.push_str(&format!(
-        "<text x=\"10\" y=\"18\" font-size=\"13\">{}: the BV's realism (W₁ to recorded human driving) against the steering error, per w_real (simulated proving ground; seeds {}–{})</text>\n",
-        crate::report::esc(scenario),
-        r.seeds[0],
-        r.seeds[1]
-    ));
-    let panels: [(&str, Quantity); 2] =
-        [("W₁ acceleration (m/s²)", |m| m.w1_accel_mps2), ("W₁ jerk (m/s³)", |m| m.w1_jerk_mps3)];
-    for (i, (label, value)) in panels.iter().enumerate() {
-        let x0 = i as f64 * w;
-        let y_max = pts.iter().map(|(_, m)| value(m)).fold(0.0, f64::max) * 1.15;
-        let sx = |e: f64| x0 + pad + (w - 1.5 * pad) * e / x_max;
-        let sy = |v: f64| 30.0 + (h - pad) * (1.0 - v / y_max.max(1e-9));
-        out.push_str(&format!(
-            "<rect x=\"{:.1}\" y=\"30\" width=\"{:.1}\" height=\"{:.1}\" fill=\"none\" stroke=\"#999\"/>\n",
-            x0 + pad,
-            w - 1.5 * pad,
-            h - pad
-        ));
-        for k in 0..=4 {
-            let (e, v) = (x_max * k as f64 / 4.0, y_max * k as f64 / 4.0);
-            out.push_str(&format!(
-                "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{e:.1}</text>\n<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">{v:.2}</text>\n",
-                sx(e),
-                h - pad + 46.0,
-                x0 + pad - 4.0,
-                sy(v) + 4.0
-            ));
-        }
-        out.push_str(&format!(
-            "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">worst VUT model's mean steering error in this scenario (%)</text>\n<text x=\"{:.1}\" y=\"{:.1}\" transform=\"rotate(-90 {:.1} {:.1})\" text-anchor=\"middle\">{label}</text>\n",
-            x0 + w / 2.0,
-            h + 30.0,
-            x0 + 14.0,
-            30.0 + (h - pad) / 2.0,
-            x0 + 14.0,
-            30.0 + (h - pad) / 2.0
-        ));
-        for (method, colour) in [(Method::TroublemakerLike, "#d62728"), (Method::Video2track, "#1f77b4")] {
-            let line: Vec<(f64, f64, Option<f64>)> = pts
+    let panels: [(&str, &str, Quantity); 2] = [
+        ("The BV's acceleration", "W₁ acceleration (m/s²)", |m| m.w1_accel_mps2),
+        ("The BV's jerk", "W₁ jerk (m/s³)", |m| m.w1_jerk_mps3),
+    ];
+    let methods = [
+        (Method::TroublemakerLike, "TroubleMaker-like", colour(1)),
+        (Method::Video2track, "Video2Track", colour(0)),
+        (Method::DiffusionOnly, "Diffusion-only", colour(2)),
+    ];
+    let panels = panels
+        .iter()
+        .map(|(title, label, value)| {
+            // Room above the highest point for the legend.
+            let y_max = pts.iter().map(|(_, m)| value(m)).fold(0.0, f64::max) * 1.3;
+            let series = methods
                 .iter()
-                .filter(|(p, _)| p.method == method)
-                .map(|(p, m)| (sx(error(p)), sy(value(m)), p.w_real))
+                .map(|(method, name, c)| {
+                    let of: Vec<&(&TradeoffPoint, RealismMeans)> =
+                        pts.iter().filter(|(p, _)| p.method == *method).collect();
+                    let marker = if *method == Method::DiffusionOnly { Marker::Square } else { Marker::Dot };
+                    Series {
+                        marker: Some(marker),
+                        labels: match method {
+                            Method::DiffusionOnly => Vec::new(),
+                            _ => of.iter().map(|(p, _)| weight_cell(p.w_real)).collect(),
+                        },
+                        ..Series::line(*name, of.iter().map(|(p, m)| (error(p), value(m))).collect(), c)
+                    }
+                })
                 .collect();
-            let path: Vec<String> = line.iter().map(|(x, y, _)| format!("{x:.1},{y:.1}")).collect();
-            out.push_str(&format!(
-                "<polyline points=\"{}\" fill=\"none\" stroke=\"{colour}\" stroke-width=\"1.5\"/>\n",
-                path.join(" ")
-            ));
-            for (x, y, wr) in &line {
-                out.push_str(&format!(
-                    "<circle cx=\"{x:.1}\" cy=\"{y:.1}\" r=\"3\" fill=\"{colour}\"/><text x=\"{:.1}\" y=\"{:.1}\" font-size=\"10\" fill=\"{colour}\">{}</text>\n",
-                    x + 4.0,
-                    y - 4.0,
-                    weight_cell(*wr)
-                ));
-            }
-        }
-        for (p, m) in pts.iter().filter(|(p, _)| p.method == Method::DiffusionOnly) {
-            let (x, y) = (sx(error(p)), sy(value(m)));
-            out.push_str(&format!(
-                "<rect x=\"{:.1}\" y=\"{:.1}\" width=\"7\" height=\"7\" fill=\"#2ca02c\"/>\n",
-                x - 3.5,
-                y - 3.5
-            ));
-        }
-        let legend = [("#d62728", "TroubleMaker-like"), ("#1f77b4", "Video2Track"), ("#2ca02c", "Diffusion-only")];
-        for (k, (colour, name)) in legend.iter().enumerate() {
-            let y = h - pad - 12.0 + 14.0 * (k as f64 - 2.0);
-            out.push_str(&format!(
-                "<rect x=\"{:.1}\" y=\"{:.1}\" width=\"10\" height=\"10\" fill=\"{colour}\"/><text x=\"{:.1}\" y=\"{:.1}\">{name}</text>\n",
-                x0 + w - 0.5 * pad - 130.0,
-                y - 9.0,
-                x0 + w - 0.5 * pad - 116.0,
-                y
-            ));
-        }
-    }
-    out.push_str("</svg>\n");
-    Some(out)
+            let plot = LinePlot {
+                title: (*title).to_owned(),
+                x_label: "worst VUT model's mean steering error in this scenario (%)".into(),
+                y_label: (*label).to_owned(),
+                series,
+                levels: Vec::new(),
+                y_range: Some((0.0, y_max.max(1e-9))),
+                x_range: Some((0.0, x_max)),
+                cursor: false,
+                markers: false,
+            };
+            (plot, "tradeoff".to_owned())
+        })
+        .collect();
+    Some(Figure {
+        title: format!(
+            "{scenario}: the BV's realism (W₁ to recorded human driving) against the steering error, per w_real \
+             (simulated proving ground; seeds {}–{})",
+            r.seeds[0], r.seeds[1]
+        ),
+        panels,
+        columns: 2,
+    })
+}
+
+/// The front of one scenario as a file of its own (`experiment tradeoff --svg-dir`); `None` when
+/// the scenario's BV has no measured realism.
+pub fn svg(r: &TradeoffReport, scenario: &str) -> Option<String> {
+    figure(r, scenario).map(|f| f.file())
 }
 
 /// One realism quantity of a plot panel.
 type Quantity = fn(&RealismMeans) -> f64;
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+
+    use super::*;
+    use v2t_model::realism::ManoeuvreClass;
+
+    fn point(method: Method, w_real: Option<f64>, error: f64, w1: f64) -> TradeoffPoint {
+        let means = RealismMeans {
+            w1_accel_mps2: w1,
+            w1_jerk_mps3: 2.0 * w1,
+            w1_yaw_rate_radps: 0.01,
+            jerk_rms_mps3: 1.0,
+            speed_reversals: 0.0,
+        };
+        TradeoffPoint {
+            w_real,
+            method,
+            errors: Vec::new(),
+            worst_mean_error_rel: error,
+            collisions: 0,
+            runs: 4,
+            realism: vec![(
+                "cut_in".into(),
+                Some(RealismStats { class: ManoeuvreClass::LaneChange, runs: 4, measured: 4, means: Some(means) }),
+            )],
+            worst_by_scenario: vec![("cut_in".into(), error)],
+        }
+    }
+
+    /// The front has a plot per realism quantity, a line per regulated method through its weights
+    /// (each point labelled with its weight) and Diffusion-only as one point; a scenario whose BV
+    /// has no measured realism has none.
+    #[test]
+    fn the_front_plots_each_method_through_its_weights() {
+        let r = TradeoffReport {
+            provenance: String::new(),
+            seeds: [6, 8],
+            taus_s: vec![2.0],
+            weights: vec![0.0, 1.0],
+            points: vec![
+                point(Method::DiffusionOnly, None, 0.4, 0.2),
+                point(Method::TroublemakerLike, Some(0.0), 0.05, 0.9),
+                point(Method::TroublemakerLike, Some(1.0), 0.08, 0.6),
+                point(Method::Video2track, Some(0.0), 0.04, 0.5),
+                point(Method::Video2track, Some(1.0), 0.06, 0.3),
+            ],
+            cases: Vec::new(),
+        };
+        let front = svg(&r, "cut_in").unwrap();
+        assert!(front.starts_with("<svg") && front.contains("seeds 6–8"), "{front}");
+        assert_eq!(front.matches("class=\"series\"").count(), 2 * 3, "2 plots × (2 methods and Diffusion-only)");
+        for part in [
+            ">W₁ acceleration (m/s²)<",
+            ">W₁ jerk (m/s³)<",
+            ">worst VUT model&#39;s mean steering error in this scenario (%)<",
+            ">TroubleMaker-like<",
+            ">Video2Track<",
+            ">Diffusion-only<",
+        ] {
+            assert!(front.contains(part), "`{part}` missing");
+        }
+        assert_eq!(front.matches("class=\"pointlabel\"").count(), 2 * 4, "every regulated point with its weight");
+        assert!(svg(&r, "left_turn").is_none(), "no realism measured there: no front");
+    }
+}

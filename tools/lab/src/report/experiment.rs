@@ -224,7 +224,7 @@ pub fn error_vs_tau(cases: &[CaseView]) -> String {
                 (false, true) => m.clone(),
                 (false, false) => format!("{m} {style}"),
             };
-            series.push(Series { name, points: pts, dashed: false, colour: colour(i) });
+            series.push(Series::line(name, pts, colour(i)));
         }
         let plot = LinePlot {
             title: format!("Steering error — VUT {vut}"),
@@ -492,7 +492,7 @@ pub fn campaign_learning(r: &crate::campaign::CampaignReport) -> String {
                     (!errs.is_empty()).then(|| ((k + 1) as f64, 100.0 * errs.iter().sum::<f64>() / errs.len() as f64))
                 })
                 .collect();
-            Series { name: (*vut).to_owned(), points, dashed: false, colour: colour(i) }
+            Series::line(*vut, points, colour(i))
         })
         .collect();
     let plot = LinePlot {

@@ -1,5 +1,6 @@
-//! The report's plots as inline SVG: line plots with labelled axes and units, bands of states over
-//! time, occupancy timelines, strip plots with quartile boxes, and scatter plots. Pure string
+//! The project's plots as SVG: line plots with labelled axes and units, bands of states over time,
+//! occupancy timelines, strip plots with quartile boxes, scatter plots, and figures of several
+//! plots under one title, inline in a report or as a file of their own ([`Figure`]). Pure string
 //! building, no script: a plot reads the same printed.
 
 use std::fmt::Write as _;
@@ -33,6 +34,25 @@ fn tick_label(v: f64, step: f64) -> String {
     format!("{v:.decimals$}")
 }
 
+/// The plots' style: a report's page holds it once, a [`Figure`] written as a file holds its own.
+pub const CSS: &str = "\
+.plot text{font-size:11px;fill:#333}.plot .rowlabel{font-size:11px}.plot .ptitle{font-size:12px;font-weight:600}.plot .axis{font-size:11px;fill:#222}\
+.plot .grid line{stroke:#ececec}.plot .frame{fill:none;stroke:#999}.plot .series{fill:none;stroke-width:1.8}\
+.plot .level{stroke:#c00;stroke-dasharray:6 4}.plot .levellabel{fill:#c00}.plot .cursor{stroke:#444;stroke-width:1}\
+.plot .rowbg{fill:#f6f6f6}.plot .gap path{fill:none;stroke:#c00}.plot .gap text{fill:#c00}\
+.plot .box{fill:#dfe7f2;stroke:#5577aa}.plot .median{stroke:#223;stroke-width:2}.plot .reference{stroke:#c00;stroke-width:2}\
+.plot .unreachable{fill:#fbe9e9}.plot .barlabel{fill:#fff;font-size:10px}.plot .pointlabel{font-size:10px}\
+.figure .ftitle{font-size:13px;font-weight:600;fill:#222}";
+
+/// A mark drawn at every point of a [`Series`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Marker {
+    /// A dot.
+    Dot,
+    /// A square.
+    Square,
+}
+
 /// One line of a [`LinePlot`].
 #[derive(Debug, Clone)]
 pub struct Series {
@@ -44,6 +64,17 @@ pub struct Series {
     pub dashed: bool,
     /// Its colour.
     pub colour: &'static str,
+    /// A mark at every point; `None`: the line alone.
+    pub marker: Option<Marker>,
+    /// A label beside each point, in order (points past the last label have none).
+    pub labels: Vec<String>,
+}
+
+impl Series {
+    /// A solid line through `points`, without marks or labels.
+    pub fn line(name: impl Into<String>, points: Vec<(f64, f64)>, colour: &'static str) -> Self {
+        Self { name: name.into(), points, dashed: false, colour, marker: None, labels: Vec::new() }
+    }
 }
 
 /// A horizontal reference line (τ, a bound).
@@ -203,23 +234,101 @@ fn cursor(s: &mut String, f: &Frame) {
     );
 }
 
-fn legend(s: &mut String, f: &Frame, items: &[(String, &str, bool)]) {
+/// One entry of a plot's legend.
+struct LegendItem<'a> {
+    name: &'a str,
+    colour: &'a str,
+    dashed: bool,
+    /// A line sample (the series is drawn as a line).
+    line: bool,
+    marker: Option<Marker>,
+}
+
+fn legend(s: &mut String, f: &Frame, items: &[LegendItem<'_>]) {
     let mut x = LEFT + 6.0;
     let y = TOP + 12.0;
-    for (name, c, dashed) in items {
-        let dash = if *dashed { " stroke-dasharray=\"5 3\"" } else { "" };
-        let _ = write!(
-            s,
-            "<line x1=\"{x:.1}\" y1=\"{0:.1}\" x2=\"{1:.1}\" y2=\"{0:.1}\" stroke=\"{c}\" stroke-width=\"2\"{dash}/><text class=\"legend\" x=\"{2:.1}\" y=\"{3:.1}\">{4}</text>",
-            y - 4.0,
-            x + 16.0,
-            x + 20.0,
-            y,
-            esc(name)
-        );
-        x += 30.0 + 6.2 * name.chars().count() as f64;
+    for item in items {
+        let c = item.colour;
+        if item.line {
+            let dash = if item.dashed { " stroke-dasharray=\"5 3\"" } else { "" };
+            let _ = write!(
+                s,
+                "<line x1=\"{x:.1}\" y1=\"{0:.1}\" x2=\"{1:.1}\" y2=\"{0:.1}\" stroke=\"{c}\" stroke-width=\"2\"{dash}/>",
+                y - 4.0,
+                x + 16.0,
+            );
+        }
+        if let Some(m) = item.marker {
+            mark(s, m, x + 8.0, y - 4.0, c);
+        }
+        let _ = write!(s, "<text class=\"legend\" x=\"{:.1}\" y=\"{y:.1}\">{}</text>", x + 20.0, esc(item.name));
+        x += 30.0 + 6.2 * item.name.chars().count() as f64;
         if x > f.width - 60.0 {
             break;
+        }
+    }
+}
+
+/// A marker centred on `(px, py)`, px.
+fn mark(s: &mut String, m: Marker, px: f64, py: f64, colour: &str) {
+    let _ = match m {
+        Marker::Dot => write!(s, "<circle cx=\"{px:.1}\" cy=\"{py:.1}\" r=\"3\" fill=\"{colour}\"/>"),
+        Marker::Square => {
+            write!(s, "<rect x=\"{:.1}\" y=\"{:.1}\" width=\"7\" height=\"7\" fill=\"{colour}\"/>", px - 3.5, py - 3.5)
+        }
+    };
+}
+
+/// One series in the frame `f`: its line (none in a scatter plot, `points_only`), its markers and
+/// its point labels.
+fn series(s: &mut String, f: &Frame, se: &Series, points_only: bool) {
+    let inside = |p: &&(f64, f64)| p.0.is_finite() && p.1.is_finite() && p.0 >= f.x.0 && p.0 <= f.x.1;
+    if points_only {
+        for (px, py) in se.points.iter().filter(inside) {
+            let _ = write!(
+                s,
+                "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"3.5\" fill=\"{}\" fill-opacity=\"0.8\"><title>{}: {px:.2}, {py:.3}</title></circle>",
+                f.px(*px),
+                f.py(*py),
+                se.colour,
+                esc(&se.name)
+            );
+        }
+        return;
+    }
+    let mut d = String::new();
+    let mut pen = false;
+    for (px, py) in &se.points {
+        if !inside(&&(*px, *py)) {
+            pen = false;
+            continue;
+        }
+        let _ = write!(d, "{}{:.1} {:.1}", if pen { " L" } else { " M" }, f.px(*px), f.py(*py));
+        pen = true;
+    }
+    let dash = if se.dashed { " stroke-dasharray=\"5 3\"" } else { "" };
+    let _ = write!(
+        s,
+        "<path class=\"series\" d=\"{}\" stroke=\"{}\"{dash}><title>{}</title></path>",
+        d.trim_start(),
+        se.colour,
+        esc(&se.name)
+    );
+    let labels = se.labels.iter().map(Some).chain(std::iter::repeat(None));
+    for ((px, py), label) in se.points.iter().zip(labels).filter(|(p, _)| inside(p)) {
+        let (x, y) = (f.px(*px), f.py(*py));
+        if let Some(m) = se.marker {
+            mark(s, m, x, y, se.colour);
+        }
+        if let Some(l) = label {
+            let _ = write!(
+                s,
+                "<text class=\"pointlabel\" x=\"{:.1}\" y=\"{:.1}\" style=\"fill:{}\">{}</text>",
+                x + 4.0,
+                y - 4.0,
+                se.colour,
+                esc(l)
+            );
         }
     }
 }
@@ -275,40 +384,19 @@ impl LinePlot {
             );
         }
         for se in &self.series {
-            if self.markers {
-                for (px, py) in se.points.iter().filter(|p| p.0.is_finite() && p.1.is_finite()) {
-                    let _ = write!(
-                        s,
-                        "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"3.5\" fill=\"{}\" fill-opacity=\"0.8\"><title>{}: {px:.2}, {py:.3}</title></circle>",
-                        f.px(*px),
-                        f.py(*py),
-                        se.colour,
-                        esc(&se.name)
-                    );
-                }
-                continue;
-            }
-            let mut d = String::new();
-            let mut pen = false;
-            for (px, py) in &se.points {
-                if !(px.is_finite() && py.is_finite()) || *px < x.0 || *px > x.1 {
-                    pen = false;
-                    continue;
-                }
-                let _ = write!(d, "{}{:.1} {:.1}", if pen { " L" } else { " M" }, f.px(*px), f.py(*py));
-                pen = true;
-            }
-            let dash = if se.dashed { " stroke-dasharray=\"5 3\"" } else { "" };
-            let _ = write!(
-                s,
-                "<path class=\"series\" d=\"{}\" stroke=\"{}\"{dash}><title>{}</title></path>",
-                d.trim_start(),
-                se.colour,
-                esc(&se.name)
-            );
+            series(&mut s, &f, se, self.markers);
         }
-        let items: Vec<(String, &str, bool)> =
-            self.series.iter().map(|s| (s.name.clone(), s.colour, s.dashed)).collect();
+        let items: Vec<LegendItem<'_>> = self
+            .series
+            .iter()
+            .map(|se| LegendItem {
+                name: &se.name,
+                colour: se.colour,
+                dashed: se.dashed,
+                line: !self.markers && se.points.len() > 1,
+                marker: if self.markers { Some(Marker::Dot) } else { se.marker },
+            })
+            .collect();
         legend(&mut s, &f, &items);
         if self.cursor {
             cursor(&mut s, &f);
@@ -316,6 +404,85 @@ impl LinePlot {
         s.push_str("</svg>");
         s
     }
+}
+
+/// Plots side by side under one title: a figure of an experiment, in a report's page ([`Figure::svg`])
+/// or as a file of its own ([`Figure::file`]).
+#[derive(Debug, Clone)]
+pub struct Figure {
+    /// The title above the plots (wrapped to the figure's width).
+    pub title: String,
+    /// The plots, each with its class, left to right and then down.
+    pub panels: Vec<(LinePlot, String)>,
+    /// Plots in a row.
+    pub columns: usize,
+}
+
+/// Height of a line of a figure's title, px.
+const TITLE_LINE: f64 = 17.0;
+
+impl Figure {
+    /// The figure for a report's page, whose style it takes.
+    pub fn svg(&self) -> String {
+        self.draw(false)
+    }
+
+    /// The figure as a file of its own: the SVG namespace, a white ground and the plots' style.
+    pub fn file(&self) -> String {
+        self.draw(true) + "\n"
+    }
+
+    fn draw(&self, standalone: bool) -> String {
+        let columns = self.columns.clamp(1, self.panels.len().max(1));
+        let rows = self.panels.len().div_ceil(columns).max(1);
+        let width = WIDTH * columns as f64;
+        // About 7.5 px a character of the 13 px bold title.
+        let lines = wrap(&self.title, ((width - 16.0) / 7.5).max(20.0) as usize);
+        let head = 8.0 + TITLE_LINE * lines.len() as f64;
+        let height = head + HEIGHT * rows as f64;
+        let mut s = String::new();
+        let _ = write!(s, "<svg class=\"figure\"");
+        if standalone {
+            s.push_str(" xmlns=\"http://www.w3.org/2000/svg\" font-family=\"system-ui, sans-serif\"");
+        }
+        let _ = write!(
+            s,
+            " width=\"{width:.0}\" height=\"{height:.0}\" viewBox=\"0 0 {width:.0} {height:.0}\" role=\"img\"><title>{}</title>",
+            esc(&self.title)
+        );
+        if standalone {
+            let _ = write!(s, "<style>{CSS}</style><rect width=\"{width:.0}\" height=\"{height:.0}\" fill=\"#fff\"/>");
+        }
+        for (i, line) in lines.iter().enumerate() {
+            let _ = write!(
+                s,
+                "<text class=\"ftitle\" x=\"8\" y=\"{:.1}\">{}</text>",
+                4.0 + TITLE_LINE * (i + 1) as f64,
+                esc(line)
+            );
+        }
+        for (i, (plot, class)) in self.panels.iter().enumerate() {
+            let (x, y) = (WIDTH * (i % columns) as f64, head + HEIGHT * (i / columns) as f64);
+            let _ = write!(s, "<g transform=\"translate({x:.0} {y:.0})\">{}</g>", plot.svg(class));
+        }
+        s.push_str("</svg>");
+        s
+    }
+}
+
+/// `text` in lines of at most about `chars` characters, broken between words.
+fn wrap(text: &str, chars: usize) -> Vec<String> {
+    let mut lines: Vec<String> = Vec::new();
+    for word in text.split_whitespace() {
+        match lines.last_mut() {
+            Some(line) if line.chars().count() + 1 + word.chars().count() <= chars => {
+                line.push(' ');
+                line.push_str(word);
+            }
+            _ => lines.push(word.to_owned()),
+        }
+    }
+    lines
 }
 
 /// One interval of a [`Timeline`] row.
@@ -615,15 +782,37 @@ mod tests {
     #[test]
     fn a_plot_labels_its_axes_and_breaks_at_missing_values() {
         let mut p = LinePlot::over_time("speed", "speed (m/s)", (0.0, 10.0));
-        p.series.push(Series {
-            name: "VUT".into(),
-            points: vec![(0.0, 1.0), (1.0, f64::NAN), (2.0, 3.0), (3.0, 4.0)],
-            dashed: false,
-            colour: colour(0),
-        });
+        p.series.push(Series::line("VUT", vec![(0.0, 1.0), (1.0, f64::NAN), (2.0, 3.0), (3.0, 4.0)], colour(0)));
         let svg = p.svg("speed");
         assert!(svg.contains(">time (s)<") && svg.contains(">speed (m/s)<"), "{svg}");
         assert!(svg.contains("d=\"M") && svg.matches(" M").count() == 1, "the NaN must start a new stroke: {svg}");
         assert!(svg.contains("class=\"cursor\""));
+    }
+
+    #[test]
+    fn a_figure_lays_its_plots_out_and_stands_alone_as_a_file() {
+        let mut p = LinePlot::over_time("a", "x (m)", (0.0, 4.0));
+        p.cursor = false;
+        let mut s = Series::line("dots", vec![(1.0, 1.0), (2.0, 2.0)], colour(0));
+        s.marker = Some(Marker::Dot);
+        s.labels = vec!["w 1".into()];
+        p.series.push(s);
+        p.series.push(Series { marker: Some(Marker::Square), ..Series::line("one", vec![(3.0, 1.5)], colour(1)) });
+        let fig = Figure {
+            title: "A long title that has to be wrapped over more than one line of the figure, word by word, because it is \
+                    far wider than the two plots side by side under it".into(),
+            panels: vec![(p.clone(), "left".into()), (p.clone(), "right".into()), (p, "below".into())],
+            columns: 2,
+        };
+        let inline = fig.svg();
+        assert!(
+            inline.starts_with("<svg class=\"figure\"") && !inline.contains("xmlns") && !inline.contains("<style>")
+        );
+        assert_eq!(inline.matches("class=\"ftitle\"").count(), 2, "{inline}");
+        assert!(inline.contains(&format!("translate({WIDTH:.0} ")), "the second plot beside the first");
+        assert_eq!(inline.matches("<circle").count(), 3 * (2 + 1), "a dot per point and one in the legend, per plot");
+        assert!(inline.contains(">w 1</text>") && inline.matches("width=\"7\"").count() == 3 * 2);
+        let file = fig.file();
+        assert!(file.contains("xmlns=\"http://www.w3.org/2000/svg\"") && file.contains(CSS), "{file}");
     }
 }

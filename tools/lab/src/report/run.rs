@@ -591,10 +591,8 @@ fn lanes(map: &v2t_map::Map, window: (f64, f64, f64, f64)) -> String {
 fn plots(run: &Value, trace: &Trace, t_range: (f64, f64)) -> String {
     let mut out = String::new();
     let series = |name: String, t: &[f64], v: &[f64], i: usize, dashed: bool| Series {
-        name,
-        points: t.iter().copied().zip(v.iter().copied()).collect(),
         dashed,
-        colour: colour(i),
+        ..Series::line(name, t.iter().copied().zip(v.iter().copied()).collect(), colour(i))
     };
     let mut speed = LinePlot::over_time("Speed", "speed (m/s)", t_range);
     let mut accel = LinePlot::over_time("Acceleration", "acceleration (m/s²)", t_range);
@@ -633,7 +631,7 @@ fn plots(run: &Value, trace: &Trace, t_range: (f64, f64)) -> String {
             .filter_map(|p| Some((f(p, "/t_s")?, clip(f(p, "/predicted_pet_s")))))
             .collect();
         let who = bv_ids.get(b).map_or("BV", String::as_str);
-        pet.series.push(Series { name: format!("regulator, {who}"), points: pts, dashed: true, colour: colour(b + 1) });
+        pet.series.push(Series { dashed: true, ..Series::line(format!("regulator, {who}"), pts, colour(b + 1)) });
     }
     out.push_str(&pet.svg("pet"));
     out
