@@ -109,11 +109,10 @@ th{background:#f2f2f4}td:first-child,th:first-child{text-align:left}.facts td{te
 .warn{color:#b00020}.ok{color:#0a7a3e}.muted{color:#777}\
 .grid2{display:flex;flex-wrap:wrap;gap:10px;align-items:flex-start}.col{display:flex;flex-direction:column;gap:10px}\
 figure{margin:0}.scroll{overflow-x:auto;max-width:100%}svg{flex:none}.mapfig{max-width:580px}figcaption{font-size:.85em}.run{margin-bottom:2em}\
-svg{background:#fff;border:1px solid #e2e2e2}svg.map{background:#eef0ea}\
+svg{background:#fff;border:1px solid #e2e2e2}\
 .controls{display:flex;align-items:center;gap:8px;flex-wrap:wrap;margin:.4em 0}.controls input[type=range]{width:420px}\
 .controls button{font-size:12px;padding:2px 6px}.readout{font-family:ui-monospace,monospace;font-size:12px}\
 .links a{margin-right:1em}details{margin:.3em 0}summary{cursor:pointer}\
-.map .lane{stroke:none}.map .mark{fill:none;stroke:#fff;vector-effect:non-scaling-stroke;stroke-width:1.2}\
 .map .route{fill:none;stroke:#9a9a9a;vector-effect:non-scaling-stroke;stroke-width:1;stroke-dasharray:4 3}\
 .map .driven{fill:none;vector-effect:non-scaling-stroke;stroke-width:2}\
 .map .zone{fill:none;stroke:#d00;stroke-opacity:.28;stroke-linecap:butt}\

@@ -9,6 +9,8 @@
 use std::fmt::Write as _;
 
 use serde_json::Value;
+use v2t_map::svg::{View, Window, path_d};
+use v2t_model::geometry::Point2;
 
 use super::plot::{Bar, Level, LinePlot, Series, Timeline, colour};
 use super::{esc, num, table};
@@ -344,67 +346,84 @@ fn routes(run: &Value) -> Vec<Vec<[f64; 2]>> {
         .unwrap_or_default()
 }
 
-fn path_d(points: impl Iterator<Item = (f64, f64)>) -> String {
-    let mut d = String::new();
-    for (i, (x, y)) in points.filter(|(x, y)| x.is_finite() && y.is_finite()).enumerate() {
-        let _ = write!(d, "{}{x:.2} {y:.2}", if i == 0 { "M" } else { " L" });
-    }
-    d
+/// The map's window: every route and driven position with a margin, not thinner than 2:3 either
+/// way (so that a straight road still shows its surroundings); `None` without a position.
+fn map_window(trace: &Trace, routes: &[Vec<[f64; 2]>]) -> Option<Window> {
+    let driven = trace.tracks.iter().flat_map(|t| t.x.iter().zip(&t.y).map(|(x, y)| Point2 { x: *x, y: *y }));
+    let planned = routes.iter().flatten().map(|p| Point2 { x: p[0], y: p[1] });
+    let w = Window::around(driven.chain(planned))?.grown(12.0);
+    let (cx, cy) = ((w.x0 + w.x1) / 2.0, (w.y0 + w.y1) / 2.0);
+    let half = w.width().max(w.height()) / 3.0;
+    let (x0, x1) = if w.width() < 2.0 * half { (cx - half, cx + half) } else { (w.x0, w.x1) };
+    let (y0, y1) = if w.height() < 2.0 * half { (cy - half, cy + half) } else { (w.y0, w.y1) };
+    Some(Window { x0, y0, x1, y1 })
 }
 
+/// The run on the map: the track's lanes and marks (or, without a map, the routes as lanes), the
+/// conflict zones, routes and driven paths, fixed footprints at the moments that matter, the
+/// footprints the slider moves, the vehicles' names at their starts and a scale bar.
 fn map_svg(input: &RunInput<'_>, trace: &Trace, moments: &[Moment], pet_min: Option<(f64, f64)>) -> String {
     let routes = routes(input.run);
-    let pts = trace
-        .tracks
-        .iter()
-        .flat_map(|t| t.x.iter().copied().zip(t.y.iter().copied()))
-        .chain(routes.iter().flatten().map(|p| (p[0], p[1])))
-        .filter(|(x, y)| x.is_finite() && y.is_finite());
-    let (mut x0, mut y0, mut x1, mut y1) = (f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
-    for (x, y) in pts {
-        x0 = x0.min(x);
-        y0 = y0.min(y);
-        x1 = x1.max(x);
-        y1 = y1.max(y);
-    }
-    if !x0.is_finite() {
+    let Some(window) = map_window(trace, &routes) else {
         return "<p class=\"muted\">No positions in this run file: no map drawn.</p>".into();
-    }
-    let margin = 12.0;
-    let (mut x0, mut y0, mut x1, mut y1) = (x0 - margin, y0 - margin, x1 + margin, y1 + margin);
-    // Not thinner than 2:3 either way, so that a straight road still shows its surroundings.
-    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
-    let half = (x1 - x0).max(y1 - y0) / 3.0;
-    if x1 - x0 < 2.0 * half {
-        (x0, x1) = (cx - half, cx + half);
-    }
-    if y1 - y0 < 2.0 * half {
-        (y0, y1) = (cy - half, cy + half);
-    }
-    let (w, hgt) = (x1 - x0, y1 - y0);
-    let scale = (560.0 / w).min(560.0 / hgt);
-    let (pw, ph) = (w * scale, hgt * scale);
-    let font = 11.0 / scale;
-    let mut s = format!(
-        "<svg class=\"map\" width=\"{pw:.0}\" height=\"{ph:.0}\" viewBox=\"{x0:.2} {:.2} {w:.2} {hgt:.2}\" role=\"img\"><title>{} — map, routes, driven paths and footprints</title><g transform=\"scale(1 -1)\">",
-        -y1,
-        esc(&input.title)
-    );
-    if let Some(map) = input.map {
-        s.push_str(&lanes(map, (x0 - 20.0, y0 - 20.0, x1 + 20.0, y1 + 20.0)));
-    } else {
+    };
+    let view = View { window, px_per_m: (560.0 / window.width()).min(560.0 / window.height()) };
+    let mut s = view.open("", &format!("{} — map, routes, driven paths and footprints", input.title), false);
+    match input.map {
+        Some(map) => s.push_str(&v2t_map::svg::lanes(map, Some(&window.grown(20.0)))),
         // No map: the routes as lanes, so that the drawing still shows the roads driven.
-        for r in &routes {
+        None => {
+            for r in &routes {
+                let _ = write!(
+                    s,
+                    "<path d=\"{}\" fill=\"none\" stroke=\"#c9cdd2\" stroke-width=\"3.5\" stroke-linejoin=\"round\"/>",
+                    path_d(r.iter().map(|p| (p[0], p[1])))
+                );
+            }
+        }
+    }
+    zones(&mut s, input.run, &routes, trace);
+    for r in &routes {
+        let _ = write!(s, "<path class=\"route\" d=\"{}\"/>", path_d(r.iter().map(|p| (p[0], p[1]))));
+    }
+    for (i, tr) in trace.tracks.iter().enumerate() {
+        let _ = write!(
+            s,
+            "<path class=\"driven\" stroke=\"{}\" d=\"{}\"><title>{} driven</title></path>",
+            colour(i),
+            path_d(tr.x.iter().copied().zip(tr.y.iter().copied())),
+            esc(&tr.id)
+        );
+    }
+    ghosts(&mut s, trace, moments, pet_min);
+    footprints(&mut s, trace);
+    s.push_str(View::UPRIGHT);
+    // The names at the starts, upright.
+    for (i, tr) in trace.tracks.iter().enumerate() {
+        if let (Some(x), Some(y)) = (tr.x.first(), tr.y.first())
+            && x.is_finite()
+            && y.is_finite()
+        {
             let _ = write!(
                 s,
-                "<path d=\"{}\" fill=\"none\" stroke=\"#c9cdd2\" stroke-width=\"3.5\" stroke-linejoin=\"round\"/>",
-                path_d(r.iter().map(|p| (p[0], p[1])))
+                "<text x=\"{:.2}\" y=\"{:.2}\" fill=\"{}\" font-size=\"{:.3}\">{} start</text>",
+                x + 1.5,
+                -y - 1.5,
+                colour(i),
+                view.m(11.0),
+                esc(&tr.id)
             );
         }
     }
-    // Conflict zones: the stretch of each vehicle's route along which it is in the zone, as wide as
-    // the vehicle; where the two bands cross is the zone.
-    for z in at(input.run, "/layout/zones").as_array().into_iter().flatten() {
+    s.push_str(&view.scale_bar());
+    s.push_str("</svg>");
+    s
+}
+
+/// Conflict zones: the stretch of each vehicle's route along which it is in the zone, as wide as
+/// the vehicle; where the two bands cross is the zone.
+fn zones(s: &mut String, run: &Value, routes: &[Vec<[f64; 2]>], trace: &Trace) {
+    for z in at(run, "/layout/zones").as_array().into_iter().flatten() {
         let bv = at(z, "/bv_index").as_u64().map_or(1, |b| b as usize + 1);
         for (agent, side) in [(0, "vut"), (bv, "bv")] {
             let (Some(route), Some(a), Some(b)) =
@@ -422,19 +441,11 @@ fn map_svg(input: &RunInput<'_>, trace: &Trace, moments: &[Moment], pet_min: Opt
             );
         }
     }
-    for r in &routes {
-        let _ = write!(s, "<path class=\"route\" d=\"{}\"/>", path_d(r.iter().map(|p| (p[0], p[1]))));
-    }
-    for (i, tr) in trace.tracks.iter().enumerate() {
-        let _ = write!(
-            s,
-            "<path class=\"driven\" stroke=\"{}\" d=\"{}\"><title>{} driven</title></path>",
-            colour(i),
-            path_d(tr.x.iter().copied().zip(tr.y.iter().copied())),
-            esc(&tr.id)
-        );
-    }
-    // Fixed footprints at the moments that matter (they stay in print).
+}
+
+/// Fixed footprints at the zone entries and exits and when PET_min was realised (they stay in
+/// print).
+fn ghosts(s: &mut String, trace: &Trace, moments: &[Moment], pet_min: Option<(f64, f64)>) {
     let mut fixed: Vec<(f64, String)> =
         moments.iter().filter(|m| m.label.contains("zone")).map(|m| (m.t_s, m.label.clone())).collect();
     if let Some((t, pet)) = pet_min {
@@ -461,7 +472,10 @@ fn map_svg(input: &RunInput<'_>, trace: &Trace, moments: &[Moment], pet_min: Opt
             );
         }
     }
-    // The footprints the slider moves.
+}
+
+/// The footprints the slider moves, at the start.
+fn footprints(s: &mut String, trace: &Trace) {
     for (i, tr) in trace.tracks.iter().enumerate() {
         let (l, w) = (tr.length_m, tr.width_m);
         let _ = write!(
@@ -481,111 +495,6 @@ fn map_svg(input: &RunInput<'_>, trace: &Trace, moments: &[Moment], pet_min: Opt
             esc(&tr.id)
         );
     }
-    s.push_str("</g>");
-    // Labels outside the mirrored group, so that text reads upright.
-    for (i, tr) in trace.tracks.iter().enumerate() {
-        if let (Some(x), Some(y)) = (tr.x.first(), tr.y.first())
-            && x.is_finite()
-            && y.is_finite()
-        {
-            let _ = write!(
-                s,
-                "<text x=\"{:.2}\" y=\"{:.2}\" fill=\"{}\" font-size=\"{font:.3}\">{} start</text>",
-                x + 1.5,
-                -y - 1.5,
-                colour(i),
-                esc(&tr.id)
-            );
-        }
-    }
-    let bar = nice_bar(w);
-    let _ = write!(
-        s,
-        "<g class=\"scalebar\"><path d=\"M{:.2} {:.2} h{bar:.2}\" stroke=\"#222\" stroke-width=\"{:.3}\"/><text x=\"{:.2}\" y=\"{:.2}\" font-size=\"{font:.3}\">{bar:.0} m</text></g>",
-        x0 + 2.0,
-        -y0 - 2.0,
-        2.0 / scale,
-        x0 + 2.0,
-        -y0 - 3.0 - 2.0 / scale
-    );
-    s.push_str("</svg>");
-    s
-}
-
-/// A round scale-bar length for a drawing `w` m wide.
-fn nice_bar(w: f64) -> f64 {
-    let target = w / 5.0;
-    let mag = 10f64.powf(target.log10().floor());
-    [1.0, 2.0, 5.0, 10.0].iter().map(|m| m * mag).rfind(|v| *v <= target).unwrap_or(mag)
-}
-
-/// The map's lanes and marks within `window` (x0, y0, x1, y1).
-fn lanes(map: &v2t_map::Map, window: (f64, f64, f64, f64)) -> String {
-    use v2t_map::xodr::MarkType;
-    let inside =
-        |p: v2t_model::geometry::Point2| p.x >= window.0 && p.x <= window.2 && p.y >= window.1 && p.y <= window.3;
-    let mut lanes = String::from("<g class=\"lanes\">");
-    let mut marks = String::from("<g class=\"marks\">");
-    for lane in &map.graph.lanes {
-        // Runs of consecutive samples inside the window.
-        let mut runs: Vec<Vec<&v2t_map::graph::LaneSample>> = Vec::new();
-        let mut cur = Vec::new();
-        for q in &lane.samples {
-            if inside(q.p) {
-                cur.push(q);
-            } else if !cur.is_empty() {
-                runs.push(std::mem::take(&mut cur));
-            }
-        }
-        if !cur.is_empty() {
-            runs.push(cur);
-        }
-        for r in runs.iter().filter(|r| r.len() >= 2) {
-            let outline: Vec<v2t_model::geometry::Point2> =
-                r.iter().map(|q| q.left).chain(r.iter().rev().map(|q| q.right)).collect();
-            let outline = v2t_map::boundaries::simplify(&outline, 0.05);
-            let _ = write!(
-                lanes,
-                "<path class=\"lane\" fill=\"{}\" d=\"{}Z\"/>",
-                if lane.drivable { "#c3c7cc" } else { "#dde2d6" },
-                path_d(outline.iter().map(|p| (p.x, p.y)))
-            );
-            for side in [true, false] {
-                let mut seg: Vec<v2t_model::geometry::Point2> = Vec::new();
-                let mut kind: Option<MarkType> = None;
-                let mut flush = |seg: &[v2t_model::geometry::Point2], kind: Option<MarkType>| {
-                    let dash = match kind {
-                        Some(MarkType::Broken) => " stroke-dasharray=\"6 6\"",
-                        Some(MarkType::Mixed) => " stroke-dasharray=\"12 3\"",
-                        _ => "",
-                    };
-                    if seg.len() >= 2 && !matches!(kind, Some(MarkType::None) | None) {
-                        let seg = v2t_map::boundaries::simplify(seg, 0.05);
-                        let _ = write!(
-                            marks,
-                            "<path class=\"mark\"{dash} d=\"{}\"/>",
-                            path_d(seg.iter().map(|p| (p.x, p.y)))
-                        );
-                    }
-                };
-                for q in r {
-                    let (p, m) = if side { (q.left, q.left_mark) } else { (q.right, q.right_mark) };
-                    if kind != Some(m) {
-                        if let Some(last) = seg.last().copied() {
-                            flush(&seg, kind);
-                            seg = vec![last];
-                        }
-                        kind = Some(m);
-                    }
-                    seg.push(p);
-                }
-                flush(&seg, kind);
-            }
-        }
-    }
-    lanes.push_str("</g>");
-    marks.push_str("</g>");
-    lanes + &marks
 }
 
 fn plots(run: &Value, trace: &Trace, t_range: (f64, f64)) -> String {
