@@ -328,6 +328,49 @@ struct RealismPull {
     share: f64,
 }
 
+/// The leader's key time and the follower's predicted response to it.
+#[derive(Debug, Clone, Copy)]
+struct KeyTime {
+    /// When the BV reaches its key point (the zone exit when it rushes, the entry when it yields),
+    /// s from now.
+    key_t: f64,
+    /// When the VUT reaches the zone (rush) or leaves it (yield), s from now; `None`: never.
+    t_vut: Option<f64>,
+    /// Whether `t_vut` came from a follower solve whose order constraint did not bind (then the
+    /// safety check need not solve again when its constraint cannot bind either).
+    free_response: bool,
+}
+
+/// The leader's objective `w_adv (PET − τ)² + w_real (T − T_ref)²` minimised over the key time T
+/// in closed form: the adversarial key time `t_adv` pulled toward the reference's by its share.
+fn pulled(realism: Option<RealismPull>, t_adv: f64) -> f64 {
+    match realism {
+        Some(r) => (1.0 - r.share) * t_adv + r.share * r.key_time_s,
+        None => t_adv,
+    }
+}
+
+/// Whether every number of the input is finite.
+fn inputs_finite(inp: &RegulatorInput) -> bool {
+    [
+        inp.t_s,
+        inp.bv.s_m,
+        inp.bv.v_mps,
+        inp.bv.age_s,
+        inp.vut.s_m,
+        inp.vut.v_mps,
+        inp.vut.age_s,
+        inp.bv_accel_mps2,
+        inp.zone_bv.enter_s_m,
+        inp.zone_bv.exit_s_m,
+        inp.zone_vut.enter_s_m,
+        inp.zone_vut.exit_s_m,
+        inp.reference_speed_mps,
+    ]
+    .iter()
+    .all(|x| x.is_finite())
+}
+
 const SLACK_TOL_M: f64 = 0.05;
 /// A follower key time this far from its constraint's time means the constraint did not bind, s.
 const BINDING_TOL_S: f64 = 0.05;
@@ -657,27 +700,25 @@ impl Regulator {
     }
 
     fn decide_capped(&mut self, inp: &RegulatorInput) -> Decision {
-        let finite = [
-            inp.t_s,
-            inp.bv.s_m,
-            inp.bv.v_mps,
-            inp.bv.age_s,
-            inp.vut.s_m,
-            inp.vut.v_mps,
-            inp.vut.age_s,
-            inp.bv_accel_mps2,
-            inp.zone_bv.enter_s_m,
-            inp.zone_bv.exit_s_m,
-            inp.zone_vut.enter_s_m,
-            inp.zone_vut.exit_s_m,
-            inp.reference_speed_mps,
-        ];
-        if finite.iter().any(|x| !x.is_finite()) {
+        if !inputs_finite(inp) {
             return self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps);
         }
         if inp.bv.age_s > self.params.max_input_age_s || inp.vut.age_s > self.params.max_input_age_s {
             return self.fallback(RegulatorStatus::Stale, inp.bv.v_mps);
         }
+        self.note_exits(inp);
+        let bv_key = match inp.target.style() {
+            Style::Rush => inp.zone_bv.exit_s_m,
+            Style::Yield => inp.zone_bv.enter_s_m,
+        };
+        if let Some(d) = self.outside_interaction(inp, bv_key) {
+            return d;
+        }
+        self.regulate(inp, bv_key)
+    }
+
+    /// Remembers when each vehicle was first seen out of its zone.
+    fn note_exits(&mut self, inp: &RegulatorInput) {
         if inp.vut.s_m >= inp.zone_vut.exit_s_m && self.vut_exit_t_s.is_none() {
             // Seen out at this cycle: it left between cycles. Back-date the exit by the distance
             // beyond it at the measured speed (at most one step), so the yield target carries no
@@ -689,10 +730,11 @@ impl Regulator {
             let beyond_s = (inp.bv.s_m - inp.zone_bv.exit_s_m) / inp.bv.v_mps.max(0.1);
             self.bv_exit_t_s = Some(inp.t_s - beyond_s.min(self.params.dt_s));
         }
-        let bv_key = match inp.target.style() {
-            Style::Rush => inp.zone_bv.exit_s_m,
-            Style::Yield => inp.zone_bv.enter_s_m,
-        };
+    }
+
+    /// The decision when there is nothing to regulate (the BV is past the interaction) or the BV
+    /// must give way whatever the target (the VUT is in the zone before it); `None` otherwise.
+    fn outside_interaction(&mut self, inp: &RegulatorInput, bv_key: f64) -> Option<Decision> {
         let vut_gone = inp.vut.s_m >= inp.zone_vut.exit_s_m;
         // Yielding at a crossing, the BV has crept over its entry (a plan that holds it just
         // before the zone, tracked late or noisily) while the VUT has yet to leave the zone: it is
@@ -703,7 +745,7 @@ impl Regulator {
             && inp.bv.s_m < inp.zone_bv.enter_s_m + CREPT_IN_M
             && !vut_gone
         {
-            return self.give_way(inp);
+            return Some(self.give_way(inp));
         }
         // Past the interaction: follow the reference.
         if inp.bv.s_m >= bv_key
@@ -711,60 +753,26 @@ impl Regulator {
             || (inp.target.style() == Style::Yield && inp.bv.s_m >= inp.zone_bv.enter_s_m)
         {
             let after = self.after_merge(inp);
-            return match self.lead(&after, None, 0.0, None) {
+            return Some(match self.lead(&after, None, 0.0, None) {
                 QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
                 _ => self.decision_from(&self.leader_equal, RegulatorStatus::Passed, None, None, 0.0),
-            };
+            });
         }
         // Rush, but the VUT is already in the zone: give way until it has left.
         if inp.target.style() == Style::Rush && inp.vut.s_m >= inp.zone_vut.enter_s_m {
-            return self.give_way(inp);
+            return Some(self.give_way(inp));
         }
+        None
+    }
 
-        // 1–2: follower response and the leader's key time (fixed-point step).
+    /// The regulated decision before the zone: the leader's key time against the follower's
+    /// response (steps 1–2), the plan that meets it (3) and the safety check of that plan (4).
+    fn regulate(&mut self, inp: &RegulatorInput, bv_key: f64) -> Decision {
         let tau = inp.target.tau_s();
         let realism = self.realism_pull(inp.bv.s_m, bv_key);
-        // The leader's objective `w_adv (PET − τ)² + w_real (T − T_ref)²` minimised over T in
-        // closed form: the adversarial key time pulled toward the reference's by its share.
-        let pull = |t_adv: f64| match realism {
-            Some(r) => (1.0 - r.share) * t_adv + r.share * r.key_time_s,
-            None => t_adv,
+        let Some(KeyTime { mut key_t, t_vut, free_response }) = self.key_time(inp, realism) else {
+            return self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps);
         };
-        let mut key_t = self.last_key_t_s.map_or(FIRST_KEY_GUESS_S, |t| t - inp.t_s).max(0.0);
-        let mut t_vut: Option<f64> = None;
-        // Whether `t_vut` came from a follower solve whose order constraint did not bind (then the
-        // safety check need not solve again when its constraint cannot bind either).
-        let mut free_response = false;
-        if inp.target.style() == Style::Yield
-            && let Some(t_exit) = self.vut_exit_t_s
-        {
-            t_vut = Some(t_exit - inp.t_s);
-            free_response = true;
-        } else {
-            // Rush: the VUT's best response to the BV's key time (it may have to wait for the BV).
-            // Yield: the BV is the one that gives way, so the VUT is predicted unconstrained.
-            for _ in 0..2 {
-                let order = (inp.target.style() == Style::Rush).then_some(key_t);
-                let Some((t_v, _)) = self.follower(inp, order) else {
-                    return self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps);
-                };
-                t_vut = t_v;
-                let Some(tv) = t_v else { break };
-                if inp.target.style() == Style::Yield {
-                    free_response = true;
-                    break;
-                }
-                free_response = tv > key_t + BINDING_TOL_S;
-                let next = pull(tv - tau).max(0.0);
-                // The response only moves when the order constraint binds; if the VUT's entry is
-                // after the new key time too, the fixed point is reached.
-                let settled = tv >= next.max(key_t);
-                key_t = next;
-                if settled {
-                    break;
-                }
-            }
-        }
         let Some(t_v) = t_vut else {
             // The VUT is predicted never to reach (rush) or leave (yield) the zone.
             return match inp.target.style() {
@@ -777,7 +785,7 @@ impl Regulator {
             };
         };
         if inp.target.style() == Style::Yield {
-            key_t = pull(t_v + tau).max(t_v + self.params.safety_margin_s).max(0.0);
+            key_t = pulled(realism, t_v + tau).max(t_v + self.params.safety_margin_s).max(0.0);
         }
 
         // Rushing into a merge and already inside the zone: clear it, never slow down in it for a
@@ -789,7 +797,57 @@ impl Regulator {
         {
             key_t = key_t.min((bv_key - inp.bv.s_m) / inp.bv.v_mps.max(IN_ZONE_MIN_MPS));
         }
+        self.checked_plan(inp, bv_key, realism, key_t, t_v, free_response)
+    }
 
+    /// Steps 1–2: the follower's response and the leader's key time (a fixed-point step); `None`
+    /// when a follower solve fails.
+    fn key_time(&mut self, inp: &RegulatorInput, realism: Option<RealismPull>) -> Option<KeyTime> {
+        let tau = inp.target.tau_s();
+        let mut key_t = self.last_key_t_s.map_or(FIRST_KEY_GUESS_S, |t| t - inp.t_s).max(0.0);
+        if inp.target.style() == Style::Yield
+            && let Some(t_exit) = self.vut_exit_t_s
+        {
+            return Some(KeyTime { key_t, t_vut: Some(t_exit - inp.t_s), free_response: true });
+        }
+        let mut t_vut: Option<f64> = None;
+        let mut free_response = false;
+        // Rush: the VUT's best response to the BV's key time (it may have to wait for the BV).
+        // Yield: the BV is the one that gives way, so the VUT is predicted unconstrained.
+        for _ in 0..2 {
+            let order = (inp.target.style() == Style::Rush).then_some(key_t);
+            let (t_v, _) = self.follower(inp, order)?;
+            t_vut = t_v;
+            let Some(tv) = t_v else { break };
+            if inp.target.style() == Style::Yield {
+                free_response = true;
+                break;
+            }
+            free_response = tv > key_t + BINDING_TOL_S;
+            let next = pulled(realism, tv - tau).max(0.0);
+            // The response only moves when the order constraint binds; if the VUT's entry is
+            // after the new key time too, the fixed point is reached.
+            let settled = tv >= next.max(key_t);
+            key_t = next;
+            if settled {
+                break;
+            }
+        }
+        Some(KeyTime { key_t, t_vut, free_response })
+    }
+
+    /// Steps 3–4: the leader's plan for key time `key_t`, checked against the follower's best
+    /// response to it (`t_v`, the VUT's time at the zone, came from a free response when
+    /// `free_response`); the BV gives way when the order could not be kept.
+    fn checked_plan(
+        &mut self,
+        inp: &RegulatorInput,
+        bv_key: f64,
+        realism: Option<RealismPull>,
+        key_t: f64,
+        t_v: f64,
+        free_response: bool,
+    ) -> Decision {
         // 3: the leader's plan.
         if self.lead(inp, Some(key_t), bv_key, realism) == QpStatus::Failed {
             return self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps);
