@@ -283,49 +283,7 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<EcuR
     // The regulator's decisions, for the recording.
     let plan_in = bus.subscriber::<RegulatedPlan>(services::PLAN)?;
     let mut plans = Vec::new();
-    let (scenario, card_prior) = match &opts.source {
-        EcuSource::Card(card) => {
-            let mut scenario = v2t_sim::files::load_scenario(card)?;
-            if let Some(tau) = opts.tau_s {
-                scenario.target = scenario.target.with_tau(tau)?;
-            }
-            if let Some(style) = opts.style {
-                scenario.target = scenario.target.with_style(style);
-            }
-            let prior = world::prior_of_card(&scenario, 0, opts.seed.wrapping_add(1), now_ns())?;
-            (scenario, Some((prior, bus.publisher::<ActivePrior>(services::PRIOR)?)))
-        }
-        EcuSource::Prior { path, agent, sim_settings } => {
-            let settings = v2t_files::load_toml(sim_settings)?;
-            let file = v2t_files::read_prior(path)?;
-            let prior = world::accept(&file, agent.as_deref(), vehicles(cfg), opts.seed.wrapping_add(1), now_ns())?;
-            let model = opts.vut.unwrap_or(VutModel::IdmNormal);
-            let name = format!("prior {}", prior.prior_id);
-            let scenario = world::from_prior(&name, &prior, vehicles(cfg), settings, model)?;
-            (scenario, Some((prior, bus.publisher::<ActivePrior>(services::PRIOR)?)))
-        }
-        EcuSource::Uplink { sim_settings, wait_s } => {
-            let settings = v2t_files::load_toml(sim_settings)?;
-            let priors = bus.subscriber::<ActivePrior>(services::PRIOR)?;
-            let deadline = now_ns() + (wait_s * 1e9) as u64;
-            let prior = loop {
-                let mut newest = None;
-                while let Some(sample) = priors.receive().map_err(|e| EdgeError::ipc("receive", services::PRIOR, e))? {
-                    newest = Some(sample.clone());
-                }
-                if let Some(p) = newest {
-                    break p;
-                }
-                if now_ns() > deadline || !bus.wait(Duration::from_millis(20)) {
-                    return Err(EcuError::NoPrior(*wait_s));
-                }
-            };
-            eprintln!("sim-ecu: prior {} from the uplink: τ {} s", prior.prior_id, prior.tau_s);
-            let model = opts.vut.unwrap_or(VutModel::IdmNormal);
-            let name = format!("prior {}", prior.prior_id);
-            (world::from_prior(&name, &prior, vehicles(cfg), settings, model)?, None)
-        }
-    };
+    let (scenario, card_prior) = world_of::<S>(cfg, opts, &bus)?;
     let model = opts.vut.unwrap_or(scenario.vut.default_model);
     let sumo_world = match &opts.sumo {
         Some((map, driver)) => Some((crate::sumo::SumoWorld::new(map)?, driver)),
@@ -343,14 +301,7 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<EcuR
         let realism = opts.human.as_ref().and_then(|h| v2t_sim::realism::measure_run(&scenario, &outcome, h).ok());
         EcuRun { outcome, stats, plans, gate, realism }
     };
-    let mut gate_log: Vec<GateRecord> = Vec::new();
-    let mut gate_code: Option<u8> = None;
-    let mut log_gate = |t_s: f64, code: Option<u8>| {
-        let Some(code) = code.filter(|c| gate_code != Some(*c)) else { return };
-        gate_code = Some(code);
-        let state = GateState::from_code(code).map_or_else(|_| format!("code {code}"), |g| format!("{g:?}"));
-        gate_log.push(GateRecord { t_s, state });
-    };
+    let mut gate_log = GateLog::default();
     let mut driver = model.driver();
     let mut io = Io {
         fixes: bus.publisher(services::LOCALIZATION)?,
@@ -364,15 +315,8 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<EcuR
     };
     // A card's prior is sent again every second, as the cloud would: a node that (re)starts later
     // gets it too. An uplinked prior stays with the uplink node.
-    let send_prior = || match &card_prior {
-        Some((prior, out)) => out
-            .send_copy(prior.clone())
-            .map(|_| ())
-            .map_err(|e| EcuError::from(EdgeError::ipc("send", services::PRIOR, e))),
-        None => Ok(()),
-    };
-    send_prior()?;
-    let prior_every = (1.0 / scenario.settings.plant_dt_s).round().max(1.0) as u64;
+    let prior = PriorResend { out: card_prior, every: (1.0 / scenario.settings.plant_dt_s).round().max(1.0) as u64 };
+    prior.send()?;
     let mut sim = Simulation::new(&scenario, opts.seed);
     let dt = scenario.settings.plant_dt_s;
     let step_ns = (dt * 1e9) as u64;
@@ -380,60 +324,19 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<EcuR
     let wheelbase = scenario.bvs.first().map_or(2.8, |b| b.agent.vehicle.geometry.wheelbase_m);
     let mut cmds = Commands::default();
 
-    // Before the start: the BV stands at its start (sensors alive) until the gateway engages.
-    let deadline = now_ns() + (opts.engage_timeout_s * 1e9) as u64;
-    let mut k: u64 = 0;
-    while !cmds.engaged {
-        if now_ns() > deadline {
-            return Err(EcuError::NotEngaged(opts.engage_timeout_s));
-        }
-        io.drain(&mut cmds);
-        if k.is_multiple_of(prior_every) {
-            send_prior()?;
-        }
-        if let (Some(st), Some((vut, _))) =
-            (sim.bv_truth(0), sim.vut_seen_by_bvs().or_else(|| Some((scenario_start_vut(&scenario), 0.0))))
-        {
-            if k.is_multiple_of(FIX_EVERY as u64) {
-                io.publish_fix(&st, 0.0)?;
-                io.publish_vut(&vut, 0.0)?;
-            }
-            io.feedback(st.speed_mps, 0.0, 0.0)?;
-        }
-        k += 1;
-        if !io.bus.wait(Duration::from_nanos(step_ns)) {
-            return Ok(finish(sim.finish(&vut_name, "v2t-edge"), cmds.stats, plans, gate_log));
-        }
+    if !stand_until_engaged(&mut io, &mut cmds, &sim, &scenario, opts.engage_timeout_s, &prior, step_ns)? {
+        return Ok(finish(sim.finish(&vut_name, "v2t-edge"), cmds.stats, plans, gate_log.records));
     }
 
     let start = now_ns();
     let mut i: usize = 0;
     while !sim.is_done() {
         io.drain(&mut cmds);
-        log_gate(i as f64 * dt, cmds.gate);
+        gate_log.log(i as f64 * dt, cmds.gate);
         while let Some(p) = plan_in.receive().map_err(|e| EdgeError::ipc("receive", services::PLAN, e))? {
-            plans.push(PlanRecord {
-                t_s: i as f64 * dt,
-                prior_id: p.prior_id,
-                status: PlanStatus::from_code(p.status)
-                    .map_or_else(|_| format!("code {}", p.status), |s| format!("{s:?}")),
-                s_m: p.s0_m,
-                v_mps: p.v0_mps,
-                accel_mps2: p.accel_mps2,
-                predicted_pet_s: (p.has_predicted_pet != 0 && p.predicted_pet_s.is_finite())
-                    .then_some(p.predicted_pet_s),
-                below_reach: (p.below_reach != 0).then(|| {
-                    BelowReachCode::from_code(p.below_reach)
-                        .map_or_else(|_| format!("code {}", p.below_reach), |c| format!("{c:?}"))
-                }),
-                pet_bound_s: (p.below_reach != 0 && p.has_pet_bound != 0 && p.pet_bound_s.is_finite())
-                    .then_some(p.pet_bound_s),
-                solve_us: p.solve_ns as f64 * 1e-3,
-            });
+            plans.push(plan_record(i as f64 * dt, &p));
         }
-        if (i as u64).is_multiple_of(prior_every) {
-            send_prior()?;
-        }
+        prior.send_at(i as u64)?;
         let now = now_ns();
         let (_, held_steer) = sim.bv_actuators(0).unwrap_or((0.0, 0.0));
         sim.set_bv_request(0, cmds.request(now, held_steer));
@@ -464,7 +367,162 @@ pub fn run<S: Service + 'static>(cfg: &Loaded, opts: &EcuOptions) -> Result<EcuR
             break;
         }
     }
-    Ok(finish(sim.finish(&vut_name, "v2t-edge"), cmds.stats, plans, gate_log))
+    Ok(finish(sim.finish(&vut_name, "v2t-edge"), cmds.stats, plans, gate_log.records))
+}
+
+/// The prior the ECU publishes in the cloud's stead, and where.
+type PriorOut<S> = Option<(ActivePrior, iceoryx2::port::publisher::Publisher<S, ActivePrior, ()>)>;
+
+/// The scenario of `opts.source`, and the prior to publish when the ECU stands in for the cloud
+/// (a card or a prior file; an uplinked prior stays with the uplink node).
+fn world_of<S: Service + 'static>(
+    cfg: &Loaded,
+    opts: &EcuOptions,
+    bus: &Bus<S>,
+) -> Result<(v2t_sim::scenario::Scenario, PriorOut<S>), EcuError> {
+    match &opts.source {
+        EcuSource::Card(card) => {
+            let mut scenario = v2t_sim::files::load_scenario(card)?;
+            if let Some(tau) = opts.tau_s {
+                scenario.target = scenario.target.with_tau(tau)?;
+            }
+            if let Some(style) = opts.style {
+                scenario.target = scenario.target.with_style(style);
+            }
+            let prior = world::prior_of_card(&scenario, 0, opts.seed.wrapping_add(1), now_ns())?;
+            Ok((scenario, Some((prior, bus.publisher::<ActivePrior>(services::PRIOR)?))))
+        }
+        EcuSource::Prior { path, agent, sim_settings } => {
+            let settings = v2t_files::load_toml(sim_settings)?;
+            let file = v2t_files::read_prior(path)?;
+            let prior = world::accept(&file, agent.as_deref(), vehicles(cfg), opts.seed.wrapping_add(1), now_ns())?;
+            let model = opts.vut.unwrap_or(VutModel::IdmNormal);
+            let name = format!("prior {}", prior.prior_id);
+            let scenario = world::from_prior(&name, &prior, vehicles(cfg), settings, model)?;
+            Ok((scenario, Some((prior, bus.publisher::<ActivePrior>(services::PRIOR)?))))
+        }
+        EcuSource::Uplink { sim_settings, wait_s } => {
+            let settings = v2t_files::load_toml(sim_settings)?;
+            let prior = uplinked_prior(bus, *wait_s)?;
+            eprintln!("sim-ecu: prior {} from the uplink: τ {} s", prior.prior_id, prior.tau_s);
+            let model = opts.vut.unwrap_or(VutModel::IdmNormal);
+            let name = format!("prior {}", prior.prior_id);
+            Ok((world::from_prior(&name, &prior, vehicles(cfg), settings, model)?, None))
+        }
+    }
+}
+
+/// The newest prior on the prior service, waiting for one at most `wait_s`.
+fn uplinked_prior<S: Service + 'static>(bus: &Bus<S>, wait_s: f64) -> Result<ActivePrior, EcuError> {
+    let priors = bus.subscriber::<ActivePrior>(services::PRIOR)?;
+    let deadline = now_ns() + (wait_s * 1e9) as u64;
+    loop {
+        let mut newest = None;
+        while let Some(sample) = priors.receive().map_err(|e| EdgeError::ipc("receive", services::PRIOR, e))? {
+            newest = Some(sample.clone());
+        }
+        if let Some(p) = newest {
+            return Ok(p);
+        }
+        if now_ns() > deadline || !bus.wait(Duration::from_millis(20)) {
+            return Err(EcuError::NoPrior(wait_s));
+        }
+    }
+}
+
+/// The prior the ECU publishes as the cloud would, and again every `every` plant steps.
+struct PriorResend<S: Service + 'static> {
+    out: PriorOut<S>,
+    every: u64,
+}
+
+impl<S: Service + 'static> PriorResend<S> {
+    fn send(&self) -> Result<(), EcuError> {
+        match &self.out {
+            Some((prior, out)) => out
+                .send_copy(prior.clone())
+                .map(|_| ())
+                .map_err(|e| EcuError::from(EdgeError::ipc("send", services::PRIOR, e))),
+            None => Ok(()),
+        }
+    }
+
+    /// Sends the prior when step `k` is due.
+    fn send_at(&self, k: u64) -> Result<(), EcuError> {
+        if k.is_multiple_of(self.every) { self.send() } else { Ok(()) }
+    }
+}
+
+/// Before the start: the BV stands at its start (sensors alive, the prior resent) until the
+/// gateway engages. `Ok(false)` when a signal ended the wait.
+fn stand_until_engaged<S: Service + 'static>(
+    io: &mut Io<S>,
+    cmds: &mut Commands,
+    sim: &Simulation,
+    scenario: &v2t_sim::scenario::Scenario,
+    timeout_s: f64,
+    prior: &PriorResend<S>,
+    step_ns: u64,
+) -> Result<bool, EcuError> {
+    let deadline = now_ns() + (timeout_s * 1e9) as u64;
+    let mut k: u64 = 0;
+    while !cmds.engaged {
+        if now_ns() > deadline {
+            return Err(EcuError::NotEngaged(timeout_s));
+        }
+        io.drain(cmds);
+        prior.send_at(k)?;
+        if let (Some(st), Some((vut, _))) =
+            (sim.bv_truth(0), sim.vut_seen_by_bvs().or_else(|| Some((scenario_start_vut(scenario), 0.0))))
+        {
+            if k.is_multiple_of(FIX_EVERY as u64) {
+                io.publish_fix(&st, 0.0)?;
+                io.publish_vut(&vut, 0.0)?;
+            }
+            io.feedback(st.speed_mps, 0.0, 0.0)?;
+        }
+        k += 1;
+        if !io.bus.wait(Duration::from_nanos(step_ns)) {
+            return Ok(false);
+        }
+    }
+    Ok(true)
+}
+
+/// The actuation gate's state as `BV_ControlState` reported it: every change.
+#[derive(Default)]
+struct GateLog {
+    records: Vec<GateRecord>,
+    code: Option<u8>,
+}
+
+impl GateLog {
+    /// Records `code` at `t_s` when it differs from the last one.
+    fn log(&mut self, t_s: f64, code: Option<u8>) {
+        let Some(code) = code.filter(|c| self.code != Some(*c)) else { return };
+        self.code = Some(code);
+        let state = GateState::from_code(code).map_or_else(|_| format!("code {code}"), |g| format!("{g:?}"));
+        self.records.push(GateRecord { t_s, state });
+    }
+}
+
+/// A regulator's decision as the recording keeps it, received at `t_s`.
+fn plan_record(t_s: f64, p: &RegulatedPlan) -> PlanRecord {
+    PlanRecord {
+        t_s,
+        prior_id: p.prior_id,
+        status: PlanStatus::from_code(p.status).map_or_else(|_| format!("code {}", p.status), |s| format!("{s:?}")),
+        s_m: p.s0_m,
+        v_mps: p.v0_mps,
+        accel_mps2: p.accel_mps2,
+        predicted_pet_s: (p.has_predicted_pet != 0 && p.predicted_pet_s.is_finite()).then_some(p.predicted_pet_s),
+        below_reach: (p.below_reach != 0).then(|| {
+            BelowReachCode::from_code(p.below_reach)
+                .map_or_else(|_| format!("code {}", p.below_reach), |c| format!("{c:?}"))
+        }),
+        pet_bound_s: (p.below_reach != 0 && p.has_pet_bound != 0 && p.pet_bound_s.is_finite()).then_some(p.pet_bound_s),
+        solve_us: p.solve_ns as f64 * 1e-3,
+    }
 }
 
 fn scenario_start_vut(scenario: &v2t_sim::scenario::Scenario) -> v2t_model::kinematics::State {
