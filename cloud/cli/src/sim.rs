@@ -139,24 +139,14 @@ pub fn run(a: SimArgs) -> anyhow::Result<()> {
         recording::write_with_plans(&outcome, first, path)?;
         outln!("wrote {}", path.display())?;
     }
-    #[derive(serde::Serialize)]
-    struct Output<'a> {
-        #[serde(flatten)]
-        outcome: &'a v2t_sim::runner::RunOutcome,
-        realism: Option<&'a v2t_sim::realism::RunRealism>,
-        /// Each regulated BV's decisions over the run.
-        #[serde(skip_serializing_if = "Option::is_none")]
-        regulator: Option<&'a Vec<Vec<v2t_sim::recording::PlanRecord>>>,
-    }
-    let output = Output { outcome: &outcome, realism: realism.as_ref(), regulator: plans.as_ref() };
+    let file = v2t_sim::runfile::RunFile { realism, regulator: plans, ..v2t_sim::runfile::RunFile::of(&outcome) };
     if let Some(path) = &a.json {
-        write_json(path, &output)?;
+        write_json(path, &file)?;
     }
     if let Some(path) = &a.report {
-        let doc = serde_json::to_value(&output)?;
         let place = format!("{}; scenario card {}", vut.world().provenance(), a.card.display());
         let page = v2t_lab::report::run::page(
-            &doc,
+            &file,
             map.as_ref(),
             &a.report_map,
             &place,

@@ -343,15 +343,24 @@ fn bad_input_is_an_input_error_with_a_message() {
             .unwrap();
     let nan = prior.replacen(&first_x, "NaN", 1);
     assert_ne!(nan, prior);
-    let cases: [(&str, String, &str); 5] = [
+    let cases: [(&str, String, &str); 6] = [
         ("not_json.json", "this is not JSON".into(), "not JSON"),
         ("nan.json", nan, "not JSON"),
         ("empty.json", empty, "agents"),
         ("other.json", r#"{"name": "x"}"#.into(), "neither a trajectory prior"),
         (
             "empty_run.json",
-            r#"{"result": {"scenario": "x", "tau_s": 2, "style": "rush"}, "agent_ids": [], "trace": []}"#.into(),
+            r#"{"result": {"scenario": "x", "vut_model": "idm-normal", "bv_controller": "reference", "seed": 1,
+                "style": "rush", "tau_s": 2, "duration_s": 0, "completed": false, "conflicts": [], "pet_min_s": null,
+                "min_distance_m": null, "min_distance_t_s": 0, "min_ttc_s": null, "collision": null,
+                "zone_overlap": false}, "agent_ids": [], "trace": []}"#
+                .into(),
             "agent_ids",
+        ),
+        (
+            "partial_run.json",
+            r#"{"result": {"scenario": "x", "tau_s": 2, "style": "rush"}, "agent_ids": [], "trace": []}"#.into(),
+            "missing field `vut_model`",
         ),
     ];
     for (name, text, expect) in cases {

@@ -13,6 +13,7 @@
 //! ```
 
 pub mod file;
-mod runfile;
+#[cfg(test)]
+mod test_run;
 pub mod video;
 pub mod xosc;

@@ -19,11 +19,11 @@ use std::io::{Read as _, Write as _};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-use crate::runfile::RunFile;
 use v2t_model::geometry::Point2;
 use v2t_model::kinematics::State;
 use v2t_model::validate::plausible;
 use v2t_sim::files::CardError;
+use v2t_sim::runfile::RunFile;
 use v2t_sim::scenario::Scenario;
 
 use crate::video::raster::{Canvas, Rgb};
@@ -534,25 +534,22 @@ mod tests {
 
     use super::*;
 
-    fn run_json() -> String {
-        // Two vehicles crossing: the VUT east along y = 0, the BV north along x = 20.
-        let samples: Vec<String> = (0..=40)
+    /// Two vehicles crossing: the VUT east along y = 0, the BV north along x = 20.
+    fn run_file() -> v2t_sim::runfile::RunFile {
+        let samples: Vec<(f64, Vec<State>)> = (0..=40)
             .map(|k| {
                 let t = f64::from(k) * 0.1;
-                format!(
-                    r#"{{"t_s": {t}, "agents": [
-                        {{"state": {{"px": {}, "py": 0.0, "theta_rad": 0.0, "speed_mps": 10.0}}, "s_m": 0}},
-                        {{"state": {{"px": 20.0, "py": {}, "theta_rad": 1.5707963, "speed_mps": 5.0}}}}
-                    ], "predicted_pet_s": []}}"#,
-                    10.0 * t,
-                    -10.0 + 5.0 * t
-                )
+                let vut = State { px: 10.0 * t, py: 0.0, theta_rad: 0.0, speed_mps: 10.0 };
+                let bv =
+                    State { px: 20.0, py: -10.0 + 5.0 * t, theta_rad: std::f64::consts::FRAC_PI_2, speed_mps: 5.0 };
+                (t, vec![vut, bv])
             })
             .collect();
-        format!(
-            r#"{{"result": {{"scenario": "cross", "duration_s": 4.0}}, "agent_ids": ["vut", "bv1"], "trace": [{}]}}"#,
-            samples.join(",")
-        )
+        crate::test_run::run("cross", &["vut", "bv1"], &samples)
+    }
+
+    fn run_json() -> String {
+        serde_json::to_string(&run_file()).unwrap()
     }
 
     #[test]
@@ -574,14 +571,22 @@ mod tests {
         let p = Path::new("r.json");
         let e = Scene::from_run_json("{}", p).unwrap_err();
         assert!(matches!(e, RenderError::Parse { .. }) && e.is_input(), "{e}");
-        let repeated = run_json().replacen("\"t_s\": 0.1", "\"t_s\": 0.0", 1);
-        let e = Scene::from_run_json(&repeated, p).unwrap_err();
+        let json = |r: &v2t_sim::runfile::RunFile| serde_json::to_string(r).unwrap();
+        let mut repeated = run_file();
+        repeated.trace[1].t_s = 0.0;
+        let e = Scene::from_run_json(&json(&repeated), p).unwrap_err();
         assert!(e.to_string().contains("trace[1].t_s") && e.is_input(), "{e}");
-        let short = run_json().replacen(r#", "agent_ids": ["vut", "bv1"]"#, r#", "agent_ids": ["vut"]"#, 1);
-        let e = Scene::from_run_json(&short, p).unwrap_err();
+        let mut short = run_file();
+        short.agent_ids.pop();
+        let e = Scene::from_run_json(&json(&short), p).unwrap_err();
         assert!(e.to_string().contains("agent_ids names 1"), "{e}");
-        let empty = r#"{"result": {"scenario": "x"}, "agent_ids": ["vut"], "trace": []}"#;
-        assert!(Scene::from_run_json(empty, p).unwrap_err().to_string().contains("empty"));
+        let mut empty = run_file();
+        empty.trace.clear();
+        assert!(Scene::from_run_json(&json(&empty), p).unwrap_err().to_string().contains("empty"));
+        // A run file without a part every run has is refused, naming it.
+        let e = Scene::from_run_json(r#"{"result": {"scenario": "x"}, "agent_ids": ["vut"], "trace": []}"#, p);
+        let e = e.unwrap_err();
+        assert!(matches!(e, RenderError::Parse { .. }) && e.to_string().contains("vut_model"), "{e}");
     }
 
     #[test]

@@ -31,7 +31,6 @@
 
 use std::fmt::Write as _;
 
-use crate::runfile::RunFile;
 use v2t_files::{DocumentError, PriorDocument, prior_document};
 use v2t_model::Style;
 use v2t_model::geometry::Point2;
@@ -40,6 +39,7 @@ use v2t_model::kinematics::State;
 use v2t_model::prior::TrajectoryPrior;
 use v2t_model::validate::ValidationError;
 use v2t_model::vehicle::VehicleConfig;
+use v2t_sim::runfile::RunFile;
 
 /// Longest time between two trajectory vertices, s.
 pub const VERTEX_PERIOD_S: f64 = 0.5;
@@ -196,9 +196,7 @@ fn from_prior(p: &TrajectoryPrior, kind: SourceKind, grounded: Option<&GroundedS
 }
 
 fn from_run(run: RunFile) -> Result<ExportScenario, XoscError> {
-    let (Some(tau_s), Some(style)) = (run.result.tau_s, run.result.style) else {
-        return Err(XoscError::NotARun("result: missing field `tau_s` or `style`".into()));
-    };
+    let (tau_s, style) = (run.result.tau_s, run.result.style);
     if run.agent_ids.is_empty() {
         return Err(invalid("agent_ids", "no agents"));
     }
@@ -680,11 +678,11 @@ mod tests {
     fn inputs_that_are_not_scenarios_say_so() {
         assert!(parse_input("nope").unwrap_err().to_string().starts_with("not JSON"));
         assert!(parse_input("{}").unwrap_err().to_string().starts_with("neither"));
-        assert!(
-            parse_input(r#"{"trace": [], "agent_ids": [], "result": {"scenario": "x", "tau_s": 2, "style": "rush"}}"#)
-                .unwrap_err()
-                .to_string()
-                .contains("agent_ids")
-        );
+        let no_agents = serde_json::to_string(&crate::test_run::run("x", &[], &[])).unwrap();
+        assert!(parse_input(&no_agents).unwrap_err().to_string().contains("agent_ids"));
+        // A run without a part every run has says which.
+        let e =
+            parse_input(r#"{"trace": [], "agent_ids": [], "result": {"scenario": "x", "tau_s": 2, "style": "rush"}}"#);
+        assert!(e.unwrap_err().to_string().contains("missing field `vut_model`"));
     }
 }

@@ -5,7 +5,7 @@
 //! localization noise and delay, VUT driver models ([`vut`]) that stand in for the ADS, a
 //! [`bv::BvController`] slot for the BV's onboard stack, and a fixed-step [`runner`] that records
 //! the full trace and measures PET per conflict, who passed first, distances and collisions.
-//! Deterministic given a seed.
+//! Deterministic given a seed. A run is written, and read back, as one [`runfile::RunFile`].
 //!
 //! ```
 //! use v2t_model::vehicle::VehicleConfig;
@@ -43,6 +43,7 @@ pub mod plant;
 pub mod realism;
 #[cfg(feature = "mcap")]
 pub mod recording;
+pub mod runfile;
 pub mod runner;
 pub mod scenario;
 pub mod sensing;

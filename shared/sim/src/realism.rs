@@ -4,7 +4,7 @@
 //! jerk and yaw rate, jerk RMS and speed reversals. The one measure that `sim`, `sim-ecu`, the demo
 //! and the experiments report.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use v2t_model::kinematics::State;
 use v2t_model::realism::{HumanReference, ManoeuvreClass, MotionRealism};
 
@@ -32,7 +32,7 @@ pub fn route_class(route: &v2t_model::path::ReferencePath) -> ManoeuvreClass {
 }
 
 /// One vehicle's realism in a run.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct VehicleRealism {
     /// Its id (`vut`, `bv1`, …).
     pub id: String,
@@ -44,7 +44,7 @@ pub struct VehicleRealism {
 }
 
 /// Every vehicle of a run: the VUT first, then the BVs in scenario order.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RunRealism {
     /// One per vehicle.
     pub vehicles: Vec<VehicleRealism>,

@@ -26,6 +26,9 @@ use serde::{Deserialize, Serialize};
 use serde_json::json;
 use v2t_model::kinematics::State;
 
+/// A regulator decision as recorded: the one type of the run file and the recording.
+pub use crate::runfile::PlanRecord;
+
 /// Name of the metadata record with the setup and the reported result.
 pub const RUN_METADATA: &str = "video2track.run";
 
@@ -94,34 +97,6 @@ fn ns(t_s: f64) -> u64 {
 fn stamp(t_s: f64) -> serde_json::Value {
     let n = ns(t_s);
     json!({"sec": n / 1_000_000_000, "nsec": n % 1_000_000_000})
-}
-
-/// One decision of the BV's regulator, as the onboard runtime published it (`/plans`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct PlanRecord {
-    /// Simulated time it was seen, s.
-    pub t_s: f64,
-    /// The prior it regulates around.
-    pub prior_id: u64,
-    /// The regulator's status (`Regulating`, `Degraded`, `SafetyYield`, …).
-    pub status: String,
-    /// Where the plan starts along the BV's path, m.
-    pub s_m: f64,
-    /// The BV's speed it starts from, m/s.
-    pub v_mps: f64,
-    /// The acceleration it commands now, m/s².
-    pub accel_mps2: f64,
-    /// The PET it predicts, s.
-    pub predicted_pet_s: Option<f64>,
-    /// Why it reports τ out of the VUT's reach (`VutWaits`, `Campaign`, `OrderRefused`); `None`:
-    /// nothing says so.
-    #[serde(default)]
-    pub below_reach: Option<String>,
-    /// With `below_reach`: the PET the VUT allows as far as known, s.
-    #[serde(default)]
-    pub pet_bound_s: Option<f64>,
-    /// How long the decision took, µs.
-    pub solve_us: f64,
 }
 
 const PLAN_SCHEMA: &str = r#"{"type":"object","title":"v2t.Plan","properties":{"t_s":{"type":"number"},"prior_id":{"type":"integer"},"status":{"type":"string"},"s_m":{"type":"number"},"v_mps":{"type":"number"},"accel_mps2":{"type":"number"},"predicted_pet_s":{"type":["number","null"]},"below_reach":{"type":["string","null"]},"pet_bound_s":{"type":["number","null"]},"solve_us":{"type":"number"}}}"#;

@@ -6,7 +6,7 @@
 //! localization and links deliver; PET and passages are measured on the true states at the plant
 //! rate.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use v2t_model::Style;
 use v2t_model::geometry::OrientedBox;
 use v2t_model::kinematics::State;
@@ -23,7 +23,7 @@ use crate::sensing::Localization;
 use crate::vut::VutDriver;
 
 /// Who went through a conflict zone first.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum FirstThrough {
     /// The background vehicle.
@@ -33,7 +33,7 @@ pub enum FirstThrough {
 }
 
 /// The outcome at one BV's conflict zone.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ConflictResult {
     /// The BV.
     pub bv_id: String,
@@ -52,7 +52,7 @@ pub struct ConflictResult {
 }
 
 /// The first footprint overlap of a run.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CollisionEvent {
     /// Time, s.
     pub t_s: f64,
@@ -61,7 +61,7 @@ pub struct CollisionEvent {
 }
 
 /// What a run measured.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RunResult {
     /// Scenario name.
     pub scenario: String,
@@ -83,7 +83,8 @@ pub struct RunResult {
     pub conflicts: Vec<ConflictResult>,
     /// Smallest measured PET over the conflicts, s.
     pub pet_min_s: Option<f64>,
-    /// Smallest footprint distance between any two vehicles, m.
+    /// Smallest footprint distance between any two vehicles, m (infinite with fewer than two).
+    #[serde(deserialize_with = "crate::runfile::infinite_if_null")]
     pub min_distance_m: f64,
     /// When it occurred, s.
     pub min_distance_t_s: f64,
@@ -96,7 +97,7 @@ pub struct RunResult {
 }
 
 /// One vehicle at one recorded instant.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct AgentSample {
     /// True state.
     pub state: State,
@@ -113,7 +114,7 @@ pub struct AgentSample {
 }
 
 /// One recorded instant.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TraceSample {
     /// Time, s.
     pub t_s: f64,
@@ -124,7 +125,7 @@ pub struct TraceSample {
 }
 
 /// What a drawing of a run needs besides its trace.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RunLayout {
     /// Footprint of every vehicle, in trace order (VUT first), m.
     pub dims: Vec<v2t_model::metrics::Dimensions>,
@@ -154,8 +155,8 @@ fn route_points(route: &ReferencePath) -> Vec<[f64; 2]> {
     out
 }
 
-/// A finished run.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// A finished run. Its file is a [`crate::runfile::RunFile`].
+#[derive(Debug, Clone, PartialEq)]
 pub struct RunOutcome {
     /// The measurements.
     pub result: RunResult,
@@ -165,11 +166,9 @@ pub struct RunOutcome {
     pub trace: Vec<TraceSample>,
     /// The vehicles' footprints and the conflict zones, for drawings of the run (a report).
     pub layout: RunLayout,
-    /// What the measurements are taken against (not in the JSON: a recording keeps it).
-    #[serde(skip)]
+    /// What the measurements are taken against (not in the run file: a recording keeps it).
     pub setup: MeasureSetup,
-    /// The truth at the plant rate (not in the JSON: a recording keeps it).
-    #[serde(skip)]
+    /// The truth at the plant rate (not in the run file: a recording keeps it).
     pub truth: TruthLog,
 }
 

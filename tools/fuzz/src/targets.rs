@@ -287,7 +287,7 @@ impl Context {
             v2t_sim::recording::write(&outcome, &path)?;
             Ok(vec![(name, std::fs::read(&path)?)])
         } else {
-            Ok(vec![(name, serde_json::to_vec_pretty(&outcome)?)])
+            Ok(vec![(name, serde_json::to_vec_pretty(&v2t_sim::runfile::RunFile::of(&outcome))?)])
         }
     }
 
@@ -375,19 +375,19 @@ impl Context {
                 self.xosc(&text())
             }
             "run" => {
-                // The report draws whatever JSON it is given, field by field: never a panic.
-                if let Ok(run) = serde_json::from_str::<serde_json::Value>(&text()) {
-                    let input = v2t_lab::report::run::RunInput {
-                        id: "run".into(),
-                        title: "run".into(),
-                        run: &run,
-                        map: None,
-                        ground: String::new(),
-                        links: Vec::new(),
-                        facts: Vec::new(),
-                    };
-                    let _ = v2t_lab::report::run::section(&input);
-                }
+                // The one typed reader of run files; whatever it reads, the report draws without a
+                // panic.
+                let run: v2t_sim::runfile::RunFile = serde_json::from_str(&text()).map_err(|e| s(&e))?;
+                let input = v2t_lab::report::run::RunInput {
+                    id: "run".into(),
+                    title: "run".into(),
+                    run: &run,
+                    map: None,
+                    ground: String::new(),
+                    links: Vec::new(),
+                    facts: Vec::new(),
+                };
+                let _ = v2t_lab::report::run::section(&input);
                 let scene = v2t_export::video::Scene::from_run_json(&text(), path).map_err(|e| s(&e))?;
                 let _ = scene.frame_count(10);
                 let _ = scene.view(320, 180);

@@ -13,8 +13,9 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use serde::Serialize;
-use serde_json::Value;
 use v2t_files::outln;
+use v2t_sim::realism::VehicleRealism;
+use v2t_sim::runfile::RunFile;
 use v2t_vlm::{Mode, VlmConfig, VlmError};
 
 mod report;
@@ -156,7 +157,7 @@ pub struct ScenarioSummary {
     pub min_distance_m: Option<f64>,
     /// How human the BV's motion was: its class and W₁ figures against recorded human driving
     /// (`realism` of `run.json`; the class alone when it has no human reference).
-    pub bv_realism: Option<Value>,
+    pub bv_realism: Option<VehicleRealism>,
     /// Wall time of the scenario, s.
     pub wall_s: f64,
     /// Files written.
@@ -208,7 +209,7 @@ pub fn run(opts: &DemoOptions) -> Result<Summary, DemoError> {
     }
     let summary = Summary { prior: prior_kind(&opts.weights, &model), scenarios, wall_s: t0.elapsed().as_secs_f64() };
     write(&opts.out.join("summary.json"), &pretty(&summary))?;
-    let runs: Vec<Value> = runs.into_iter().map(|(run, _)| run).collect();
+    let runs: Vec<RunFile> = runs.into_iter().map(|(run, _)| run).collect();
     write(&opts.out.join("report.html"), &report::html(&summary, &runs, &inspection.map, &opts.map))?;
     Ok(summary)
 }
@@ -224,7 +225,7 @@ fn run_one(
     sc: &DemoScenario,
     inspection: &v2t_map::Inspection,
     model: &v2t_diffusion::weights::Model,
-) -> Stage<(ScenarioSummary, Value, v2t_model::grounded::GroundedScenario)> {
+) -> Stage<(ScenarioSummary, RunFile, v2t_model::grounded::GroundedScenario)> {
     let t0 = Instant::now();
     let fail = |stage: &'static str| move |e: String| DemoError::Stage { scenario: sc.name.into(), stage, message: e };
     let file = |suffix: &str| opts.out.join(format!("{}.{suffix}", sc.name));
@@ -296,33 +297,30 @@ fn run_one(
         Err(e) => outln!("  video       not rendered: {e}")?,
     }
     let text = std::fs::read_to_string(&run_json).map_err(|e| fail("closed loop")(e.to_string()))?;
-    let run: Value = serde_json::from_str(&text).map_err(|e| fail("closed loop")(e.to_string()))?;
-    let r = at(&run, "/result");
-    let pet = at(r, "/pet_min_s").as_f64();
+    let run: RunFile =
+        serde_json::from_str(&text).map_err(|e| fail("closed loop")(format!("{}: {e}", run_json.display())))?;
+    let r = &run.result;
+    let pet = r.pet_min_s;
     let fidelity = pet.map(|p| (p - sc.pet_label_s).abs() / sc.pet_label_s);
+    let order_ok = r.conflicts.first().and_then(|c| c.order_matches_style);
     outln!(
         "  closed loop PET_min {} (video {:.2} s, error {}), order {}, collision {}",
         pet.map_or_else(|| "none".into(), |p| format!("{p:.2} s")),
         sc.pet_label_s,
         fidelity.map_or_else(|| "-".into(), |f| format!("{:.1} %", 100.0 * f)),
-        if at(r, "/conflicts/0/order_matches_style").as_bool() == Some(true) {
-            "as the style asks"
-        } else {
-            "NOT as the style asks"
-        },
-        if at(r, "/collision").is_null() { "none" } else { "YES" }
+        if order_ok == Some(true) { "as the style asks" } else { "NOT as the style asks" },
+        if r.collision.is_none() { "none" } else { "YES" }
     )?;
-    let bv_realism = run.pointer("/realism/vehicles/1").cloned().filter(|v| !v.is_null());
+    let bv_realism = run.realism.as_ref().and_then(|m| m.bv(0)).cloned();
     if let Some(v) = &bv_realism {
-        match v.pointer("/realism/w1_accel_mps2").and_then(Value::as_f64) {
-            Some(a) => outln!(
-                "  BV realism ({}): W₁ accel {a:.3} m/s², W₁ jerk {:.3} m/s³ against recorded human driving",
-                at(v, "/class").as_str().unwrap_or("?"),
-                at(v, "/realism/w1_jerk_mps3").as_f64().unwrap_or(f64::NAN)
+        match &v.realism {
+            Some(m) => outln!(
+                "  BV realism ({}): W₁ accel {:.3} m/s², W₁ jerk {:.3} m/s³ against recorded human driving",
+                v.class.name(),
+                m.w1_accel_mps2,
+                m.w1_jerk_mps3
             )?,
-            None => {
-                outln!("  BV realism ({}): no human reference for this class", at(v, "/class").as_str().unwrap_or("?"))?
-            }
+            None => outln!("  BV realism ({}): no human reference for this class", v.class.name())?,
         }
     }
     let summary = ScenarioSummary {
@@ -334,9 +332,9 @@ fn run_one(
         prior: prior_kind(&opts.weights, model),
         pet_min_track_s: pet,
         fidelity_error_rel: fidelity,
-        order_ok: at(r, "/conflicts/0/order_matches_style").as_bool(),
-        collision: !at(r, "/collision").is_null(),
-        min_distance_m: at(r, "/min_distance_m").as_f64(),
+        order_ok,
+        collision: r.collision.is_some(),
+        min_distance_m: Some(r.min_distance_m).filter(|d| d.is_finite()),
         bv_realism,
         wall_s: t0.elapsed().as_secs_f64(),
         files,
@@ -422,9 +420,4 @@ fn closed_loop(
         return Err(format!("the simulated ECU failed ({status}); see {}", out.with_extension("log").display()));
     }
     Ok(())
-}
-
-/// The value at a JSON pointer, `null` when absent.
-pub(crate) fn at<'a>(v: &'a Value, pointer: &str) -> &'a Value {
-    v.pointer(pointer).unwrap_or(&Value::Null)
 }

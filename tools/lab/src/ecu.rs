@@ -20,6 +20,7 @@ use v2t_edge::ports::{Bus, send};
 use v2t_model::{Style, TargetError};
 use v2t_sim::plant::ActuationRequest;
 use v2t_sim::recording::PlanRecord;
+use v2t_sim::runfile::RunFile;
 use v2t_sim::runner::{RunOutcome, Simulation};
 use v2t_sim::vut::VutModel;
 use v2t_wire::{
@@ -28,6 +29,10 @@ use v2t_wire::{
 };
 
 use crate::world::{self, Vehicles, WorldError};
+
+/// What the ECU saw of the commands, and a change of the actuation gate's state seen on the CAN bus:
+/// as the run file holds them.
+pub use v2t_sim::runfile::{EcuStats, GateRecord};
 
 /// Without a valid enabled command for this long the ECU brakes on its own, s.
 const ECU_COMMAND_TIMEOUT_S: f64 = 0.1;
@@ -100,14 +105,18 @@ pub struct EcuRun {
     pub realism: Option<v2t_sim::realism::RunRealism>,
 }
 
-/// A change of the actuation gate's state seen on the CAN bus.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct GateRecord {
-    /// Simulated time, s.
-    pub t_s: f64,
-    /// The state (`Disengaged`, `Engaged`, `MinimalRiskStop`, `Fault`, or `code N` for a code
-    /// this build does not know).
-    pub state: String,
+impl EcuRun {
+    /// The run's file (`v2t-sim-ecu --out`): the run, its realism, the regulator's decisions, the
+    /// ECU's frame counts and the gate's changes.
+    pub fn file(&self) -> RunFile {
+        RunFile {
+            realism: self.realism.clone(),
+            regulator: Some(vec![self.plans.clone()]),
+            ecu: Some(self.stats),
+            gate: Some(self.gate.clone()),
+            ..RunFile::of(&self.outcome)
+        }
+    }
 }
 
 /// Why the simulated ECU could not run.
@@ -155,19 +164,6 @@ impl EcuError {
 
 fn vehicles(cfg: &Loaded) -> Vehicles<'_> {
     Vehicles { bv: &cfg.vehicle, vut: &cfg.vut_vehicle }
-}
-
-/// What the ECU saw of the commands.
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
-pub struct EcuStats {
-    /// Command frames accepted.
-    pub frames_ok: u64,
-    /// Frames rejected (checksum, counter, range, unknown id).
-    pub frames_rejected: u64,
-    /// Plant steps during which the ECU's own command timeout braked.
-    pub timeout_steps: u64,
-    /// Plant steps that started late by more than one step (real-time overruns).
-    pub late_steps: u64,
 }
 
 /// The ECU's command state: the newest enabled request, and when it arrived.

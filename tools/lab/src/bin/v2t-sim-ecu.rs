@@ -150,8 +150,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         style: cli.style,
         human,
     };
-    let v2t_lab::ecu::EcuRun { outcome, stats, plans, gate, realism } = v2t_lab::ecu::run::<ipc::Service>(&cfg, &opts)?;
-    let r = &outcome.result;
+    let run = v2t_lab::ecu::run::<ipc::Service>(&cfg, &opts)?;
+    let (r, stats) = (&run.outcome.result, &run.stats);
     let pet = r.pet_min_s.map_or_else(|| "none".to_owned(), |p| format!("{p:.2} s"));
     outln!(
         "{}: VUT {}, PET_min {pet} (τ {:.2} s, {}), completed {}, collision {}, frames ok {} rejected {}, ECU timeout steps {}, late steps {} ({})",
@@ -167,29 +167,23 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         stats.late_steps,
         world.place()
     )?;
-    if let (Some(r), Some(h)) = (&realism, &opts.human) {
+    if let (Some(r), Some(h)) = (&run.realism, &opts.human) {
         out!("{}", v2t_lab::sim::realism_report(r, h))?;
     }
     if let Some(path) = &cli.mcap {
-        v2t_sim::recording::write_with_plans(&outcome, &plans, path)?;
+        v2t_sim::recording::write_with_plans(&run.outcome, &run.plans, path)?;
     }
     if cli.out.is_none() && cli.report.is_none() {
         return Ok(());
     }
-    let mut doc = serde_json::to_value(&outcome).context("serializing the run")?;
-    if let Some(obj) = doc.as_object_mut() {
-        obj.insert("ecu".into(), serde_json::to_value(stats).context("serializing the ECU statistics")?);
-        obj.insert("realism".into(), serde_json::to_value(&realism).context("serializing the realism")?);
-        obj.insert("regulator".into(), serde_json::json!([plans]));
-        obj.insert("gate".into(), serde_json::to_value(&gate).context("serializing the gate log")?);
-    }
+    let file = run.file();
     if let Some(path) = &cli.out {
-        let text = serde_json::to_string_pretty(&doc).context("serializing the run")?;
+        let text = serde_json::to_string_pretty(&file).context("serializing the run")?;
         std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
     }
     if let Some(path) = &cli.report {
         let page = v2t_lab::report::run::page(
-            &doc,
+            &file,
             map.as_ref(),
             &report_map,
             world.provenance(),

@@ -3,13 +3,14 @@
 
 use std::path::Path;
 
-use serde_json::Value;
+use v2t_sim::realism::VehicleRealism;
+use v2t_sim::runfile::RunFile;
 
 use crate::report::{Page, esc, num, pct, run, table};
 
 use super::Summary;
 
-pub(super) fn html(summary: &Summary, runs: &[Value], map: &v2t_map::Map, map_path: &Path) -> String {
+pub(super) fn html(summary: &Summary, runs: &[RunFile], map: &v2t_map::Map, map_path: &Path) -> String {
     let mut page = Page::new("Video2Track demo");
     page.provenance = vec![
         "Semantics replayed from the shipped hand-written VLM exchanges (cassettes): no model was asked.".into(),
@@ -91,12 +92,12 @@ pub(super) fn html(summary: &Summary, runs: &[Value], map: &v2t_map::Map, map_pa
 }
 
 /// The BV-realism cell of a row: class, W₁ of acceleration and of jerk.
-fn realism_cells(r: Option<&Value>) -> String {
+fn realism_cells(r: Option<&VehicleRealism>) -> String {
     let Some(r) = r else { return "–".into() };
-    let class = esc(r.pointer("/class").and_then(Value::as_str).unwrap_or("–"));
-    let n = |k: &str| r.pointer(k).and_then(Value::as_f64);
-    match (n("/realism/w1_accel_mps2"), n("/realism/w1_jerk_mps3")) {
-        (Some(a), Some(j)) => format!("{class}, {a:.3}, {j:.3}"),
-        _ => format!("{class}, no human reference"),
+    match &r.realism {
+        Some(m) => {
+            format!("{}, {}, {}", esc(r.class.name()), num(Some(m.w1_accel_mps2), 3), num(Some(m.w1_jerk_mps3), 3))
+        }
+        None => format!("{}, no human reference", esc(r.class.name())),
     }
 }

@@ -1,16 +1,20 @@
-//! One run in the report, from its run file (the JSON `video2track sim --json` and `v2t-sim-ecu
-//! --out` write): the map, the routes and driven paths, the conflict zones, footprints at the key
-//! moments and a time slider that moves them, plots over time, the zone-occupancy timeline, the
-//! regulator's status, the gate's state, the realism and links to the run's files.
+//! One run in the report, from its run file ([`RunFile`], which `video2track sim --json` and
+//! `v2t-sim-ecu --out` write): the map, the routes and driven paths, the conflict zones, footprints
+//! at the key moments and a time slider that moves them, plots over time, the zone-occupancy
+//! timeline, the regulator's status, the gate's state, the realism and links to the run's files.
 //!
-//! Everything is read from the file by name; a part the file does not hold (no regulator in a run
-//! whose BVs follow their references, no gate outside the onboard runtime) is said, not drawn.
+//! A part the file does not hold (no layout in a file written before runs kept it, no regulator in
+//! a run whose BVs follow their references, no gate outside the onboard runtime, no realism
+//! without a human reference) is said, not drawn.
 
 use std::fmt::Write as _;
 
 use serde_json::Value;
 use v2t_map::svg::{View, Window, path_d};
 use v2t_model::geometry::Point2;
+use v2t_model::metrics::{Passage, PetOutcome};
+use v2t_sim::runfile::RunFile;
+use v2t_sim::runner::ConflictResult;
 
 use super::plot::{Bar, Level, LinePlot, Series, Timeline, colour};
 use super::{esc, num, table};
@@ -22,8 +26,8 @@ pub struct RunInput<'a> {
     pub id: String,
     /// Heading.
     pub title: String,
-    /// The run file, parsed.
-    pub run: &'a Value,
+    /// The run file, read.
+    pub run: &'a RunFile,
     /// The track's map, drawn under the run; `None`: the run's own routes only.
     pub map: Option<&'a v2t_map::Map>,
     /// What the drawing's ground is (the map file, or the card's own geometry).
@@ -34,14 +38,8 @@ pub struct RunInput<'a> {
     pub facts: Vec<(String, String)>,
 }
 
-/// The value at a JSON pointer, `null` when absent.
-fn at<'v>(v: &'v Value, pointer: &str) -> &'v Value {
-    v.pointer(pointer).unwrap_or(&Value::Null)
-}
-
-fn f(v: &Value, pointer: &str) -> Option<f64> {
-    at(v, pointer).as_f64()
-}
+/// A footprint the file does not give (no layout), m: length and width.
+const DEFAULT_FOOTPRINT_M: (f64, f64) = (4.6, 1.8);
 
 /// Samples the JavaScript gets: at most this many per run (the trace is thinned evenly).
 const MAX_SAMPLES: usize = 800;
@@ -66,45 +64,45 @@ struct Trace {
     pet: Vec<Vec<Option<f64>>>,
 }
 
-fn read_trace(run: &Value) -> Trace {
-    let ids: Vec<String> = at(run, "/agent_ids")
-        .as_array()
-        .map(|a| a.iter().map(|v| v.as_str().unwrap_or("?").to_owned()).collect())
-        .unwrap_or_default();
-    let samples = at(run, "/trace").as_array().map(Vec::as_slice).unwrap_or_default();
-    let stride = samples.len().div_ceil(MAX_SAMPLES).max(1);
-    let kept: Vec<&Value> = samples.iter().step_by(stride).collect();
-    let n_conflicts = at(run, "/result/conflicts").as_array().map_or(0, Vec::len);
-    let mut tracks: Vec<Track> = ids
+fn read_trace(run: &RunFile) -> Trace {
+    let stride = run.trace.len().div_ceil(MAX_SAMPLES).max(1);
+    let kept: Vec<_> = run.trace.iter().step_by(stride).collect();
+    let dims = run.layout.as_ref().map(|l| l.dims.as_slice()).unwrap_or_default();
+    let mut tracks: Vec<Track> = run
+        .agent_ids
         .iter()
         .enumerate()
-        .map(|(i, id)| Track {
-            id: id.clone(),
-            length_m: f(run, &format!("/layout/dims/{i}/length_m")).unwrap_or(4.6),
-            width_m: f(run, &format!("/layout/dims/{i}/width_m")).unwrap_or(1.8),
-            x: Vec::new(),
-            y: Vec::new(),
-            h: Vec::new(),
-            v: Vec::new(),
-            a: Vec::new(),
-            a_req: Vec::new(),
+        .map(|(i, id)| {
+            let d = dims.get(i).map_or(DEFAULT_FOOTPRINT_M, |d| (d.length_m, d.width_m));
+            Track {
+                id: id.clone(),
+                length_m: d.0,
+                width_m: d.1,
+                x: Vec::with_capacity(kept.len()),
+                y: Vec::with_capacity(kept.len()),
+                h: Vec::with_capacity(kept.len()),
+                v: Vec::with_capacity(kept.len()),
+                a: Vec::with_capacity(kept.len()),
+                a_req: Vec::with_capacity(kept.len()),
+            }
         })
         .collect();
     let mut t = Vec::with_capacity(kept.len());
-    let mut pet = vec![Vec::with_capacity(kept.len()); n_conflicts];
+    let mut pet = vec![Vec::with_capacity(kept.len()); run.result.conflicts.len()];
     for s in kept {
-        t.push(f(s, "/t_s").unwrap_or(f64::NAN));
+        t.push(s.t_s);
         for (i, tr) in tracks.iter_mut().enumerate() {
-            let a = at(s, &format!("/agents/{i}"));
-            tr.x.push(f(a, "/state/px").unwrap_or(f64::NAN));
-            tr.y.push(f(a, "/state/py").unwrap_or(f64::NAN));
-            tr.h.push(f(a, "/state/theta_rad").unwrap_or(0.0));
-            tr.v.push(f(a, "/state/speed_mps").unwrap_or(f64::NAN));
-            tr.a.push(f(a, "/accel_mps2").unwrap_or(f64::NAN));
-            tr.a_req.push(f(a, "/request/accel_mps2").unwrap_or(f64::NAN));
+            // A sample without this vehicle breaks its lines there.
+            let a = s.agents.get(i);
+            tr.x.push(a.map_or(f64::NAN, |a| a.state.px));
+            tr.y.push(a.map_or(f64::NAN, |a| a.state.py));
+            tr.h.push(a.map_or(0.0, |a| a.state.theta_rad));
+            tr.v.push(a.map_or(f64::NAN, |a| a.state.speed_mps));
+            tr.a.push(a.map_or(f64::NAN, |a| a.accel_mps2));
+            tr.a_req.push(a.map_or(f64::NAN, |a| a.request.accel_mps2));
         }
         for (k, p) in pet.iter_mut().enumerate() {
-            p.push(f(s, &format!("/predicted_pet_s/{k}")));
+            p.push(s.predicted_pet_s.get(k).copied().flatten());
         }
     }
     Trace { t, tracks, pet }
@@ -117,31 +115,26 @@ struct Moment {
     label: String,
 }
 
-fn passage(c: &Value, side: &str) -> Option<(f64, Option<f64>)> {
-    let p = at(c, &format!("/{side}_passage"));
-    Some((p.get("enter_t_s")?.as_f64()?, p.get("exit_t_s").and_then(Value::as_f64)))
-}
-
-/// The moments: zone entries and exits, PET_min realised, the closest approach, a collision.
-fn moments(run: &Value) -> Vec<Moment> {
+/// The moments: zone entries and exits, the closest approach, a collision.
+fn moments(run: &RunFile) -> Vec<Moment> {
+    let r = &run.result;
     let mut m = Vec::new();
-    let conflicts = at(run, "/result/conflicts").as_array().map(Vec::as_slice).unwrap_or_default();
-    for c in conflicts {
-        let bv = at(c, "/bv_id").as_str().unwrap_or("BV");
-        for (side, who) in [("vut", "VUT"), ("bv", bv)] {
-            if let Some((enter, exit)) = passage(c, side) {
-                m.push(Moment { t_s: enter, label: format!("{who} enters the zone") });
-                if let Some(x) = exit {
+    for c in &r.conflicts {
+        for (p, who) in [(c.vut_passage, "VUT"), (c.bv_passage, c.bv_id.as_str())] {
+            if let Some(Passage { enter_t_s, exit_t_s }) = p {
+                m.push(Moment { t_s: enter_t_s, label: format!("{who} enters the zone") });
+                if let Some(x) = exit_t_s {
                     m.push(Moment { t_s: x, label: format!("{who} leaves the zone") });
                 }
             }
         }
     }
-    if let Some(t) = f(run, "/result/min_distance_t_s") {
-        m.push(Moment { t_s: t, label: "closest approach".into() });
+    // With fewer than two vehicles there is no closest approach.
+    if r.min_distance_m.is_finite() {
+        m.push(Moment { t_s: r.min_distance_t_s, label: "closest approach".into() });
     }
-    if let Some(t) = f(run, "/result/collision/t_s") {
-        m.push(Moment { t_s: t, label: "collision".into() });
+    if let Some(c) = &r.collision {
+        m.push(Moment { t_s: c.t_s, label: "collision".into() });
     }
     m.retain(|x| x.t_s.is_finite());
     m.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
@@ -150,13 +143,13 @@ fn moments(run: &Value) -> Vec<Moment> {
 
 /// The moment PET_min was realised: the second vehicle's entry into the zone with the smallest
 /// measured PET (the end of the gap PET measures).
-fn pet_min_moment(run: &Value) -> Option<(f64, f64)> {
-    let conflicts = at(run, "/result/conflicts").as_array()?;
-    conflicts
+fn pet_min_moment(run: &RunFile) -> Option<(f64, f64)> {
+    run.result
+        .conflicts
         .iter()
         .filter_map(|c| {
-            let pet = f(c, "/pet/pet_s")?;
-            let (v, b) = (passage(c, "vut")?.0, passage(c, "bv")?.0);
+            let pet = c.pet.pet_s()?;
+            let (v, b) = (c.vut_passage?.enter_t_s, c.bv_passage?.enter_t_s);
             Some((v.max(b), pet))
         })
         .min_by(|a, b| a.1.total_cmp(&b.1))
@@ -202,8 +195,14 @@ pub fn section(input: &RunInput<'_>) -> String {
         h,
         "<figure class=\"mapfig\">{}<figcaption class=\"muted\">North up. Dashed grey: routes; colour: driven paths; red bands: \
          each vehicle's stretch in the conflict zone (where they cross is the zone); outlines: both vehicles at every \
-         zone entry and exit and when PET<sub>min</sub> was realised; filled: at the slider's time.</figcaption></figure>",
-        map_svg(input, &trace, &moments, pet_min)
+         zone entry and exit and when PET<sub>min</sub> was realised; filled: at the slider's time.{}</figcaption></figure>",
+        map_svg(input, &trace, &moments, pet_min),
+        if run.layout.is_none() {
+            " This run file has no layout (it was written before runs kept one): no routes or conflict zones are \
+             drawn, and the footprints are 4.6 × 1.8 m."
+        } else {
+            ""
+        }
     );
     h.push_str("<div class=\"col\">");
     h.push_str(&occupancy(run, t_range));
@@ -251,67 +250,56 @@ fn rundata(trace: &Trace, start: Option<f64>) -> String {
 }
 
 fn facts(input: &RunInput<'_>) -> String {
-    let r = at(input.run, "/result");
-    let s = |p: &str| esc(at(r, p).as_str().unwrap_or("–"));
-    let tau = f(r, "/tau_s");
-    let pet = f(r, "/pet_min_s");
-    let err = pet.zip(tau).map(|(p, t)| (p - t).abs() / t);
-    let order = at(r, "/conflicts")
-        .as_array()
-        .map(|cs| {
-            cs.iter()
-                .map(|c| match at(c, "/order_matches_style").as_bool() {
-                    Some(true) => "<span class=\"ok\">as the style asks</span>".to_owned(),
-                    Some(false) => "<span class=\"warn\">opposite to the style</span>".to_owned(),
-                    None => "no order".to_owned(),
-                })
-                .collect::<Vec<_>>()
-                .join(", ")
+    let r = &input.run.result;
+    let err = r.pet_min_s.map(|p| (p - r.tau_s).abs() / r.tau_s);
+    let order = r
+        .conflicts
+        .iter()
+        .map(|c| match c.order_matches_style {
+            Some(true) => "<span class=\"ok\">as the style asks</span>",
+            Some(false) => "<span class=\"warn\">opposite to the style</span>",
+            None => "no order",
         })
-        .unwrap_or_default();
-    let collision = match at(r, "/collision") {
-        Value::Null => "none".to_owned(),
-        c => format!(
-            "<span class=\"warn\">{} and {} at {} s</span>",
-            esc(at(c, "/agents/0").as_str().unwrap_or("?")),
-            esc(at(c, "/agents/1").as_str().unwrap_or("?")),
-            num(f(c, "/t_s"), 2)
-        ),
+        .collect::<Vec<_>>()
+        .join(", ");
+    let collision = match &r.collision {
+        None => "none".to_owned(),
+        Some(c) => {
+            let [a, b] = &c.agents;
+            format!("<span class=\"warn\">{} and {} at {:.2} s</span>", esc(a), esc(b), c.t_s)
+        }
+    };
+    let closest = if r.min_distance_m.is_finite() {
+        format!("{:.2} m at {:.2} s", r.min_distance_m, r.min_distance_t_s)
+    } else {
+        "– (fewer than two vehicles)".to_owned()
     };
     let mut rows: Vec<Vec<String>> = vec![
-        vec!["scenario".into(), s("/scenario")],
-        vec!["VUT driver".into(), s("/vut_model")],
-        vec!["BV controller".into(), s("/bv_controller")],
-        vec!["seed".into(), at(r, "/seed").to_string()],
-        vec!["style, target τ".into(), format!("{}, {} s", s("/style"), num(tau, 2))],
-        vec!["PET<sub>min</sub> achieved".into(), format!("{} s (error against τ {})", num(pet, 2), super::pct(err))],
-        vec!["order".into(), order],
+        vec!["scenario".into(), esc(&r.scenario)],
+        vec!["VUT driver".into(), esc(&r.vut_model)],
+        vec!["BV controller".into(), esc(&r.bv_controller)],
+        vec!["seed".into(), r.seed.to_string()],
+        vec!["style, target τ".into(), format!("{}, {:.2} s", r.style, r.tau_s)],
         vec![
-            "closest approach".into(),
-            format!("{} m at {} s", num(f(r, "/min_distance_m"), 2), num(f(r, "/min_distance_t_s"), 2)),
+            "PET<sub>min</sub> achieved".into(),
+            format!("{} s (error against τ {})", num(r.pet_min_s, 2), super::pct(err)),
         ],
-        vec!["smallest TTC".into(), format!("{} s", num(f(r, "/min_ttc_s"), 2))],
+        vec!["order".into(), order],
+        vec!["closest approach".into(), closest],
+        vec!["smallest TTC".into(), format!("{} s", num(r.min_ttc_s, 2))],
         vec!["collision".into(), collision],
         vec![
             "duration".into(),
-            format!(
-                "{} s, {}",
-                num(f(r, "/duration_s"), 1),
-                if at(r, "/completed").as_bool() == Some(true) { "completed" } else { "stopped before the end" }
-            ),
+            format!("{:.1} s, {}", r.duration_s, if r.completed { "completed" } else { "stopped before the end" }),
         ],
         vec!["drawn on".into(), esc(&input.ground)],
     ];
-    if let Some(e) = at(input.run, "/ecu").as_object() {
-        let g = |k: &str| e.get(k).and_then(Value::as_u64).unwrap_or(0);
+    if let Some(e) = &input.run.ecu {
         rows.push(vec![
             "CAN frames (simulated ECU)".into(),
             format!(
                 "{} accepted, {} rejected; {} steps braked on the ECU's command timeout; {} late steps",
-                g("frames_ok"),
-                g("frames_rejected"),
-                g("timeout_steps"),
-                g("late_steps")
+                e.frames_ok, e.frames_rejected, e.timeout_steps, e.late_steps
             ),
         ]);
     }
@@ -324,26 +312,14 @@ fn along(route: &[[f64; 2]], s: f64) -> Option<(f64, f64)> {
     let step = v2t_sim::runner::ROUTE_STEP_M;
     let k = (s / step).floor().max(0.0) as usize;
     let a = route.get(k).or_else(|| route.last())?;
-    let b = route.get(k + 1).unwrap_or(a);
+    let b = route.get(k.saturating_add(1)).unwrap_or(a);
     let u = (s / step - k as f64).clamp(0.0, 1.0);
     Some((a[0] + (b[0] - a[0]) * u, a[1] + (b[1] - a[1]) * u))
 }
 
-fn routes(run: &Value) -> Vec<Vec<[f64; 2]>> {
-    at(run, "/layout/routes")
-        .as_array()
-        .map(|rs| {
-            rs.iter()
-                .map(|r| {
-                    r.as_array()
-                        .map(|pts| {
-                            pts.iter().filter_map(|p| Some([p.get(0)?.as_f64()?, p.get(1)?.as_f64()?])).collect()
-                        })
-                        .unwrap_or_default()
-                })
-                .collect()
-        })
-        .unwrap_or_default()
+/// Every vehicle's route (none without a layout).
+fn routes(run: &RunFile) -> &[Vec<[f64; 2]>] {
+    run.layout.as_ref().map(|l| l.routes.as_slice()).unwrap_or_default()
 }
 
 /// The map's window: every route and driven position with a margin, not thinner than 2:3 either
@@ -364,7 +340,7 @@ fn map_window(trace: &Trace, routes: &[Vec<[f64; 2]>]) -> Option<Window> {
 /// footprints the slider moves, the vehicles' names at their starts and a scale bar.
 fn map_svg(input: &RunInput<'_>, trace: &Trace, moments: &[Moment], pet_min: Option<(f64, f64)>) -> String {
     let routes = routes(input.run);
-    let Some(window) = map_window(trace, &routes) else {
+    let Some(window) = map_window(trace, routes) else {
         return "<p class=\"muted\">No positions in this run file: no map drawn.</p>".into();
     };
     let view = View { window, px_per_m: (560.0 / window.width()).min(560.0 / window.height()) };
@@ -373,7 +349,7 @@ fn map_svg(input: &RunInput<'_>, trace: &Trace, moments: &[Moment], pet_min: Opt
         Some(map) => s.push_str(&v2t_map::svg::lanes(map, Some(&window.grown(20.0)))),
         // No map: the routes as lanes, so that the drawing still shows the roads driven.
         None => {
-            for r in &routes {
+            for r in routes {
                 let _ = write!(
                     s,
                     "<path d=\"{}\" fill=\"none\" stroke=\"#c9cdd2\" stroke-width=\"3.5\" stroke-linejoin=\"round\"/>",
@@ -382,8 +358,8 @@ fn map_svg(input: &RunInput<'_>, trace: &Trace, moments: &[Moment], pet_min: Opt
             }
         }
     }
-    zones(&mut s, input.run, &routes, trace);
-    for r in &routes {
+    zones(&mut s, input.run, routes, trace);
+    for r in routes {
         let _ = write!(s, "<path class=\"route\" d=\"{}\"/>", path_d(r.iter().map(|p| (p[0], p[1]))));
     }
     for (i, tr) in trace.tracks.iter().enumerate() {
@@ -422,16 +398,12 @@ fn map_svg(input: &RunInput<'_>, trace: &Trace, moments: &[Moment], pet_min: Opt
 
 /// Conflict zones: the stretch of each vehicle's route along which it is in the zone, as wide as
 /// the vehicle; where the two bands cross is the zone.
-fn zones(s: &mut String, run: &Value, routes: &[Vec<[f64; 2]>], trace: &Trace) {
-    for z in at(run, "/layout/zones").as_array().into_iter().flatten() {
-        let bv = at(z, "/bv_index").as_u64().map_or(1, |b| b as usize + 1);
-        for (agent, side) in [(0, "vut"), (bv, "bv")] {
-            let (Some(route), Some(a), Some(b)) =
-                (routes.get(agent), f(z, &format!("/zone/{side}/enter_s_m")), f(z, &format!("/zone/{side}/exit_s_m")))
-            else {
-                continue;
-            };
-            let width = trace.tracks.get(agent).map_or(1.8, |t| t.width_m);
+fn zones(s: &mut String, run: &RunFile, routes: &[Vec<[f64; 2]>], trace: &Trace) {
+    for z in run.layout.iter().flat_map(|l| &l.zones) {
+        for (agent, side) in [(0, z.zone.vut), (z.bv_index.saturating_add(1), z.zone.bv)] {
+            let Some(route) = routes.get(agent) else { continue };
+            let (a, b) = (side.enter_s_m, side.exit_s_m);
+            let width = trace.tracks.get(agent).map_or(DEFAULT_FOOTPRINT_M.1, |t| t.width_m);
             let n = ((b - a) / 0.5).ceil().clamp(1.0, 2000.0) as usize;
             let d = path_d((0..=n).filter_map(|k| along(route, a + (b - a) * k as f64 / n as f64)));
             let _ = write!(
@@ -497,7 +469,7 @@ fn footprints(s: &mut String, trace: &Trace) {
     }
 }
 
-fn plots(run: &Value, trace: &Trace, t_range: (f64, f64)) -> String {
+fn plots(run: &RunFile, trace: &Trace, t_range: (f64, f64)) -> String {
     let mut out = String::new();
     let series = |name: String, t: &[f64], v: &[f64], i: usize, dashed: bool| Series {
         dashed,
@@ -515,7 +487,7 @@ fn plots(run: &Value, trace: &Trace, t_range: (f64, f64)) -> String {
     out.push_str(&speed.svg("speed"));
     out.push_str(&accel.svg("accel"));
     // Predicted PET: from the true states at constant velocity, and the regulator's own.
-    let tau = f(run, "/result/tau_s").unwrap_or(f64::NAN);
+    let tau = run.result.tau_s;
     let top = if tau.is_finite() { (3.0 * tau).max(tau + 3.0) } else { 10.0 };
     let clip = |v: Option<f64>| v.filter(|x| x.is_finite() && *x >= 0.0 && *x <= top).unwrap_or(f64::NAN);
     let mut pet = LinePlot::over_time("Predicted PET", "PET (s)", t_range);
@@ -523,23 +495,15 @@ fn plots(run: &Value, trace: &Trace, t_range: (f64, f64)) -> String {
     if tau.is_finite() {
         pet.levels.push(Level { y: tau, label: format!("τ = {tau:.2} s") });
     }
-    let bv_ids: Vec<String> = at(run, "/result/conflicts")
-        .as_array()
-        .map(|cs| cs.iter().map(|c| at(c, "/bv_id").as_str().unwrap_or("BV").to_owned()).collect())
-        .unwrap_or_default();
+    let bv_ids: Vec<&str> = run.result.conflicts.iter().map(|c| c.bv_id.as_str()).collect();
     for (k, p) in trace.pet.iter().enumerate() {
         let v: Vec<f64> = p.iter().map(|x| clip(*x)).collect();
-        let who = bv_ids.get(k).map_or("BV", String::as_str);
+        let who = bv_ids.get(k).copied().unwrap_or("BV");
         pet.series.push(series(format!("constant velocity, {who}"), &trace.t, &v, k + 1, false));
     }
-    for (b, plans) in at(run, "/regulator").as_array().into_iter().flatten().enumerate() {
-        let pts: Vec<(f64, f64)> = plans
-            .as_array()
-            .into_iter()
-            .flatten()
-            .filter_map(|p| Some((f(p, "/t_s")?, clip(f(p, "/predicted_pet_s")))))
-            .collect();
-        let who = bv_ids.get(b).map_or("BV", String::as_str);
+    for (b, plans) in run.regulator.iter().flatten().enumerate() {
+        let pts: Vec<(f64, f64)> = plans.iter().map(|p| (p.t_s, clip(p.predicted_pet_s))).collect();
+        let who = bv_ids.get(b).copied().unwrap_or("BV");
         pet.series.push(Series { dashed: true, ..Series::line(format!("regulator, {who}"), pts, colour(b + 1)) });
     }
     out.push_str(&pet.svg("pet"));
@@ -575,33 +539,26 @@ fn bars(log: &[(f64, String)], t_end: f64) -> Vec<Bar> {
 }
 
 /// The regulator's status per BV and the actuation gate's state over time.
-fn states(run: &Value, t_range: (f64, f64)) -> String {
+fn states(run: &RunFile, t_range: (f64, f64)) -> String {
     let mut rows = Vec::new();
     let mut notes = Vec::new();
-    let ids: Vec<&str> =
-        at(run, "/agent_ids").as_array().map(|a| a.iter().filter_map(Value::as_str).collect()).unwrap_or_default();
-    match at(run, "/regulator").as_array() {
+    match &run.regulator {
         Some(per_bv) => {
             for (b, plans) in per_bv.iter().enumerate() {
-                let log: Vec<(f64, String)> = plans
-                    .as_array()
-                    .into_iter()
-                    .flatten()
-                    .filter_map(|p| Some((f(p, "/t_s")?, at(p, "/status").as_str()?.to_owned())))
-                    .collect();
-                rows.push((format!("regulator {}", ids.get(b + 1).unwrap_or(&"BV")), bars(&log, t_range.1)));
+                let log: Vec<(f64, String)> = plans.iter().map(|p| (p.t_s, p.status.clone())).collect();
+                let id = run.agent_ids.get(b + 1).map_or("BV", String::as_str);
+                rows.push((format!("regulator {id}"), bars(&log, t_range.1)));
             }
         }
-        None => notes.push(if at(run, "/result/bv_controller").as_str() == Some("reference") {
+        None => notes.push(if run.result.bv_controller == "reference" {
             "Regulator: none in this run (the BVs followed their references)."
         } else {
             "Regulator: its decisions are not in this run file."
         }),
     }
-    match at(run, "/gate").as_array() {
+    match &run.gate {
         Some(g) => {
-            let log: Vec<(f64, String)> =
-                g.iter().filter_map(|r| Some((f(r, "/t_s")?, at(r, "/state").as_str()?.to_owned()))).collect();
+            let log: Vec<(f64, String)> = g.iter().map(|r| (r.t_s, r.state.clone())).collect();
             rows.push(("actuation gate".to_owned(), bars(&log, t_range.1)));
         }
         None => notes.push(
@@ -631,69 +588,78 @@ fn states(run: &Value, t_range: (f64, f64)) -> String {
 }
 
 /// Who was in each conflict zone when; PET as the gap between the bars.
-fn occupancy(run: &Value, t_range: (f64, f64)) -> String {
-    let conflicts = at(run, "/result/conflicts").as_array().map(Vec::as_slice).unwrap_or_default();
+fn occupancy(run: &RunFile, t_range: (f64, f64)) -> String {
+    let conflicts = &run.result.conflicts;
     if conflicts.is_empty() {
         return "<p class=\"muted\">No conflict zone in this run.</p>".into();
     }
     let mut rows = Vec::new();
     let mut gaps = Vec::new();
     for c in conflicts {
-        let bv = at(c, "/bv_id").as_str().unwrap_or("BV");
+        let bv = c.bv_id.as_str();
         let mut ends = Vec::new();
-        for (side, who, k) in [("vut", "VUT", 0), ("bv", bv, 1)] {
+        for (p, who, k) in [(c.vut_passage, "VUT", 0), (c.bv_passage, bv, 1)] {
             let mut row = Vec::new();
-            if let Some((enter, exit)) = passage(c, side) {
+            if let Some(Passage { enter_t_s, exit_t_s }) = p {
                 row.push(Bar {
-                    t0: enter,
-                    t1: exit.unwrap_or(t_range.1),
+                    t0: enter_t_s,
+                    t1: exit_t_s.unwrap_or(t_range.1),
                     colour: colour(k),
                     label: format!("{who} in the zone"),
                 });
-                ends.push((enter, exit));
+                ends.push((enter_t_s, exit_t_s));
             }
             rows.push((format!("{who} (zone {bv})"), row));
         }
-        if let ([a, b], Some(pet)) = (ends.as_slice(), f(c, "/pet/pet_s")) {
-            let (first, second) = if a.0 <= b.0 { (a, b) } else { (b, a) };
-            if let Some(exit) = first.1 {
-                let label = if pet >= 0.0 { format!("PET {pet:.2} s") } else { format!("overlap {:.2} s", -pet) };
-                gaps.push((exit.min(second.0), exit.max(second.0), label));
-            }
+        if let Some(gap) = pet_gap(c, &ends) {
+            gaps.push(gap);
         }
     }
     let mut h =
         Timeline { title: "Conflict-zone occupancy".into(), rows, t_range, gaps, legend: Vec::new() }.svg("occupancy");
     for c in conflicts {
-        if let Some(lb) = f(c, "/pet/pet_lower_bound_s") {
+        if let PetOutcome::Censored { pet_lower_bound_s: lb, .. } = c.pet {
             let _ = write!(
                 h,
                 "<p class=\"muted\">Zone {}: the second vehicle never entered; PET &gt; {lb:.2} s (censored).</p>",
-                esc(at(c, "/bv_id").as_str().unwrap_or("BV"))
+                esc(&c.bv_id)
             );
         }
     }
     h
 }
 
-fn realism(run: &Value) -> String {
-    let Some(vehicles) = at(run, "/realism/vehicles").as_array() else {
+/// The bracket of a zone's PET between the first vehicle's exit and the second's entry, from the
+/// two passages `(enter, exit)`.
+fn pet_gap(c: &ConflictResult, ends: &[(f64, Option<f64>)]) -> Option<(f64, f64, String)> {
+    let ([a, b], Some(pet)) = (ends, c.pet.pet_s()) else { return None };
+    let (first, second) = if a.0 <= b.0 { (a, b) } else { (b, a) };
+    let exit = first.1?;
+    let label = if pet >= 0.0 { format!("PET {pet:.2} s") } else { format!("overlap {:.2} s", -pet) };
+    Some((exit.min(second.0), exit.max(second.0), label))
+}
+
+fn realism(run: &RunFile) -> String {
+    let Some(r) = &run.realism else {
         return "<p class=\"muted\">Realism: not measured in this run (no human reference given).</p>".into();
     };
-    let rows: Vec<Vec<String>> = vehicles
+    let rows: Vec<Vec<String>> = r
+        .vehicles
         .iter()
         .map(|v| {
-            let m = at(v, "/realism");
-            let mut row = vec![esc(at(v, "/id").as_str().unwrap_or("?")), esc(at(v, "/class").as_str().unwrap_or("?"))];
-            if m.is_null() {
-                row.push("no human reference for this class".into());
-                row.extend(std::iter::repeat_n("–".to_owned(), 4));
-            } else {
-                row.push(num(f(m, "/w1_accel_mps2"), 3));
-                row.push(num(f(m, "/w1_jerk_mps3"), 3));
-                row.push(num(f(m, "/w1_yaw_rate_radps"), 4));
-                row.push(num(f(m, "/jerk_rms_mps3"), 2));
-                row.push(at(m, "/speed_reversals").to_string());
+            let mut row = vec![esc(&v.id), esc(v.class.name())];
+            match &v.realism {
+                None => {
+                    row.push("no human reference for this class".into());
+                    row.extend(std::iter::repeat_n("–".to_owned(), 4));
+                }
+                Some(m) => {
+                    row.push(num(Some(m.w1_accel_mps2), 3));
+                    row.push(num(Some(m.w1_jerk_mps3), 3));
+                    row.push(num(Some(m.w1_yaw_rate_radps), 4));
+                    row.push(num(Some(m.jerk_rms_mps3), 2));
+                    row.push(m.speed_reversals.to_string());
+                }
             }
             row
         })
@@ -735,21 +701,15 @@ pub fn link(report: &std::path::Path, file: &std::path::Path) -> String {
 /// A whole page of one run (`video2track sim --report`, `v2t-sim-ecu --report`): `files` are the
 /// run's other outputs, linked when given.
 pub fn page(
-    run: &Value,
+    run: &RunFile,
     map: Option<&v2t_map::Map>,
     map_path: &std::path::Path,
     provenance: &str,
     report: &std::path::Path,
     files: &[(&str, Option<&std::path::Path>)],
 ) -> String {
-    let r = at(run, "/result");
-    let title = format!(
-        "Run {} — VUT {}, BV {}, seed {}",
-        at(r, "/scenario").as_str().unwrap_or("?"),
-        at(r, "/vut_model").as_str().unwrap_or("?"),
-        at(r, "/bv_controller").as_str().unwrap_or("?"),
-        at(r, "/seed")
-    );
+    let r = &run.result;
+    let title = format!("Run {} — VUT {}, BV {}, seed {}", r.scenario, r.vut_model, r.bv_controller, r.seed);
     let ground = match map {
         Some(_) => format!("the map {}", map_path.display()),
         None => "the scenario's own routes (a scenario card: no OpenDRIVE map)".to_owned(),
@@ -767,4 +727,54 @@ pub fn page(
     p.provenance.push(provenance.to_owned());
     p.body = section(&input);
     p.html()
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+
+    use super::*;
+
+    fn run_file() -> RunFile {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+        let scenario = v2t_sim::files::load_scenario(&root.join("config/scenarios/left_turn_basic.toml")).unwrap();
+        let vut = crate::vut::Vut::Builtin(scenario.vut.default_model);
+        RunFile::of(&crate::sim::run_reference(&scenario, &vut, 1).unwrap())
+    }
+
+    fn section_of(run: &RunFile) -> String {
+        section(&RunInput {
+            id: "run".into(),
+            title: "a run".into(),
+            run,
+            map: None,
+            ground: "its routes".into(),
+            links: Vec::new(),
+            facts: Vec::new(),
+        })
+    }
+
+    /// A whole run draws every part; a part the file lacks is said to be missing, and nothing
+    /// reads as NaN.
+    #[test]
+    fn a_run_is_drawn_and_what_its_file_lacks_is_said() {
+        let run = run_file();
+        let full = section_of(&run);
+        for part in ["<svg class=\"map\"", "class=\"zone\"", "class=\"route\"", "class=\"plot pet\"", "PET "] {
+            assert!(full.contains(part), "`{part}` missing");
+        }
+        assert!(full.contains("none in this run (the BVs followed their references)"));
+        assert!(full.contains("Actuation gate: none in this world"));
+        assert!(full.contains("Realism: not measured in this run"));
+        assert!(!full.contains("no layout"));
+        let mut old = run;
+        old.layout = None;
+        old.result.bv_controller = "regulator".into();
+        old.result.min_distance_m = f64::INFINITY;
+        let h = section_of(&old);
+        assert!(h.contains("This run file has no layout") && !h.contains("class=\"zone\""), "no zones without it");
+        assert!(h.contains("Regulator: its decisions are not in this run file."));
+        assert!(h.contains("– (fewer than two vehicles)") && !h.contains("closest approach ("));
+        assert!(!h.contains("NaN") && !full.contains("NaN"));
+    }
 }
