@@ -5,7 +5,6 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
-use clap::ValueEnum as _;
 use v2t_files::{load_toml, out, outln, shipped};
 use v2t_game::regulator::RegulatorParams;
 use v2t_lab::methods::{self, Comparison, PaperScenario, Setup};
@@ -14,192 +13,246 @@ use v2t_sim::vut::VutModel;
 
 use crate::{Usage, write_json};
 
+/// `experiment`'s arguments: which experiment, each with the options it reads (an option another
+/// experiment reads is refused by the parser, never dropped in silence).
+#[derive(Debug, clap::Args)]
+pub struct ExperimentArgs {
+    #[command(subcommand)]
+    which: Experiment,
+}
+
 /// Which experiment.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Experiment {
+#[derive(Debug, clap::Subcommand)]
+enum Experiment {
     /// RQ3: does the achieved PET land on the target τ, in both styles, against every VUT model?
-    Steerability,
+    /// The regulator alone on the scenario cards, or (--methods) the four methods on the paper's
+    /// scenarios.
+    Steerability(SteerabilityArgs),
     /// RQ1: the four methods at rush, τ = 1.5 s: which gives the smallest PET without collision?
-    Adversariality,
+    Adversariality(MethodsArgs),
     /// RQ2: the four methods at the video's style and PET label: PET^min_track against the label.
-    Fidelity,
+    Fidelity(MethodsArgs),
     /// The four methods in both styles at the video's PET label: is the order the one asked for?
-    Style,
+    Style(MethodsArgs),
     /// The regulator's realism weight w_real swept (0, 0.1, 0.3, 1, 3, 10): steering error per VUT
     /// model against the BV's realism, for TroubleMaker-like and Video2Track.
-    Tradeoff,
+    Tradeoff(TradeoffArgs),
     /// Test campaigns on the scenario cards: each test repeated --runs times against one VUT, the
     /// regulator learning the VUT's reaction from run to run; error per run index and per VUT.
-    Campaign,
+    Campaign(CampaignArgs),
     /// The regulator onboard against the same regulator in the cloud across a simulated network
     /// (one-way delay 0–300 ms, loss 0 and 5 %, and the presets under config/network): steering
     /// error, collisions, order, minimum distance and fallbacks per VUT model.
-    Latency,
+    Latency(LatencyArgs),
 }
 
-/// `experiment`'s arguments.
+impl Experiment {
+    /// The experiment's name on the command line.
+    fn name(&self) -> &'static str {
+        match self {
+            Self::Steerability(_) => "steerability",
+            Self::Adversariality(_) => "adversariality",
+            Self::Fidelity(_) => "fidelity",
+            Self::Style(_) => "style",
+            Self::Tradeoff(_) => "tradeoff",
+            Self::Campaign(_) => "campaign",
+            Self::Latency(_) => "latency",
+        }
+    }
+}
+
+/// Where the results go.
 #[derive(Debug, clap::Args)]
-pub struct ExperimentArgs {
-    /// Which experiment.
-    #[arg(value_enum)]
-    which: Experiment,
+struct Output {
     /// Write the per-case results as JSON to this file.
     #[arg(long)]
     json: Option<PathBuf>,
-    /// Seeded noisy runs per case, seeds --first-seed to --first-seed + N − 1 (default 20; tradeoff:
-    /// 5). campaign: the number of campaigns per case (default 15), each with its own seed.
-    #[arg(long)]
-    repeats: Option<usize>,
-    /// The first seed (default 1; tradeoff and campaign: 6). Constants are chosen on seeds 1–5:
-    /// report seeds 6 onward (`--first-seed 6 --repeats 15`) to keep the reported runs out of the
-    /// tuning.
-    #[arg(long)]
-    first_seed: Option<u64>,
-    /// campaign: runs per campaign (default 10).
-    #[arg(long)]
-    runs: Option<usize>,
-    /// campaign: write what each campaign learned, one memory file per VUT and campaign
-    /// (`DIR/<vut>/campaign-<seed>.json`, the file `video2track sim --campaign` reads).
-    #[arg(long)]
-    memory_dir: Option<PathBuf>,
-    /// tradeoff: only these realism weights (default: 0 0.1 0.3 1 3 10; repeat the option).
-    #[arg(long = "w-real", allow_negative_numbers = true)]
-    w_real: Vec<f64>,
-    /// tradeoff: write the fronts as SVG plots into this directory (one per scenario whose BV has
-    /// a human reference).
-    #[arg(long)]
-    svg_dir: Option<PathBuf>,
-    /// Recorded human driving per manoeuvre class, the reference of the realism columns.
-    #[arg(long, default_value = shipped::HUMAN_REFERENCE)]
-    human_reference: PathBuf,
-    /// steerability without --methods: scenario cards (default: the bundled cards — the left turn
-    /// with the BV turning, the left turn with the VUT turning, the cut-in).
-    #[arg(long = "card")]
-    cards: Vec<PathBuf>,
-    #[command(flatten)]
-    world: crate::world::WorldArgs,
-    /// steerability on the cards: skip the open-loop grid that measures which targets any BV can
-    /// reach against each VUT (250 runs per scenario and VUT, on the first seed).
-    #[arg(long)]
-    no_reach: bool,
-    /// The four methods and tradeoff: only these of the paper's scenarios (cut_in, left_turn,
-    /// left_turn_vut; default: all; repeat the option).
-    #[arg(long = "scenario", value_parser = clap::builder::PossibleValuesParser::new(v2t_lab::demo::SCENARIOS.map(|s| s.name)))]
-    scenarios: Vec<String>,
-    /// Only these builtin VUT models (default: all).
-    #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(VutModel::names()))]
-    vut: Vec<String>,
-    /// steerability: only these targets τ, s (default: 1.5 2 3 4 5; repeat the option for more).
-    #[arg(long, value_parser = v2t_model::Target::parse_tau, allow_negative_numbers = true)]
-    tau: Vec<f64>,
-    /// Regulator settings (TOML).
-    #[arg(long, default_value = shipped::REGULATOR)]
-    regulator: PathBuf,
-    /// steerability: compare the four methods on the paper's scenarios (grounded for each τ
-    /// and style) instead of the regulator alone on the scenario cards.
-    #[arg(long)]
-    methods: bool,
-    /// latency: network settings (TOML, as in config/network) besides the sweep of constant delays
-    /// (default: the shipped presets — 5G SA, LTE, a congested cell; repeat the option).
-    #[arg(long = "network")]
-    networks: Vec<PathBuf>,
-    /// latency: write the plot of the steering error against the delay (SVG) to this file.
-    #[arg(long)]
-    svg: Option<PathBuf>,
     /// Write the experiment's HTML report here: the tables, every run's PET per case and VUT, the
     /// steering error against τ, the methods side by side, and each case's runs.
     #[arg(long)]
     report: Option<PathBuf>,
 }
 
-impl ExperimentArgs {
-    /// An option given where this experiment does not read it (it would be dropped silently).
-    fn unused_option(&self) -> Option<String> {
-        let campaign = self.which == Experiment::Campaign;
-        let latency = self.which == Experiment::Latency;
-        if (!self.networks.is_empty() || self.svg.is_some()) && !latency {
-            return Some("--network and --svg apply to `experiment latency` only".to_owned());
+/// Which seeds run.
+#[derive(Debug, clap::Args)]
+struct SeedArgs {
+    /// Seeded noisy runs per case, seeds --first-seed to --first-seed + N − 1 (default 20; tradeoff
+    /// and latency: 5). campaign: the number of campaigns per case (default 15), each with its own
+    /// seed.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+    repeats: Option<u64>,
+    /// The first seed (default 1; tradeoff, latency and campaign: 6). Constants are chosen on seeds
+    /// 1–5: report seeds 6 onward (`--first-seed 6 --repeats 15`) to keep the reported runs out of
+    /// the tuning.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=u64::MAX / 2))]
+    first_seed: Option<u64>,
+}
+
+/// The regulator's settings and the human driving the realism is measured against.
+#[derive(Debug, clap::Args)]
+struct Shared {
+    /// Regulator settings (TOML).
+    #[arg(long, default_value = shipped::REGULATOR)]
+    regulator: PathBuf,
+    /// Recorded human driving per manoeuvre class, the reference of the realism columns.
+    #[arg(long, default_value = shipped::HUMAN_REFERENCE)]
+    human_reference: PathBuf,
+    /// Only these builtin VUT models (default: all; repeat the option).
+    #[arg(long, value_parser = clap::builder::PossibleValuesParser::new(VutModel::names()))]
+    vut: Vec<String>,
+}
+
+/// The paper's scenarios to run (the four methods, tradeoff, latency).
+#[derive(Debug, clap::Args)]
+struct PaperArgs {
+    /// Only these of the paper's scenarios (cut_in, left_turn, left_turn_vut; default: all; repeat
+    /// the option).
+    #[arg(long = "scenario", value_parser = clap::builder::PossibleValuesParser::new(v2t_lab::demo::SCENARIOS.map(|s| s.name)))]
+    scenarios: Vec<String>,
+}
+
+/// The regulator on the scenario cards (steerability, campaign).
+#[derive(Debug, clap::Args)]
+struct CardArgs {
+    /// Scenario cards (default: the bundled cards — the left turn with the BV turning, the left
+    /// turn with the VUT turning, the cut-in; repeat the option).
+    #[arg(long = "card")]
+    cards: Vec<PathBuf>,
+    #[command(flatten)]
+    world: crate::world::WorldArgs,
+    /// Skip the open-loop grid that measures which targets any BV can reach against each VUT (250
+    /// runs per scenario and VUT, on the first seed).
+    #[arg(long)]
+    no_reach: bool,
+}
+
+/// The targets τ of an experiment that takes them.
+#[derive(Debug, clap::Args)]
+struct TauArgs {
+    /// Only these targets τ, s (default: 1.5 2 3 4 5; tradeoff: its own; repeat the option).
+    #[arg(long, value_parser = v2t_model::Target::parse_tau, allow_negative_numbers = true)]
+    tau: Vec<f64>,
+}
+
+/// `experiment steerability`.
+#[derive(Debug, clap::Args)]
+struct SteerabilityArgs {
+    /// Compare the four methods on the paper's scenarios (grounded for each τ and style) instead of
+    /// the regulator alone on the scenario cards.
+    #[arg(long, conflicts_with_all = ["cards", "no_reach", "world", "sumo_drivers"])]
+    methods: bool,
+    /// With --methods: only these of the paper's scenarios (cut_in, left_turn, left_turn_vut;
+    /// default: all; repeat the option).
+    #[arg(long = "scenario", requires = "methods", value_parser = clap::builder::PossibleValuesParser::new(v2t_lab::demo::SCENARIOS.map(|s| s.name)))]
+    scenarios: Vec<String>,
+    #[command(flatten)]
+    cards: CardArgs,
+    #[command(flatten)]
+    tau: TauArgs,
+    #[command(flatten)]
+    shared: Shared,
+    #[command(flatten)]
+    seeds: SeedArgs,
+    #[command(flatten)]
+    out: Output,
+}
+
+/// `experiment adversariality|fidelity|style`.
+#[derive(Debug, clap::Args)]
+struct MethodsArgs {
+    #[command(flatten)]
+    paper: PaperArgs,
+    #[command(flatten)]
+    shared: Shared,
+    #[command(flatten)]
+    seeds: SeedArgs,
+    #[command(flatten)]
+    out: Output,
+}
+
+/// `experiment tradeoff`.
+#[derive(Debug, clap::Args)]
+struct TradeoffArgs {
+    /// Only these realism weights (default: 0 0.1 0.3 1 3 10; repeat the option).
+    #[arg(long = "w-real", allow_negative_numbers = true, value_parser = parse_w_real)]
+    w_real: Vec<f64>,
+    /// Write the fronts as SVG plots into this directory (one per scenario whose BV has a human
+    /// reference).
+    #[arg(long)]
+    svg_dir: Option<PathBuf>,
+    #[command(flatten)]
+    paper: PaperArgs,
+    #[command(flatten)]
+    tau: TauArgs,
+    #[command(flatten)]
+    shared: Shared,
+    #[command(flatten)]
+    seeds: SeedArgs,
+    #[command(flatten)]
+    out: Output,
+}
+
+/// `experiment campaign`.
+#[derive(Debug, clap::Args)]
+struct CampaignArgs {
+    /// Runs per campaign (default 10).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=v2t_lab::campaign::MAX_RUNS as u64))]
+    runs: Option<u64>,
+    /// Write what each campaign learned, one memory file per VUT and campaign
+    /// (`DIR/<vut>/campaign-<seed>.json`, the file `video2track sim --campaign` reads).
+    #[arg(long)]
+    memory_dir: Option<PathBuf>,
+    #[command(flatten)]
+    cards: CardArgs,
+    #[command(flatten)]
+    tau: TauArgs,
+    #[command(flatten)]
+    shared: Shared,
+    #[command(flatten)]
+    seeds: SeedArgs,
+    #[command(flatten)]
+    out: Output,
+}
+
+/// `experiment latency`: the regulator at its own targets (rush and yield, τ 2, 3, 4 s).
+#[derive(Debug, clap::Args)]
+struct LatencyArgs {
+    /// Network settings (TOML, as in config/network) besides the sweep of constant delays
+    /// (default: the shipped presets — 5G SA, LTE, a congested cell; repeat the option).
+    #[arg(long = "network")]
+    networks: Vec<PathBuf>,
+    /// Write the plot of the steering error against the delay (SVG) to this file.
+    #[arg(long)]
+    svg: Option<PathBuf>,
+    #[command(flatten)]
+    paper: PaperArgs,
+    #[command(flatten)]
+    shared: Shared,
+    #[command(flatten)]
+    seeds: SeedArgs,
+    #[command(flatten)]
+    out: Output,
+}
+
+/// A realism weight in [0, 1e6].
+fn parse_w_real(s: &str) -> Result<f64, String> {
+    let w: f64 = s.trim().parse().map_err(|_| format!("`{s}` is not a number"))?;
+    if w.is_finite() && (0.0..=1e6).contains(&w) { Ok(w) } else { Err(format!("must lie in [0, 1e6], got {s}")) }
+}
+
+impl CardArgs {
+    /// `--vut` names builtin models: with `--world sumo` the drivers are `--sumo-driver`.
+    fn check(&self, shared: &Shared) -> Result<(), Usage> {
+        if self.world.world == "sumo" && !shared.vut.is_empty() {
+            return Err(Usage("--vut names builtin driver models; with --world sumo use --sumo-driver".to_owned()));
         }
-        if latency && (self.methods || !self.tau.is_empty()) {
-            return Some(
-                "`experiment latency` runs the Video2Track regulator at its own targets (rush and yield, τ 2, 3, 4 s): \
-                 --methods and --tau do not apply"
-                    .to_owned(),
-            );
-        }
-        // The regulator alone on the scenario cards: steerability without --methods, and campaigns.
-        let steerability = (self.which == Experiment::Steerability && !self.methods) || campaign;
-        if campaign && self.methods {
-            return Some(
-                "--methods applies to `experiment steerability`; campaigns run the regulator on the cards".to_owned(),
-            );
-        }
-        if (self.runs.is_some() || self.memory_dir.is_some()) && !campaign {
-            return Some("--runs and --memory-dir apply to `experiment campaign` only".to_owned());
-        }
-        if self.runs.is_some_and(|r| r == 0 || r > v2t_lab::campaign::MAX_RUNS) {
-            return Some(format!(
-                "--runs must lie in [1, {}], got {}",
-                v2t_lab::campaign::MAX_RUNS,
-                self.runs.unwrap_or(0)
-            ));
-        }
-        if !self.cards.is_empty() && !steerability {
-            return Some(
-                "--card applies to `experiment steerability` and `campaign` (the regulator on scenario cards); the \
-                 four methods run on the paper's scenarios"
-                    .to_owned(),
-            );
-        }
-        let tradeoff = self.which == Experiment::Tradeoff;
-        if (self.world.world != "builtin" || !self.world.sumo_drivers.is_empty()) && !steerability {
-            return Some(
-                "--world sumo and --sumo-driver apply to `experiment steerability` and `campaign` on the scenario \
-                 cards; the four methods and the realism sweep run in the builtin world only"
-                    .to_owned(),
-            );
-        }
-        if self.world.world == "sumo" && !self.vut.is_empty() {
-            return Some("--vut names builtin driver models; with --world sumo use --sumo-driver".to_owned());
-        }
-        if !self.scenarios.is_empty() && steerability {
-            return Some(
-                "--scenario picks among the paper's scenarios of the four methods and tradeoff; the regulator on \
-                 the cards takes --card"
-                    .to_owned(),
-            );
-        }
-        if self.no_reach && !steerability {
-            return Some(
-                "--no-reach applies to `experiment steerability` and `campaign` on the scenario cards".to_owned(),
-            );
-        }
-        if (!self.w_real.is_empty() || self.svg_dir.is_some()) && !tradeoff {
-            return Some("--w-real and --svg-dir apply to `experiment tradeoff` only".to_owned());
-        }
-        if let Some(w) = self.w_real.iter().find(|w| !(w.is_finite() && (0.0..=1e6).contains(*w))) {
-            return Some(format!("--w-real must lie in [0, 1e6], got {w}"));
-        }
-        if self.first_seed.is_some_and(|s| s == 0 || s > u64::MAX / 2) {
-            return Some(format!("--first-seed must lie in [1, 2^63], got {}", self.first_seed.unwrap_or(0)));
-        }
-        if self.repeats.is_some_and(|r| r == 0 || r > 1_000_000) {
-            return Some(format!("--repeats must lie in [1, 1000000], got {}", self.repeats.unwrap_or(0)));
-        }
-        if !(self.tau.is_empty() || steerability || self.which == Experiment::Steerability || tradeoff) {
-            let name = self.which.to_possible_value().map_or_else(String::new, |v| v.get_name().to_owned());
-            return Some(format!(
-                "--tau applies to `experiment steerability`, `campaign` and `tradeoff` only; `experiment {name}` sets its own targets"
-            ));
-        }
-        None
+        Ok(())
     }
 }
 
 /// Writes the experiment's report when `--report` asks for one.
-fn write_report(a: &ExperimentArgs, provenance: &[String], body: &str) -> anyhow::Result<()> {
-    let Some(path) = &a.report else { return Ok(()) };
-    let name = a.which.to_possible_value().map_or_else(String::new, |v| v.get_name().to_owned());
+fn write_report(out: &Output, name: &str, provenance: &[String], body: &str) -> anyhow::Result<()> {
+    let Some(path) = &out.report else { return Ok(()) };
     let mut page = v2t_lab::report::Page::new(&format!("Video2Track experiment: {name}"));
     page.provenance = provenance.to_vec();
     page.provenance.push(format!("Command: video2track {}", std::env::args().skip(1).collect::<Vec<_>>().join(" ")));
@@ -211,30 +264,35 @@ fn write_report(a: &ExperimentArgs, provenance: &[String], body: &str) -> anyhow
 
 /// Runs the experiment and prints its tables.
 pub fn run(a: ExperimentArgs) -> anyhow::Result<()> {
-    if let Some(msg) = a.unused_option() {
-        return Err(Usage(msg).into());
-    }
+    let name = a.which.name();
     match a.which {
-        Experiment::Tradeoff => tradeoff(a),
-        Experiment::Campaign => campaign(a),
-        Experiment::Latency => latency(a),
-        Experiment::Steerability if !a.methods => regulator_on_cards(a),
-        _ => four_methods(a),
+        Experiment::Tradeoff(t) => tradeoff(&t),
+        Experiment::Campaign(c) => campaign(&c),
+        Experiment::Latency(l) => latency(&l),
+        Experiment::Steerability(s) if !s.methods => regulator_on_cards(&s),
+        Experiment::Steerability(s) => {
+            let taus = if s.tau.tau.is_empty() { steer::STEER_TAUS_S.to_vec() } else { s.tau.tau.clone() };
+            let methods = MethodsArgs {
+                paper: PaperArgs { scenarios: s.scenarios },
+                shared: s.shared,
+                seeds: s.seeds,
+                out: s.out,
+            };
+            four_methods(name, &methods, Comparison::Steerability(steer::both_styles(&taus)))
+        }
+        Experiment::Adversariality(m) => four_methods(name, &m, Comparison::Adversariality),
+        Experiment::Fidelity(m) => four_methods(name, &m, Comparison::Fidelity),
+        Experiment::Style(m) => four_methods(name, &m, Comparison::Style),
     }
 }
 
-/// The seeds of the runs: 1–20 by default; for `tradeoff` 6–10 (out of the tuning seeds 1–5, and
-/// within its 10 minutes on 2 cores).
-fn seeds(a: &ExperimentArgs) -> std::ops::RangeInclusive<u64> {
-    let (first, repeats) = match a.which {
-        Experiment::Tradeoff => (6, 5),
-        Experiment::Campaign => (6, 15),
-        Experiment::Latency => (6, 5),
-        _ => (1, 20),
-    };
-    let first = a.first_seed.unwrap_or(first);
-    let repeats = a.repeats.unwrap_or(repeats);
-    first..=first + repeats as u64 - 1
+impl SeedArgs {
+    /// The seeds of the runs: `repeats` from `first` unless the options say otherwise (tradeoff
+    /// and latency 6–10, campaigns 6–20: out of the tuning seeds 1–5; the others 1–20).
+    fn range(&self, first: u64, repeats: u64) -> std::ops::RangeInclusive<u64> {
+        let first = self.first_seed.unwrap_or(first);
+        first..=first + self.repeats.unwrap_or(repeats) - 1
+    }
 }
 
 /// The paper's scenarios (the cut-in, the left turn with the BV turning and with the VUT turning),
@@ -291,7 +349,7 @@ struct World {
 }
 
 impl World {
-    fn load(a: &ExperimentArgs) -> anyhow::Result<Self> {
+    fn load(a: &Shared) -> anyhow::Result<Self> {
         Ok(Self {
             inspection: v2t_map::inspect(Path::new(shipped::MAP), None)?,
             model: v2t_diffusion::weights::load(Path::new(shipped::WEIGHTS))?,
@@ -319,20 +377,20 @@ impl World {
 }
 
 /// The sweep of the realism weight.
-fn tradeoff(a: ExperimentArgs) -> anyhow::Result<()> {
-    let models = crate::vut_models(&a.vut)?;
-    let world = World::load(&a)?;
+fn tradeoff(a: &TradeoffArgs) -> anyhow::Result<()> {
+    let models = crate::vut_models(&a.shared.vut)?;
+    let world = World::load(&a.shared)?;
     let (model, human, setup) = (&world.model, &world.human, world.setup());
-    let scenarios = paper_scenarios(&a.scenarios)?;
-    let taus = if a.tau.is_empty() { tradeoff::TAUS_S.to_vec() } else { a.tau.clone() };
+    let scenarios = paper_scenarios(&a.paper.scenarios)?;
+    let taus = if a.tau.tau.is_empty() { tradeoff::TAUS_S.to_vec() } else { a.tau.tau.clone() };
     let weights = if a.w_real.is_empty() { tradeoff::WEIGHTS.to_vec() } else { a.w_real.clone() };
-    let seeds = seeds(&a);
+    let seeds = a.seeds.range(6, 5);
     let provenance = provenance(model, human, &seeds);
     let report = tradeoff::sweep(&setup, &scenarios, &taus, &weights, &models, seeds, provenance)?;
     outln!("{}", report.provenance)?;
     let md = tradeoff::markdown(&report);
     out!("{md}")?;
-    if a.report.is_some() {
+    if a.out.report.is_some() {
         let cases = v2t_lab::report::experiment::from_tradeoff(&report);
         let mut body = v2t_lab::report::experiment::body(&md, &cases);
         for rec in &scenarios {
@@ -344,7 +402,7 @@ fn tradeoff(a: ExperimentArgs) -> anyhow::Result<()> {
                 ));
             }
         }
-        write_report(&a, std::slice::from_ref(&report.provenance), &body)?;
+        write_report(&a.out, "tradeoff", std::slice::from_ref(&report.provenance), &body)?;
     }
     if let Some(dir) = &a.svg_dir {
         std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
@@ -357,37 +415,24 @@ fn tradeoff(a: ExperimentArgs) -> anyhow::Result<()> {
             }
         }
     }
-    if let Some(path) = a.json {
-        write_json(&path, &report)?;
+    if let Some(path) = &a.out.json {
+        write_json(path, &report)?;
     }
     Ok(())
 }
 
 /// The four methods on the paper's scenarios.
-fn four_methods(a: ExperimentArgs) -> anyhow::Result<()> {
-    let models = crate::vut_models(&a.vut)?;
-    let world = World::load(&a)?;
+fn four_methods(name: &str, a: &MethodsArgs, comparison: Comparison) -> anyhow::Result<()> {
+    let models = crate::vut_models(&a.shared.vut)?;
+    let world = World::load(&a.shared)?;
     let (model, human, setup) = (&world.model, &world.human, world.setup());
-    let scenarios = paper_scenarios(&a.scenarios)?;
-    let taus = if a.tau.is_empty() { steer::STEER_TAUS_S.to_vec() } else { a.tau.clone() };
-    let comparison = match a.which {
-        Experiment::Adversariality => Comparison::Adversariality,
-        Experiment::Fidelity => Comparison::Fidelity,
-        Experiment::Style => Comparison::Style,
-        Experiment::Steerability | Experiment::Tradeoff | Experiment::Campaign | Experiment::Latency => {
-            Comparison::Steerability(steer::both_styles(&taus))
-        }
-    };
-    let seeds = seeds(&a);
+    let scenarios = paper_scenarios(&a.paper.scenarios)?;
+    let seeds = a.seeds.range(1, 20);
     let cases = methods::run_all(&setup, &scenarios, &comparison, &models, seeds.clone())?;
     let summary = methods::summarize(&cases);
     // The fidelity error is against the video's PET label: only where τ is that label.
-    let labels: Vec<(String, f64)> = match a.which {
-        Experiment::Adversariality
-        | Experiment::Steerability
-        | Experiment::Tradeoff
-        | Experiment::Campaign
-        | Experiment::Latency => Vec::new(),
+    let labels: Vec<(String, f64)> = match comparison {
+        Comparison::Adversariality | Comparison::Steerability(_) => Vec::new(),
         _ => scenarios.iter().map(|r| (r.name.clone(), r.semantics.pet_label_s)).collect(),
     };
     outln!(
@@ -398,7 +443,7 @@ fn four_methods(a: ExperimentArgs) -> anyhow::Result<()> {
     )?;
     let mut md = methods::markdown(&summary, &labels);
     let steering = methods::steering_errors(&cases);
-    if a.which == Experiment::Steerability {
+    if matches!(comparison, Comparison::Steerability(_)) {
         md.push_str(&methods::steering_markdown(&steering));
     }
     out!("{md}")?;
@@ -409,29 +454,30 @@ fn four_methods(a: ExperimentArgs) -> anyhow::Result<()> {
         world.baseline_network.source
     );
     write_report(
-        &a,
+        &a.out,
+        name,
         &[provenance_line],
         &v2t_lab::report::experiment::body(&md, &v2t_lab::report::experiment::from_methods(&cases)),
     )?;
-    if let Some(path) = a.json {
-        write_json(&path, &serde_json::json!({ "cases": cases, "summary": summary, "steering": steering }))?;
+    if let Some(path) = &a.out.json {
+        write_json(path, &serde_json::json!({ "cases": cases, "summary": summary, "steering": steering }))?;
     }
     Ok(())
 }
 
 /// The regulator onboard and in the cloud across the networks.
-fn latency(a: ExperimentArgs) -> anyhow::Result<()> {
-    let models = crate::vut_models(&a.vut)?;
-    let world = World::load(&a)?;
+fn latency(a: &LatencyArgs) -> anyhow::Result<()> {
+    let models = crate::vut_models(&a.shared.vut)?;
+    let world = World::load(&a.shared)?;
     let (model, human, setup) = (&world.model, &world.human, world.setup());
-    let scenarios = paper_scenarios(&a.scenarios)?;
+    let scenarios = paper_scenarios(&a.paper.scenarios)?;
     let files: Vec<PathBuf> =
         if a.networks.is_empty() { shipped::NETWORKS.iter().map(PathBuf::from).collect() } else { a.networks.clone() };
     let mut networks = v2t_lab::latency::sweep();
     for f in &files {
         networks.push(load_toml(f)?);
     }
-    let seeds = seeds(&a);
+    let seeds = a.seeds.range(6, 5);
     let cases = v2t_lab::latency::run_all(&setup, &scenarios, &networks, &models, seeds.clone())?;
     let rows = v2t_lab::latency::summarize(&cases, &networks);
     outln!("{}; networks simulated (presets named below)\n", provenance(model, human, &seeds))?;
@@ -442,14 +488,14 @@ fn latency(a: ExperimentArgs) -> anyhow::Result<()> {
         "<h2>Steering error against the delay</h2>{}",
         v2t_lab::latency::figure(&rows, &networks, &seeds).svg()
     ));
-    write_report(&a, &[format!("{}; networks simulated", provenance(model, human, &seeds))], &body)?;
+    write_report(&a.out, "latency", &[format!("{}; networks simulated", provenance(model, human, &seeds))], &body)?;
     if let Some(path) = &a.svg {
         std::fs::write(path, v2t_lab::latency::svg(&rows, &networks, &seeds))
             .with_context(|| format!("writing {}", path.display()))?;
         outln!("\nwrote {}", path.display())?;
     }
-    if let Some(path) = a.json {
-        write_json(&path, &serde_json::json!({ "networks": networks, "cases": cases, "summary": rows }))?;
+    if let Some(path) = &a.out.json {
+        write_json(path, &serde_json::json!({ "networks": networks, "cases": cases, "summary": rows }))?;
     }
     Ok(())
 }
@@ -464,31 +510,27 @@ struct Cards {
 }
 
 impl Cards {
-    fn load(a: &ExperimentArgs) -> anyhow::Result<Self> {
-        let settings: RegulatorParams = load_toml(&a.regulator)?;
+    fn load(a: &CardArgs, tau: &TauArgs, shared: &Shared) -> anyhow::Result<Self> {
+        a.check(shared)?;
+        let settings: RegulatorParams = load_toml(&shared.regulator)?;
         let cards =
             if a.cards.is_empty() { shipped::CARDS.iter().map(PathBuf::from).collect() } else { a.cards.clone() };
         let scenarios = cards.iter().map(|c| v2t_sim::files::load_scenario(c)).collect::<Result<Vec<_>, _>>()?;
-        let taus = if a.tau.is_empty() { steer::STEER_TAUS_S.to_vec() } else { a.tau.clone() };
+        let taus = if tau.tau.is_empty() { steer::STEER_TAUS_S.to_vec() } else { tau.tau.clone() };
         Ok(Self { settings, scenarios, targets: steer::both_styles(&taus), sumo: a.world.sumo(true)? })
     }
 
     /// The VUTs: every SUMO driver asked for, or the builtin models named (all by default).
-    fn vuts(&self, a: &ExperimentArgs) -> anyhow::Result<Vec<v2t_lab::vut::Vut<'_>>> {
+    fn vuts(&self, shared: &Shared) -> anyhow::Result<Vec<v2t_lab::vut::Vut<'_>>> {
         Ok(match &self.sumo {
             Some(s) => s.drivers.iter().map(|driver| v2t_lab::vut::Vut::Sumo { world: &s.world, driver }).collect(),
-            None => crate::vut_models(&a.vut)?.into_iter().map(v2t_lab::vut::Vut::Builtin).collect(),
+            None => crate::vut_models(&shared.vut)?.into_iter().map(v2t_lab::vut::Vut::Builtin).collect(),
         })
     }
 
     /// The first line of the output: where the figures come from, the seeds, `tuned` what was
     /// chosen in the builtin world.
-    fn provenance(
-        &self,
-        a: &ExperimentArgs,
-        seeds: &std::ops::RangeInclusive<u64>,
-        what: &str,
-    ) -> anyhow::Result<String> {
+    fn provenance(&self, a: &CardArgs, seeds: &std::ops::RangeInclusive<u64>, what: &str) -> anyhow::Result<String> {
         let world = a.world.world()?;
         let sumo_version = self.sumo.as_ref().map_or_else(String::new, |s| format!(" ({})", s.world.version()));
         let tuned = if world == v2t_lab::vut::World::Sumo {
@@ -505,12 +547,12 @@ impl Cards {
 }
 
 /// Test campaigns on the scenario cards.
-fn campaign(a: ExperimentArgs) -> anyhow::Result<()> {
-    let cards = Cards::load(&a)?;
-    let vuts = cards.vuts(&a)?;
-    let seeds = seeds(&a);
-    let runs = a.runs.unwrap_or(v2t_lab::campaign::DEFAULT_RUNS);
-    let reach_seed = (!a.no_reach).then_some(*seeds.start());
+fn campaign(a: &CampaignArgs) -> anyhow::Result<()> {
+    let cards = Cards::load(&a.cards, &a.tau, &a.shared)?;
+    let vuts = cards.vuts(&a.shared)?;
+    let seeds = a.seeds.range(6, 15);
+    let runs = a.runs.map_or(v2t_lab::campaign::DEFAULT_RUNS, |r| r as usize);
+    let reach_seed = (!a.cards.no_reach).then_some(*seeds.start());
     let (report, memories) = v2t_lab::campaign::campaigns(
         &cards.settings,
         &cards.scenarios,
@@ -521,15 +563,15 @@ fn campaign(a: ExperimentArgs) -> anyhow::Result<()> {
         reach_seed,
     );
     let provenance_line = cards
-        .provenance(&a, &seeds, "the regulator's and the campaign memory's constants")?
+        .provenance(&a.cards, &seeds, "the regulator's and the campaign memory's constants")?
         .replace("; seeds", "; campaigns: seeds");
     outln!("{provenance_line}")?;
     let md = v2t_lab::campaign::markdown(&report);
     out!("{md}")?;
-    if a.report.is_some() {
+    if a.out.report.is_some() {
         let mut body = v2t_lab::report::experiment::campaign_learning(&report);
         body.push_str(&v2t_lab::report::experiment::body(&md, &v2t_lab::report::experiment::from_campaign(&report)));
-        write_report(&a, &[provenance_line, format!("{runs} runs per campaign")], &body)?;
+        write_report(&a.out, "campaign", &[provenance_line, format!("{runs} runs per campaign")], &body)?;
     }
     if let Some(dir) = &a.memory_dir {
         for (vut, seed, memory) in &memories {
@@ -541,31 +583,32 @@ fn campaign(a: ExperimentArgs) -> anyhow::Result<()> {
         }
         outln!("\nwrote {} memory files under {}", memories.len(), dir.display())?;
     }
-    if let Some(path) = a.json {
-        write_json(&path, &report)?;
+    if let Some(path) = &a.out.json {
+        write_json(path, &report)?;
     }
     Ok(())
 }
 
 /// The regulator alone on the scenario cards.
-fn regulator_on_cards(a: ExperimentArgs) -> anyhow::Result<()> {
-    let cards = Cards::load(&a)?;
-    let vuts = cards.vuts(&a)?;
-    let seeds = seeds(&a);
-    let reach_seed = (!a.no_reach).then_some(*seeds.start());
+fn regulator_on_cards(a: &SteerabilityArgs) -> anyhow::Result<()> {
+    let cards = Cards::load(&a.cards, &a.tau, &a.shared)?;
+    let vuts = cards.vuts(&a.shared)?;
+    let seeds = a.seeds.range(1, 20);
+    let reach_seed = (!a.cards.no_reach).then_some(*seeds.start());
     let report =
         steer::steerability(&cards.settings, &cards.scenarios, &cards.targets, &vuts, seeds.clone(), reach_seed);
-    let provenance_line = cards.provenance(&a, &seeds, "the regulator's settings")?;
+    let provenance_line = cards.provenance(&a.cards, &seeds, "the regulator's settings")?;
     outln!("{provenance_line}")?;
     let md = steer::steer_markdown(&report);
     out!("{md}")?;
     write_report(
-        &a,
+        &a.out,
+        "steerability",
         &[provenance_line],
         &v2t_lab::report::experiment::body(&md, &v2t_lab::report::experiment::from_steer(&report)),
     )?;
-    if let Some(path) = a.json {
-        write_json(&path, &report)?;
+    if let Some(path) = &a.out.json {
+        write_json(path, &report)?;
     }
     Ok(())
 }
