@@ -9,8 +9,8 @@ use std::time::Duration;
 use v2t_files::outln;
 use v2t_game::regulator::RegulatorParams;
 use v2t_lab::cloud_mqtt::{self, MqttCloudLink};
-use v2t_lab::controllers::{CloudRegulatedBv, CloudRegulator, RegulatedBv};
-use v2t_sim::bv::BvController;
+use v2t_lab::cloud_run::{CloudAt, cloud_regulated_run as cloud_regulated_run_in_lab};
+use v2t_lab::controllers::{CloudRegulator, RegulatedBv};
 use v2t_sim::scenario::Scenario;
 use v2t_wire::link::{SigningKey, VerifyingKey, key_from_hex, topics};
 use v2t_wire::mqtt::{BrokerUrl, MqttSettings};
@@ -104,7 +104,8 @@ fn regulator_params(path: &Path, scenario: &Scenario) -> anyhow::Result<Regulato
 }
 
 /// One run of `scenario` with its BV regulated in the cloud (simulated network, or a cloud
-/// process through a broker), against `vut`.
+/// process through a broker), against `vut`: the options read here, the run in the lab
+/// ([`v2t_lab::cloud_run::cloud_regulated_run`]).
 pub fn cloud_regulated_run(
     c: &CloudSide,
     scenario: &Scenario,
@@ -112,12 +113,13 @@ pub fn cloud_regulated_run(
     seed: u64,
 ) -> anyhow::Result<v2t_sim::runner::RunOutcome> {
     one_bv(scenario)?;
-    let params = regulator_params(&c.regulator, scenario)?;
-    let bv = match (&c.network, &c.broker) {
-        (Some(path), _) => {
-            let network: v2t_sim::network::NetworkSettings = v2t_files::load_toml(path)?;
+    let regulator: RegulatorParams = v2t_files::load_toml(&c.regulator)?;
+    let network: Option<v2t_sim::network::NetworkSettings> =
+        c.network.as_deref().map(v2t_files::load_toml).transpose()?;
+    let at = match (&network, &c.broker) {
+        (Some(network), _) => {
             outln!("BV 0 regulated in the cloud across the simulated network {} ({})", network.name, network.source)?;
-            CloudRegulatedBv::new(params, scenario, 0, &network, seed)?
+            CloudAt::Network(network)
         }
         (None, Some(broker)) => {
             check_ids(&c.fleet, &c.bv_id)?;
@@ -136,14 +138,11 @@ pub fn cloud_regulated_run(
                 c.bv_id
             )?;
             let link = MqttCloudLink::new(mqtt, &c.fleet, &c.bv_id, start);
-            CloudRegulatedBv::with_link(params, scenario, 0, Box::new(link), key, &c.fleet, &c.bv_id)?
+            CloudAt::Link { link: Box::new(link), key, fleet: &c.fleet, bv_id: &c.bv_id }
         }
         (None, None) => return Err(Usage("a cloud regulator needs --network or --cloud-broker".into()).into()),
     };
-    let report = bv.link_report();
-    let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(bv)];
-    let outcome = vut.run(scenario, &mut bvs, seed)?;
-    let r = report.get();
+    let (outcome, r) = cloud_regulated_run_in_lab(&regulator, scenario, vut, seed, at)?;
     outln!(
         "link: {} cycles, {} on the minimal-risk fallback; plans accepted {}, refused {}; lost up {}, down {}",
         r.cycles,

@@ -37,6 +37,7 @@ pub mod bench_game;
 pub mod bench_latency;
 pub mod campaign;
 pub mod cloud_mqtt;
+pub mod cloud_run;
 pub mod controllers;
 pub mod demo;
 pub mod ecu;
