@@ -10,7 +10,7 @@ use tempfile::TempDir;
 
 /// The repository root (commands run there, so `config/…` defaults resolve).
 pub fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
 /// Runs `video2track args` in the repository root.

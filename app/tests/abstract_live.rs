@@ -12,7 +12,7 @@ use std::process::{Command, Output};
 use std::sync::mpsc;
 
 fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
 fn video2track(args: &[&str], env: &[(&str, &str)]) -> Output {

@@ -177,7 +177,7 @@ fn a_small_training_run_writes_weights_that_generate_and_realism_read() {
 }
 
 fn recordings(split: &str) -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/diffusion/recordings/ngsim").join(split)
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../config/diffusion/recordings/ngsim").join(split)
 }
 
 #[test]
@@ -219,7 +219,7 @@ fn recorded_corpus_imports_counts_trains_and_measures_realism() {
     assert_eq!(json["tracks"], 250);
     // A few steps on the recordings from the shipped weights, held out by recording.
     let out = dir.join("run");
-    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/diffusion/denoiser.safetensors");
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../config/diffusion/denoiser.safetensors");
     let text = ok(&[
         "train",
         "--data",

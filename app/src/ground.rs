@@ -142,7 +142,7 @@ mod tests {
     use std::path::Path;
 
     fn root() -> PathBuf {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
     }
 
     #[test]
