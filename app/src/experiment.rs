@@ -391,8 +391,7 @@ fn tradeoff(a: &TradeoffArgs) -> anyhow::Result<()> {
     let md = tradeoff::markdown(&report);
     out!("{md}")?;
     if a.out.report.is_some() {
-        let cases = v2t_lab::report::experiment::from_tradeoff(&report);
-        let mut body = v2t_lab::report::experiment::body(&md, &cases);
+        let mut body = v2t_lab::report::experiment::body(&md, &report);
         for rec in &scenarios {
             if let Some(figure) = tradeoff::figure(&report, &rec.name) {
                 body.push_str(&format!(
@@ -453,12 +452,7 @@ fn four_methods(name: &str, a: &MethodsArgs, comparison: Comparison) -> anyhow::
         world.baseline_network.name,
         world.baseline_network.source
     );
-    write_report(
-        &a.out,
-        name,
-        &[provenance_line],
-        &v2t_lab::report::experiment::body(&md, &v2t_lab::report::experiment::from_methods(&cases)),
-    )?;
+    write_report(&a.out, name, &[provenance_line], &v2t_lab::report::experiment::body(&md, &cases))?;
     if let Some(path) = &a.out.json {
         write_json(path, &serde_json::json!({ "cases": cases, "summary": summary, "steering": steering }))?;
     }
@@ -483,7 +477,7 @@ fn latency(a: &LatencyArgs) -> anyhow::Result<()> {
     outln!("{}; networks simulated (presets named below)\n", provenance(model, human, &seeds))?;
     let md = v2t_lab::latency::markdown(&rows, &cases, &networks);
     out!("{md}")?;
-    let mut body = v2t_lab::report::experiment::body(&md, &v2t_lab::report::experiment::from_latency(&cases));
+    let mut body = v2t_lab::report::experiment::body(&md, &cases);
     body.push_str(&format!(
         "<h2>Steering error against the delay</h2>{}",
         v2t_lab::latency::figure(&rows, &networks, &seeds).svg()
@@ -569,8 +563,7 @@ fn campaign(a: &CampaignArgs) -> anyhow::Result<()> {
     let md = v2t_lab::campaign::markdown(&report);
     out!("{md}")?;
     if a.out.report.is_some() {
-        let mut body = v2t_lab::report::experiment::campaign_learning(&report);
-        body.push_str(&v2t_lab::report::experiment::body(&md, &v2t_lab::report::experiment::from_campaign(&report)));
+        let body = v2t_lab::report::experiment::body(&md, &report);
         write_report(&a.out, "campaign", &[provenance_line, format!("{runs} runs per campaign")], &body)?;
     }
     if let Some(dir) = &a.memory_dir {
@@ -601,12 +594,7 @@ fn regulator_on_cards(a: &SteerabilityArgs) -> anyhow::Result<()> {
     outln!("{provenance_line}")?;
     let md = steer::steer_markdown(&report);
     out!("{md}")?;
-    write_report(
-        &a.out,
-        "steerability",
-        &[provenance_line],
-        &v2t_lab::report::experiment::body(&md, &v2t_lab::report::experiment::from_steer(&report)),
-    )?;
+    write_report(&a.out, "steerability", &[provenance_line], &v2t_lab::report::experiment::body(&md, &report))?;
     if let Some(path) = &a.out.json {
         write_json(path, &report)?;
     }

@@ -138,7 +138,7 @@ pub fn cloud_regulated_run(
                 c.bv_id
             )?;
             let link = MqttCloudLink::new(mqtt, &c.fleet, &c.bv_id, start);
-            CloudAt::Link { link: Box::new(link), key, fleet: &c.fleet, bv_id: &c.bv_id }
+            CloudAt::Link { link: Box::new(link), key: Box::new(key), fleet: &c.fleet, bv_id: &c.bv_id }
         }
         (None, None) => return Err(Usage("a cloud regulator needs --network or --cloud-broker".into()).into()),
     };

@@ -18,6 +18,8 @@
 use std::cell::Cell;
 use std::rc::Rc;
 
+mod view;
+
 use serde::Serialize;
 use v2t_game::campaign::{CampaignMemory, CaseMemory, RunRecord};
 use v2t_game::regulator::{BelowReach, BelowReachCause, RegulatorParams};

@@ -23,7 +23,7 @@ pub enum CloudAt<'a> {
         /// The link.
         link: Box<dyn CloudLink>,
         /// The cloud's public key.
-        key: VerifyingKey,
+        key: Box<VerifyingKey>,
         /// The fleet (test session).
         fleet: &'a str,
         /// The BV's id on the link.
@@ -66,7 +66,7 @@ pub fn cloud_regulated_run(
     let bv = match at {
         CloudAt::Network(network) => CloudRegulatedBv::new(params, scenario, 0, network, seed)?,
         CloudAt::Link { link, key, fleet, bv_id } => {
-            CloudRegulatedBv::with_link(params, scenario, 0, link, key, fleet, bv_id)?
+            CloudRegulatedBv::with_link(params, scenario, 0, link, *key, fleet, bv_id)?
         }
     };
     let report = bv.link_report();

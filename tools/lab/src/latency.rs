@@ -386,6 +386,33 @@ fn cloud_points(rows: &[LatencyRow], networks: &[NetworkSettings], vut: &str, lo
         .collect()
 }
 
+/// Onboard against the cloud: each deployment and network a setting, collisions marked.
+impl crate::report::experiment::ExperimentView for Vec<LatencyCase> {
+    fn case_views(&self) -> Vec<crate::report::experiment::CaseView> {
+        self.iter()
+            .map(|c| {
+                let method = format!("{:?} {}", c.deployment, c.network).to_lowercase();
+                let mut v = crate::report::experiment::CaseView::of_stats(
+                    &c.scenario,
+                    &c.vut,
+                    method,
+                    c.style,
+                    c.tau_s,
+                    &c.stats,
+                );
+                for col in &c.collisions {
+                    v.runs.push(vec![
+                        format!("seed {}", col.seed),
+                        format!("<span class=\"warn\">collision at {:.2} s</span>", col.t_s),
+                        if col.bv_fell_back { "BV in fallback".into() } else { String::new() },
+                    ]);
+                }
+                v
+            })
+            .collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing)]

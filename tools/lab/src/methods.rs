@@ -522,6 +522,18 @@ pub fn markdown(rows: &[MethodSummary], labels: &[(String, f64)]) -> String {
     out
 }
 
+/// The four methods (`adversariality`, `fidelity`, `style`, `steerability --methods`).
+impl crate::report::experiment::ExperimentView for Vec<MethodCase> {
+    fn case_views(&self) -> Vec<crate::report::experiment::CaseView> {
+        self.iter()
+            .map(|c| {
+                let method = c.method.name().to_owned();
+                crate::report::experiment::CaseView::of_stats(&c.scenario, &c.vut, method, c.style, c.tau_s, &c.stats)
+            })
+            .collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing)]

@@ -320,3 +320,23 @@ pub fn steer_markdown(r: &SteerReport) -> String {
     }
     out
 }
+
+impl crate::report::experiment::ExperimentView for SteerReport {
+    fn case_views(&self) -> Vec<crate::report::experiment::CaseView> {
+        self.cases
+            .iter()
+            .map(|c| crate::report::experiment::CaseView {
+                reachable: c.reachable,
+                error_rel: c.error_rel,
+                ..crate::report::experiment::CaseView::of_stats(
+                    &c.scenario,
+                    &c.vut,
+                    String::new(),
+                    c.style,
+                    c.tau_s,
+                    &c.stats,
+                )
+            })
+            .collect()
+    }
+}

@@ -318,6 +318,23 @@ pub fn svg(r: &TradeoffReport, scenario: &str) -> Option<String> {
 /// One realism quantity of a plot panel.
 type Quantity = fn(&RealismMeans) -> f64;
 
+/// The realism-weight sweep: each weight a setting of its method.
+impl crate::report::experiment::ExperimentView for TradeoffReport {
+    fn case_views(&self) -> Vec<crate::report::experiment::CaseView> {
+        self.cases
+            .iter()
+            .map(|t| {
+                let c = &t.case;
+                let method = match t.w_real {
+                    Some(w) => format!("{} w_real {w}", c.method.name()),
+                    None => c.method.name().to_owned(),
+                };
+                crate::report::experiment::CaseView::of_stats(&c.scenario, &c.vut, method, c.style, c.tau_s, &c.stats)
+            })
+            .collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing)]

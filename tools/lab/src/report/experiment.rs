@@ -314,204 +314,63 @@ pub fn drill_down(cases: &[CaseView]) -> String {
     h
 }
 
-/// The usual body: tables, strips, error against τ, methods, drill-down.
-pub fn body(markdown_tables: &str, cases: &[CaseView]) -> String {
-    let mut h = String::from("<h2>Results</h2>");
+/// What an experiment hands its report: its cases, each with its runs, and any section of its own.
+/// Each experiment implements it beside its own types, so the report knows none of them.
+pub trait ExperimentView {
+    /// Every case with its runs.
+    fn case_views(&self) -> Vec<CaseView>;
+
+    /// A section of the experiment's own before the usual body (a campaign's learning); none by
+    /// default.
+    fn lead(&self) -> String {
+        String::new()
+    }
+}
+
+/// The usual body: the experiment's own section, the tables, strips, error against τ, methods,
+/// drill-down.
+pub fn body(markdown_tables: &str, view: &dyn ExperimentView) -> String {
+    let cases = view.case_views();
+    let mut h = view.lead();
+    h.push_str("<h2>Results</h2>");
     h.push_str(&markdown(markdown_tables));
-    h.push_str(&strips(cases));
-    h.push_str(&error_vs_tau(cases));
-    h.push_str(&methods_side_by_side(cases));
-    h.push_str(&drill_down(cases));
+    h.push_str(&strips(&cases));
+    h.push_str(&error_vs_tau(&cases));
+    h.push_str(&methods_side_by_side(&cases));
+    h.push_str(&drill_down(&cases));
     h
 }
 
-/// Cases of figures over repeated runs: the pets as the only per-run detail.
-fn stats_case(
-    scenario: &str,
-    vut: &str,
-    method: String,
-    style: v2t_model::Style,
-    tau_s: f64,
-    stats: &crate::stats::RunStats,
-) -> CaseView {
-    CaseView {
-        scenario: scenario.to_owned(),
-        vut: vut.to_owned(),
-        method,
-        style: style.to_string(),
-        tau_s,
-        pets_s: stats.pets_s.clone(),
-        unmeasured: stats.unmeasured,
-        collisions: stats.collisions,
-        error_rel: stats.error_rel(tau_s),
-        reachable: None,
-        run_header: vec!["measured run".into(), "PET<sub>min</sub> (s)".into(), "PET − τ (s)".into()],
-        runs: stats
-            .pets_s
-            .iter()
-            .enumerate()
-            .map(|(k, p)| vec![(k + 1).to_string(), format!("{p:.2}"), format!("{:+.2}", p - tau_s)])
-            .collect(),
-    }
-}
-
-/// The regulator on the scenario cards (`experiment steerability`).
-pub fn from_steer(r: &crate::steer::SteerReport) -> Vec<CaseView> {
-    r.cases
-        .iter()
-        .map(|c| CaseView {
-            reachable: c.reachable,
-            error_rel: c.error_rel,
-            ..stats_case(&c.scenario, &c.vut, String::new(), c.style, c.tau_s, &c.stats)
-        })
-        .collect()
-}
-
-/// The four methods (`adversariality`, `fidelity`, `style`, `steerability --methods`).
-pub fn from_methods(cases: &[crate::methods::MethodCase]) -> Vec<CaseView> {
-    cases
-        .iter()
-        .map(|c| stats_case(&c.scenario, &c.vut, c.method.name().to_owned(), c.style, c.tau_s, &c.stats))
-        .collect()
-}
-
-/// The realism-weight sweep (`tradeoff`): each weight a setting of its method.
-pub fn from_tradeoff(r: &crate::tradeoff::TradeoffReport) -> Vec<CaseView> {
-    r.cases
-        .iter()
-        .map(|t| {
-            let c = &t.case;
-            let method = match t.w_real {
-                Some(w) => format!("{} w_real {w}", c.method.name()),
-                None => c.method.name().to_owned(),
-            };
-            stats_case(&c.scenario, &c.vut, method, c.style, c.tau_s, &c.stats)
-        })
-        .collect()
-}
-
-/// Onboard against the cloud (`latency`): each deployment and network a setting.
-pub fn from_latency(cases: &[crate::latency::LatencyCase]) -> Vec<CaseView> {
-    cases
-        .iter()
-        .map(|c| {
-            let method = format!("{:?} {}", c.deployment, c.network).to_lowercase();
-            let mut v = stats_case(&c.scenario, &c.vut, method, c.style, c.tau_s, &c.stats);
-            for col in &c.collisions {
-                v.runs.push(vec![
-                    format!("seed {}", col.seed),
-                    format!("<span class=\"warn\">collision at {:.2} s</span>", col.t_s),
-                    if col.bv_fell_back { "BV in fallback".into() } else { String::new() },
-                ]);
-            }
-            v
-        })
-        .collect()
-}
-
-/// Test campaigns (`campaign`): every run of every campaign, with its aim.
-pub fn from_campaign(r: &crate::campaign::CampaignReport) -> Vec<CaseView> {
-    r.cases
-        .iter()
-        .map(|c| {
-            let pets: Vec<f64> = c.runs.iter().filter_map(|x| x.pet_s).collect();
-            let mean = (!pets.is_empty()).then(|| pets.iter().sum::<f64>() / pets.len() as f64);
-            CaseView {
-                scenario: c.scenario.clone(),
-                vut: c.vut.clone(),
-                method: String::new(),
-                style: c.style.to_string(),
-                tau_s: c.tau_s,
-                unmeasured: c.runs.len() - pets.len(),
-                collisions: c.runs.iter().filter(|x| x.collision).count(),
-                error_rel: mean.map(|m| (m - c.tau_s).abs() / c.tau_s),
-                reachable: c.reachable,
-                pets_s: pets,
-                run_header: std::iter::once("campaign".to_owned())
-                    .chain((1..=r.runs_per_campaign).map(|k| format!("run {k}")))
-                    .collect(),
-                runs: campaign_rows(&c.runs),
-            }
-        })
-        .collect()
-}
-
-/// One row per campaign, one cell per run: its PET over the aim it was run at (the aim in
-/// grey), a wrong order, a collision and a "τ out of reach" report marked.
-fn campaign_rows(runs: &[crate::campaign::CampaignRun]) -> Vec<Vec<String>> {
-    let mut rows: Vec<Vec<String>> = Vec::new();
-    let mut current: Option<u64> = None;
-    for x in runs {
-        if current != Some(x.campaign) {
-            current = Some(x.campaign);
-            rows.push(vec![format!("{} <span class=\"muted\">(seeds {}…)</span>", x.campaign, x.seed)]);
-        }
-        let pet = if x.failed { "failed".to_owned() } else { num(x.pet_s, 2) };
-        let mut marks = String::new();
-        if !x.order_ok {
-            marks.push_str(" order");
-        }
-        if x.collision {
-            marks.push_str(" collision");
-        }
-        if x.below_reach.is_some() {
-            marks.push_str(" ↓reach");
-        }
-        let cell = if marks.is_empty() && !x.failed {
-            format!("{pet}<br><small class=\"muted\">{:.2}</small>", x.aim_s)
-        } else {
-            format!("<span class=\"warn\">{pet}{marks}</span><br><small class=\"muted\">{:.2}</small>", x.aim_s)
-        };
-        if let Some(row) = rows.last_mut() {
-            row.push(cell);
+impl CaseView {
+    /// A case of figures over repeated runs, with the PETs as the only per-run detail.
+    pub fn of_stats(
+        scenario: &str,
+        vut: &str,
+        method: String,
+        style: v2t_model::Style,
+        tau_s: f64,
+        stats: &crate::stats::RunStats,
+    ) -> Self {
+        Self {
+            scenario: scenario.to_owned(),
+            vut: vut.to_owned(),
+            method,
+            style: style.to_string(),
+            tau_s,
+            pets_s: stats.pets_s.clone(),
+            unmeasured: stats.unmeasured,
+            collisions: stats.collisions,
+            error_rel: stats.error_rel(tau_s),
+            reachable: None,
+            run_header: vec!["measured run".into(), "PET<sub>min</sub> (s)".into(), "PET − τ (s)".into()],
+            runs: stats
+                .pets_s
+                .iter()
+                .enumerate()
+                .map(|(k, p)| vec![(k + 1).to_string(), format!("{p:.2}"), format!("{:+.2}", p - tau_s)])
+                .collect(),
         }
     }
-    rows
-}
-
-/// A campaign's learning: per VUT, the mean steering error of the k-th run of every campaign.
-pub fn campaign_learning(r: &crate::campaign::CampaignReport) -> String {
-    let mut vuts: Vec<&str> = Vec::new();
-    for c in &r.cases {
-        if !vuts.contains(&c.vut.as_str()) {
-            vuts.push(&c.vut);
-        }
-    }
-    let series: Vec<Series> = vuts
-        .iter()
-        .enumerate()
-        .map(|(i, vut)| {
-            let points = (0..r.runs_per_campaign)
-                .filter_map(|k| {
-                    let errs: Vec<f64> = r
-                        .cases
-                        .iter()
-                        .filter(|c| c.vut == *vut && c.reachable != Some(false))
-                        .filter_map(|c| c.per_run.get(k).map(|s| s.error_rel))
-                        .collect();
-                    (!errs.is_empty()).then(|| ((k + 1) as f64, 100.0 * errs.iter().sum::<f64>() / errs.len() as f64))
-                })
-                .collect();
-            Series::line(*vut, points, colour(i))
-        })
-        .collect();
-    let plot = LinePlot {
-        title: "Learning over a campaign (targets the VUT allows)".into(),
-        x_label: "run of the campaign".into(),
-        y_label: "mean steering error (%)".into(),
-        series,
-        levels: vec![Level { y: 10.0, label: "10 %".into() }],
-        y_range: None,
-        x_range: Some((0.5, r.runs_per_campaign as f64 + 0.5)),
-        cursor: false,
-        markers: false,
-    };
-    format!(
-        "<h2>Steering over a campaign, per VUT</h2>{}<p class=\"muted\">Under \"Runs, case by case\" every cell \
-         holds a run's PET<sub>min</sub> over the aim the BV was run at (grey), s; a wrong order, a collision and a \
-         \"τ out of reach\" report (↓reach) are marked.</p>",
-        plot.svg("learning")
-    )
 }
 
 #[cfg(test)]
