@@ -102,6 +102,17 @@ struct Shared {
     vut: Vec<String>,
 }
 
+/// What every experiment reads: the regulator and VUTs, the seeds, where the results go.
+#[derive(Debug, clap::Args)]
+struct RunArgs {
+    #[command(flatten)]
+    shared: Shared,
+    #[command(flatten)]
+    seeds: SeedArgs,
+    #[command(flatten)]
+    out: Output,
+}
+
 /// The paper's scenarios to run (the four methods, tradeoff, latency).
 #[derive(Debug, clap::Args)]
 struct PaperArgs {
@@ -150,11 +161,7 @@ struct SteerabilityArgs {
     #[command(flatten)]
     tau: TauArgs,
     #[command(flatten)]
-    shared: Shared,
-    #[command(flatten)]
-    seeds: SeedArgs,
-    #[command(flatten)]
-    out: Output,
+    run: RunArgs,
 }
 
 /// `experiment adversariality|fidelity|style`.
@@ -163,11 +170,7 @@ struct MethodsArgs {
     #[command(flatten)]
     paper: PaperArgs,
     #[command(flatten)]
-    shared: Shared,
-    #[command(flatten)]
-    seeds: SeedArgs,
-    #[command(flatten)]
-    out: Output,
+    run: RunArgs,
 }
 
 /// `experiment tradeoff`.
@@ -185,11 +188,7 @@ struct TradeoffArgs {
     #[command(flatten)]
     tau: TauArgs,
     #[command(flatten)]
-    shared: Shared,
-    #[command(flatten)]
-    seeds: SeedArgs,
-    #[command(flatten)]
-    out: Output,
+    run: RunArgs,
 }
 
 /// `experiment campaign`.
@@ -207,11 +206,7 @@ struct CampaignArgs {
     #[command(flatten)]
     tau: TauArgs,
     #[command(flatten)]
-    shared: Shared,
-    #[command(flatten)]
-    seeds: SeedArgs,
-    #[command(flatten)]
-    out: Output,
+    run: RunArgs,
 }
 
 /// `experiment latency`: the regulator at its own targets (rush and yield, τ 2, 3, 4 s).
@@ -227,11 +222,7 @@ struct LatencyArgs {
     #[command(flatten)]
     paper: PaperArgs,
     #[command(flatten)]
-    shared: Shared,
-    #[command(flatten)]
-    seeds: SeedArgs,
-    #[command(flatten)]
-    out: Output,
+    run: RunArgs,
 }
 
 /// A realism weight in [0, 1e6].
@@ -272,12 +263,7 @@ pub fn run(a: ExperimentArgs) -> anyhow::Result<()> {
         Experiment::Steerability(s) if !s.methods => regulator_on_cards(&s),
         Experiment::Steerability(s) => {
             let taus = if s.tau.tau.is_empty() { steer::STEER_TAUS_S.to_vec() } else { s.tau.tau.clone() };
-            let methods = MethodsArgs {
-                paper: PaperArgs { scenarios: s.scenarios },
-                shared: s.shared,
-                seeds: s.seeds,
-                out: s.out,
-            };
+            let methods = MethodsArgs { paper: PaperArgs { scenarios: s.scenarios }, run: s.run };
             four_methods(name, &methods, Comparison::Steerability(steer::both_styles(&taus)))
         }
         Experiment::Adversariality(m) => four_methods(name, &m, Comparison::Adversariality),
@@ -378,19 +364,19 @@ impl World {
 
 /// The sweep of the realism weight.
 fn tradeoff(a: &TradeoffArgs) -> anyhow::Result<()> {
-    let models = crate::vut_models(&a.shared.vut)?;
-    let world = World::load(&a.shared)?;
+    let models = crate::vut_models(&a.run.shared.vut)?;
+    let world = World::load(&a.run.shared)?;
     let (model, human, setup) = (&world.model, &world.human, world.setup());
     let scenarios = paper_scenarios(&a.paper.scenarios)?;
     let taus = if a.tau.tau.is_empty() { tradeoff::TAUS_S.to_vec() } else { a.tau.tau.clone() };
     let weights = if a.w_real.is_empty() { tradeoff::WEIGHTS.to_vec() } else { a.w_real.clone() };
-    let seeds = a.seeds.range(6, 5);
+    let seeds = a.run.seeds.range(6, 5);
     let provenance = provenance(model, human, &seeds);
     let report = tradeoff::sweep(&setup, &scenarios, &taus, &weights, &models, seeds, provenance)?;
     outln!("{}", report.provenance)?;
     let md = tradeoff::markdown(&report);
     out!("{md}")?;
-    if a.out.report.is_some() {
+    if a.run.out.report.is_some() {
         let mut body = v2t_lab::report::experiment::body(&md, &report);
         for rec in &scenarios {
             if let Some(figure) = tradeoff::figure(&report, &rec.name) {
@@ -401,7 +387,7 @@ fn tradeoff(a: &TradeoffArgs) -> anyhow::Result<()> {
                 ));
             }
         }
-        write_report(&a.out, "tradeoff", std::slice::from_ref(&report.provenance), &body)?;
+        write_report(&a.run.out, "tradeoff", std::slice::from_ref(&report.provenance), &body)?;
     }
     if let Some(dir) = &a.svg_dir {
         std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
@@ -414,7 +400,7 @@ fn tradeoff(a: &TradeoffArgs) -> anyhow::Result<()> {
             }
         }
     }
-    if let Some(path) = &a.out.json {
+    if let Some(path) = &a.run.out.json {
         write_json(path, &report)?;
     }
     Ok(())
@@ -422,11 +408,11 @@ fn tradeoff(a: &TradeoffArgs) -> anyhow::Result<()> {
 
 /// The four methods on the paper's scenarios.
 fn four_methods(name: &str, a: &MethodsArgs, comparison: Comparison) -> anyhow::Result<()> {
-    let models = crate::vut_models(&a.shared.vut)?;
-    let world = World::load(&a.shared)?;
+    let models = crate::vut_models(&a.run.shared.vut)?;
+    let world = World::load(&a.run.shared)?;
     let (model, human, setup) = (&world.model, &world.human, world.setup());
     let scenarios = paper_scenarios(&a.paper.scenarios)?;
-    let seeds = a.seeds.range(1, 20);
+    let seeds = a.run.seeds.range(1, 20);
     let cases = methods::run_all(&setup, &scenarios, &comparison, &models, seeds.clone())?;
     let summary = methods::summarize(&cases);
     // The fidelity error is against the video's PET label: only where τ is that label.
@@ -452,8 +438,8 @@ fn four_methods(name: &str, a: &MethodsArgs, comparison: Comparison) -> anyhow::
         world.baseline_network.name,
         world.baseline_network.source
     );
-    write_report(&a.out, name, &[provenance_line], &v2t_lab::report::experiment::body(&md, &cases))?;
-    if let Some(path) = &a.out.json {
+    write_report(&a.run.out, name, &[provenance_line], &v2t_lab::report::experiment::body(&md, &cases))?;
+    if let Some(path) = &a.run.out.json {
         write_json(path, &serde_json::json!({ "cases": cases, "summary": summary, "steering": steering }))?;
     }
     Ok(())
@@ -461,8 +447,8 @@ fn four_methods(name: &str, a: &MethodsArgs, comparison: Comparison) -> anyhow::
 
 /// The regulator onboard and in the cloud across the networks.
 fn latency(a: &LatencyArgs) -> anyhow::Result<()> {
-    let models = crate::vut_models(&a.shared.vut)?;
-    let world = World::load(&a.shared)?;
+    let models = crate::vut_models(&a.run.shared.vut)?;
+    let world = World::load(&a.run.shared)?;
     let (model, human, setup) = (&world.model, &world.human, world.setup());
     let scenarios = paper_scenarios(&a.paper.scenarios)?;
     let files: Vec<PathBuf> =
@@ -471,7 +457,7 @@ fn latency(a: &LatencyArgs) -> anyhow::Result<()> {
     for f in &files {
         networks.push(load_toml(f)?);
     }
-    let seeds = a.seeds.range(6, 5);
+    let seeds = a.run.seeds.range(6, 5);
     let cases = v2t_lab::latency::run_all(&setup, &scenarios, &networks, &models, seeds.clone())?;
     let rows = v2t_lab::latency::summarize(&cases, &networks);
     outln!("{}; networks simulated (presets named below)\n", provenance(model, human, &seeds))?;
@@ -482,13 +468,13 @@ fn latency(a: &LatencyArgs) -> anyhow::Result<()> {
         "<h2>Steering error against the delay</h2>{}",
         v2t_lab::latency::figure(&rows, &networks, &seeds).svg()
     ));
-    write_report(&a.out, "latency", &[format!("{}; networks simulated", provenance(model, human, &seeds))], &body)?;
+    write_report(&a.run.out, "latency", &[format!("{}; networks simulated", provenance(model, human, &seeds))], &body)?;
     if let Some(path) = &a.svg {
         std::fs::write(path, v2t_lab::latency::svg(&rows, &networks, &seeds))
             .with_context(|| format!("writing {}", path.display()))?;
         outln!("\nwrote {}", path.display())?;
     }
-    if let Some(path) = &a.out.json {
+    if let Some(path) = &a.run.out.json {
         write_json(path, &serde_json::json!({ "networks": networks, "cases": cases, "summary": rows }))?;
     }
     Ok(())
@@ -542,9 +528,9 @@ impl Cards {
 
 /// Test campaigns on the scenario cards.
 fn campaign(a: &CampaignArgs) -> anyhow::Result<()> {
-    let cards = Cards::load(&a.cards, &a.tau, &a.shared)?;
-    let vuts = cards.vuts(&a.shared)?;
-    let seeds = a.seeds.range(6, 15);
+    let cards = Cards::load(&a.cards, &a.tau, &a.run.shared)?;
+    let vuts = cards.vuts(&a.run.shared)?;
+    let seeds = a.run.seeds.range(6, 15);
     let runs = a.runs.map_or(v2t_lab::campaign::DEFAULT_RUNS, |r| r as usize);
     let reach_seed = (!a.cards.no_reach).then_some(*seeds.start());
     let (report, memories) = v2t_lab::campaign::campaigns(
@@ -562,9 +548,9 @@ fn campaign(a: &CampaignArgs) -> anyhow::Result<()> {
     outln!("{provenance_line}")?;
     let md = v2t_lab::campaign::markdown(&report);
     out!("{md}")?;
-    if a.out.report.is_some() {
+    if a.run.out.report.is_some() {
         let body = v2t_lab::report::experiment::body(&md, &report);
-        write_report(&a.out, "campaign", &[provenance_line, format!("{runs} runs per campaign")], &body)?;
+        write_report(&a.run.out, "campaign", &[provenance_line, format!("{runs} runs per campaign")], &body)?;
     }
     if let Some(dir) = &a.memory_dir {
         for (vut, seed, memory) in &memories {
@@ -576,7 +562,7 @@ fn campaign(a: &CampaignArgs) -> anyhow::Result<()> {
         }
         outln!("\nwrote {} memory files under {}", memories.len(), dir.display())?;
     }
-    if let Some(path) = &a.out.json {
+    if let Some(path) = &a.run.out.json {
         write_json(path, &report)?;
     }
     Ok(())
@@ -584,9 +570,9 @@ fn campaign(a: &CampaignArgs) -> anyhow::Result<()> {
 
 /// The regulator alone on the scenario cards.
 fn regulator_on_cards(a: &SteerabilityArgs) -> anyhow::Result<()> {
-    let cards = Cards::load(&a.cards, &a.tau, &a.shared)?;
-    let vuts = cards.vuts(&a.shared)?;
-    let seeds = a.seeds.range(1, 20);
+    let cards = Cards::load(&a.cards, &a.tau, &a.run.shared)?;
+    let vuts = cards.vuts(&a.run.shared)?;
+    let seeds = a.run.seeds.range(1, 20);
     let reach_seed = (!a.cards.no_reach).then_some(*seeds.start());
     let report =
         steer::steerability(&cards.settings, &cards.scenarios, &cards.targets, &vuts, seeds.clone(), reach_seed);
@@ -594,8 +580,8 @@ fn regulator_on_cards(a: &SteerabilityArgs) -> anyhow::Result<()> {
     outln!("{provenance_line}")?;
     let md = steer::steer_markdown(&report);
     out!("{md}")?;
-    write_report(&a.out, "steerability", &[provenance_line], &v2t_lab::report::experiment::body(&md, &report))?;
-    if let Some(path) = &a.out.json {
+    write_report(&a.run.out, "steerability", &[provenance_line], &v2t_lab::report::experiment::body(&md, &report))?;
+    if let Some(path) = &a.run.out.json {
         write_json(path, &report)?;
     }
     Ok(())
