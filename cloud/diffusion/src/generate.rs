@@ -25,7 +25,8 @@
 use v2t_map::Map;
 use v2t_map::boundaries::{first_crossing, solid_boundaries};
 use v2t_model::Style;
-use v2t_model::geometry::{Point2, wrap_angle};
+use v2t_model::driving::pure_pursuit;
+use v2t_model::geometry::Point2;
 use v2t_model::grounded::{AgentRole, GroundedScenario};
 use v2t_model::kinematics::{Control, State, rollout_into, step};
 use v2t_model::metrics::{Side, passage, pet};
@@ -396,9 +397,7 @@ fn follow_route(
         s_hint = foot;
         let look = (1.0 * state.speed_mps).max(6.0);
         let target = point_on_route(route, foot + look);
-        let d = target.sub(state.position());
-        let alpha = wrap_angle(d.y.atan2(d.x) - state.theta_rad);
-        let mut omega = 2.0 * state.speed_mps * alpha.sin() / d.norm().max(1.0);
+        let mut omega = pure_pursuit(state.position(), state.theta_rad, target, state.speed_mps);
         if state.speed_mps > 0.5 {
             let cap = 0.9 * limits.lat_accel_max_mps2 / state.speed_mps;
             omega = omega.clamp(-cap, cap);

@@ -11,6 +11,7 @@
 //! buffers are made once per prior).
 
 use v2t_model::Target;
+use v2t_model::driving::{CURVE_HALF_WINDOW_M, curve_speed};
 use v2t_model::geometry::Point2;
 use v2t_model::metrics::{ConflictKind, OccupancyInterval};
 use v2t_model::path::ReferencePath;
@@ -19,7 +20,7 @@ use v2t_model::validate::ValidationError;
 use crate::qp::QpError;
 use crate::reference::ReferenceSample;
 use crate::regulator::{
-    BelowReach, Decision, PathState, Regulator, RegulatorInput, RegulatorParams, RegulatorStatus, curve_speed_limit,
+    BelowReach, CURVE_LAT_SHARE, Decision, PathState, Regulator, RegulatorInput, RegulatorParams, RegulatorStatus,
 };
 
 /// How far from the last projection a vehicle is looked for along its path, m: the projection
@@ -266,9 +267,9 @@ impl Regulation {
             target: ctx.target,
             reference_speed_mps: ctx.reference_speed_at(bv_s),
         };
-        let lat = self.lat_accel_mps2;
+        let lat = CURVE_LAT_SHARE * self.lat_accel_mps2;
         let path = &ctx.bv_path;
-        let decision = self.regulator.decide_on_path(&input, &|s| curve_speed_limit(path, s, lat));
+        let decision = self.regulator.decide_on_path(&input, &|s| curve_speed(path, s, CURVE_HALF_WINDOW_M, lat));
         self.last_accel = decision.accel_mps2;
         Some(Step { bv_s_m: Some(bv_s), input: Some(input), decision })
     }

@@ -194,27 +194,10 @@ pub struct RegulatorInput {
 }
 
 /// Share of the BV's lateral-acceleration limit its plans may use in curves (the rest is the
-/// tracker's margin).
+/// tracker's margin): the regulator's curve speed is [`v2t_model::driving::curve_speed`] over
+/// ±[`v2t_model::driving::CURVE_HALF_WINDOW_M`] with this share of the limit
+/// ([`crate::regulation::Regulation`] passes it to [`Regulator::decide_on_path`]).
 pub const CURVE_LAT_SHARE: f64 = 0.8;
-
-/// The curve speed `sqrt(a_lat / |κ(s)|)` of `path` at `s_m`, with `a_lat` = [`CURVE_LAT_SHARE`]
-/// of `lat_accel_mps2` (`f64::INFINITY` on a straight): what [`Regulator::decide_on_path`] takes.
-///
-/// The curvature is the heading change over ±[`CURVE_WINDOW_M`] (what a vehicle follows), not the
-/// pointwise value, which spikes at the vertices of a path made from points.
-pub fn curve_speed_limit(path: &v2t_model::path::ReferencePath, s_m: f64, lat_accel_mps2: f64) -> f64 {
-    let (a, b) = ((s_m - CURVE_WINDOW_M).max(0.0), (s_m + CURVE_WINDOW_M).min(path.length()));
-    if b - a < 1e-3 {
-        return f64::INFINITY;
-    }
-    let turn = (path.heading_at(b) - path.heading_at(a) + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
-        - std::f64::consts::PI;
-    let k = turn.abs() / (b - a);
-    if k > 1e-6 { (CURVE_LAT_SHARE * lat_accel_mps2 / k).sqrt() } else { f64::INFINITY }
-}
-
-/// Half the window over which [`curve_speed_limit`] measures curvature, m.
-pub const CURVE_WINDOW_M: f64 = 3.0;
 
 /// Farthest a speed cap is looked for ahead, m.
 const CAP_SCAN_MAX_M: f64 = 400.0;
@@ -650,7 +633,7 @@ impl Regulator {
     }
 
     /// [`Self::decide`] for a BV whose path limits its speed: `speed_limit_at(s)` is the highest
-    /// speed at arc length `s` (curves, [`curve_speed_limit`]). Step `k` of the plan is capped by
+    /// speed at arc length `s` (curves, [`v2t_model::driving::curve_speed`]). Step `k` of the plan is capped by
     /// the lowest limit the BV could reach by then (from its speed at full acceleration):
     /// conservative, and never infeasible (the cap is approached at a bounded deceleration).
     pub fn decide_on_path(&mut self, inp: &RegulatorInput, speed_limit_at: &dyn Fn(f64) -> f64) -> Decision {

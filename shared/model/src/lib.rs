@@ -7,6 +7,8 @@
 //! - [`grounded`] and [`prior`]: a scenario grounded on the track map, and the trajectory priors the
 //!   diffusion model produces for it;
 //! - [`kinematics`]: the discrete vehicle model, its rollout and the rollout's adjoint;
+//! - [`driving`]: the formulas of driving every driver and the regulator share: the IDM, the curve
+//!   speed of a path, pure pursuit;
 //! - [`path`]: arc-length parameterised reference paths with a robust Frenet projection;
 //! - [`metrics`]: conflict zones, post-encroachment time (PET), time to collision, distances;
 //! - [`vehicle`]: vehicle geometry and limits;
@@ -22,6 +24,7 @@
 //! assert!((f.s_m - 30.0).abs() < 1e-6 && (f.l_m - 1.0).abs() < 1e-6);
 //! ```
 
+pub mod driving;
 pub mod geometry;
 pub mod grounded;
 pub mod kinematics;

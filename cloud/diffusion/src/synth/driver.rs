@@ -1,12 +1,12 @@
 //! Heterogeneous human driver models for the synthetic corpus: sampled IDM and gap-acceptance
-//! parameters, reaction delays, actuation lag, process noise, minimum-jerk lane changes, and the
-//! pure-pursuit steering that turns a reference path into a yaw rate.
+//! parameters, reaction delays, actuation lag, process noise and minimum-jerk lane changes. The
+//! IDM, the curve speed and pure pursuit are `v2t_model::driving`'s, the same the simulated VUTs
+//! drive with.
 
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal, StandardUniform};
 use serde::{Deserialize, Serialize};
-use v2t_model::geometry::{Point2, wrap_angle};
-use v2t_model::kinematics::State;
+use v2t_model::driving::{CurvePreview, Idm, curve_speed_ahead};
 use v2t_model::path::ReferencePath;
 
 /// One driver's parameters, sampled per agent and stored with every synthetic episode.
@@ -75,49 +75,24 @@ impl DriverParams {
         }
     }
 
-    /// IDM acceleration at speed `v` toward `v0`, against an obstacle `(gap, its speed)`.
-    pub fn idm_accel(&self, v: f64, v0: f64, obstacle: Option<(f64, f64)>) -> f64 {
-        let free = 1.0 - (v.max(0.0) / v0.max(0.5)).powi(4);
-        let interaction = obstacle.map_or(0.0, |(gap, lead_v)| {
-            let sqrt_ab = (self.max_accel_mps2 * self.comfort_decel_mps2).sqrt();
-            let s_star = self.min_gap_m + (v * self.time_headway_s + v * (v - lead_v) / (2.0 * sqrt_ab)).max(0.0);
-            (s_star / gap.max(0.1)).powi(2)
-        });
-        self.max_accel_mps2 * (free - interaction)
-    }
-
-    /// Enhanced-IDM acceleration behind a vehicle at `gap` driving at `lead_v` (Kesting, Treiber &
-    /// Helbing 2010, coolness 0.99, the leader's acceleration taken as 0): where the IDM brakes
-    /// harder than the constant-acceleration heuristic needs — typically right after a cut-in with
-    /// a short gap but no closing speed — the braking is softened toward the heuristic, as human
-    /// drivers do.
-    pub fn eidm_accel(&self, v: f64, v0: f64, gap: f64, lead_v: f64) -> f64 {
-        const COOLNESS: f64 = 0.99;
-        let idm = self.idm_accel(v, v0, Some((gap, lead_v)));
-        let cah = if v <= lead_v { 0.0 } else { -(v - lead_v).powi(2) / (2.0 * gap.max(0.1)) };
-        if idm >= cah {
-            return idm;
+    /// The IDM this driver follows with (`δ` = 4, the original model's).
+    pub fn idm(&self) -> Idm {
+        Idm {
+            time_gap_s: self.time_headway_s,
+            min_gap_m: self.min_gap_m,
+            max_accel_mps2: self.max_accel_mps2,
+            comfort_decel_mps2: self.comfort_decel_mps2,
+            accel_exponent: 4.0,
         }
-        let b = self.comfort_decel_mps2.max(0.1);
-        (1.0 - COOLNESS) * idm + COOLNESS * (cah + b * ((idm - cah) / b).tanh())
     }
 
-    /// Desired speed at arc length `s` on `path`: `v0` capped by the curve speed
-    /// `√(a_lat / |κ|)` over the stretch the driver can still brake for comfortably.
+    /// Desired speed at arc length `s` on `path` at speed `v`: `v0` capped by the curves the
+    /// driver can still brake for comfortably ([`curve_speed_ahead`] at its lateral acceleration
+    /// and `b`, the [`CurvePreview::DRIVER`] preview).
     pub fn curve_capped_speed(&self, path: &ReferencePath, s: f64, v: f64) -> f64 {
-        let mut cap = self.desired_speed_mps;
-        let reach = (v * v / (2.0 * self.comfort_decel_mps2) + 10.0).min(80.0);
-        let mut d = 0.0;
-        while d <= reach {
-            let k = path.curvature_at(s + d).abs();
-            if k > 1e-4 {
-                // Speed allowed now so that braking at b reaches the curve speed at distance d.
-                let vc = (self.max_lateral_accel_mps2 / k).sqrt();
-                cap = cap.min((vc * vc + 2.0 * self.comfort_decel_mps2 * d).sqrt());
-            }
-            d += 2.0;
-        }
-        cap
+        let cap =
+            curve_speed_ahead(path, s, v, self.max_lateral_accel_mps2, self.comfort_decel_mps2, &CurvePreview::DRIVER);
+        self.desired_speed_mps.min(cap)
     }
 }
 
@@ -126,15 +101,6 @@ impl DriverParams {
 pub fn min_jerk_offset(from_m: f64, to_m: f64, duration_s: f64, elapsed_s: f64) -> f64 {
     let tau = if duration_s > 0.0 { (elapsed_s / duration_s).clamp(0.0, 1.0) } else { 1.0 };
     from_m + (to_m - from_m) * tau * tau * tau * (10.0 - 15.0 * tau + 6.0 * tau * tau)
-}
-
-/// Pure-pursuit yaw rate toward `target`: `ω = v · 2 sin α / L`, with α the bearing of the target
-/// from the heading and `L` the distance to it.
-pub fn pursuit_yaw_rate(x: &State, target: Point2) -> f64 {
-    let d = target.sub(x.position());
-    let dist = d.norm().max(1e-3);
-    let alpha = wrap_angle(d.y.atan2(d.x) - x.theta_rad);
-    x.speed_mps.max(0.0) * 2.0 * alpha.sin() / dist
 }
 
 /// A first-order Ornstein–Uhlenbeck process with unit time constant, stationary standard
@@ -163,45 +129,12 @@ mod tests {
     use rand_chacha::rand_core::SeedableRng;
 
     #[test]
-    fn idm_is_free_at_low_speed_and_brakes_when_close() {
-        let mut rng = ChaCha8Rng::seed_from_u64(1);
-        let d = DriverParams::sample(&mut rng, 12.0);
-        assert!(d.idm_accel(0.0, 12.0, None) > 0.0);
-        assert!(d.idm_accel(d.desired_speed_mps, d.desired_speed_mps, None).abs() < 1e-9);
-        assert!(d.idm_accel(10.0, 12.0, Some((5.0, 0.0))) < -d.comfort_decel_mps2);
-    }
-
-    #[test]
-    fn enhanced_idm_softens_a_close_cut_in_without_closing_speed() {
-        let d = DriverParams::sample(&mut ChaCha8Rng::seed_from_u64(2), 15.0);
-        // A vehicle cut in 6 m ahead at the same speed: the IDM brakes hard, the enhanced IDM gently.
-        let (idm, eidm) = (d.idm_accel(15.0, 15.0, Some((6.0, 15.0))), d.eidm_accel(15.0, 15.0, 6.0, 15.0));
-        assert!(
-            idm < -d.comfort_decel_mps2 && eidm > idm && eidm >= -d.comfort_decel_mps2 + 0.01 * idm - 1e-9,
-            "{idm} {eidm}"
-        );
-        // Closing fast on a near obstacle it still brakes at least as the kinematics need.
-        let need = -(10.0f64 * 10.0) / (2.0 * 20.0);
-        assert!(d.eidm_accel(10.0, 15.0, 20.0, 0.0) <= need + 0.5);
-        // Free of interaction where the IDM is not braking.
-        assert_eq!(d.eidm_accel(5.0, 15.0, 200.0, 15.0), d.idm_accel(5.0, 15.0, Some((200.0, 15.0))));
-    }
-
-    #[test]
     fn sampled_drivers_differ_and_repeat() {
         let a = DriverParams::sample(&mut ChaCha8Rng::seed_from_u64(3), 10.0);
         let b = DriverParams::sample(&mut ChaCha8Rng::seed_from_u64(3), 10.0);
         let c = DriverParams::sample(&mut ChaCha8Rng::seed_from_u64(4), 10.0);
         assert_eq!(a, b);
         assert_ne!(a, c);
-    }
-
-    #[test]
-    fn pursuit_turns_toward_the_target() {
-        let x = State { px: 0.0, py: 0.0, theta_rad: 0.0, speed_mps: 10.0 };
-        assert!(pursuit_yaw_rate(&x, Point2::new(10.0, 1.0)) > 0.0);
-        assert!(pursuit_yaw_rate(&x, Point2::new(10.0, -1.0)) < 0.0);
-        assert!(pursuit_yaw_rate(&x, Point2::new(10.0, 0.0)).abs() < 1e-12);
     }
 
     proptest! {

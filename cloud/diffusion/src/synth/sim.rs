@@ -7,12 +7,13 @@
 //! are recorded with the states, so the pair is dynamically consistent by construction.
 
 use rand_chacha::ChaCha8Rng;
+use v2t_model::driving::{Obstacle, pure_pursuit};
 use v2t_model::geometry::OrientedBox;
 use v2t_model::kinematics::{Control, State, step};
 use v2t_model::metrics::{Dimensions, OccupancyInterval};
 use v2t_model::path::ReferencePath;
 
-use super::driver::{DriverParams, OuNoise, min_jerk_offset, normal, pursuit_yaw_rate};
+use super::driver::{DriverParams, OuNoise, min_jerk_offset, normal};
 
 /// Half the width of a lane for "is in my lane", m.
 const LANE_HALF_WIDTH_M: f64 = 1.8;
@@ -199,12 +200,13 @@ fn decide(
     let d = &a.driver;
     let v = x.speed_mps;
     let v0 = d.curve_capped_speed(&a.route, r.s_m, v);
+    let idm = d.idm();
     // Lanes the driver watches: where it is, and the route's lane once a lane change has begun.
     let mut lanes = vec![r.l_m];
     if r.lane_change_from_s.is_some() {
         lanes.push(0.0);
     }
-    let mut accel = d.idm_accel(v, v0, None);
+    let mut accel = idm.accel(v, v0, None);
     for (j, o) in agents.iter().enumerate() {
         if j == i {
             continue;
@@ -222,7 +224,7 @@ fn decide(
         }
         let gap = ahead - 0.5 * (a.dims.length_m + o.dims.length_m);
         let lead_v = xo.speed_mps * (xo.theta_rad - route_heading).cos();
-        accel = accel.min(d.eidm_accel(v, v0, gap, lead_v));
+        accel = accel.min(idm.enhanced_accel(v, v0, Obstacle { gap_m: gap, speed_mps: lead_v }));
     }
     match a.behavior {
         Behavior::Free => {}
@@ -232,7 +234,7 @@ fn decide(
             r.decision = give_way(a, &r, x, v0, &watched, &own, &theirs);
             if r.decision == Decision::Yield {
                 let gap = own.enter_s_m - r.s_m - STOP_MARGIN_M;
-                accel = accel.min(d.idm_accel(v, v0, Some((gap, 0.0))));
+                accel = accel.min(idm.accel(v, v0, Some(Obstacle { gap_m: gap, speed_mps: 0.0 })));
             }
         }
         Behavior::LaneChange { behind, intent_s, give_up_s } => {
@@ -272,7 +274,8 @@ fn decide(
     let target = a.route.to_cartesian(r.s_m + look, offset_at(t + look / v.max(1.0)));
     let yaw_noise = r.yaw_noise.step(dt_s, normal(rng)) * (v / 2.0).min(1.0);
     let limit = (5.0 / v.max(1.0)).min(1.0);
-    let omega = (pursuit_yaw_rate(&x, target) + yaw_noise).clamp(-limit, limit);
+    let yaw_rate = pure_pursuit(x.position(), x.theta_rad, target, x.speed_mps.max(0.0));
+    let omega = (yaw_rate + yaw_noise).clamp(-limit, limit);
     (Control { accel_mps2: a_cmd, yaw_rate_radps: omega }, r)
 }
 

@@ -1,17 +1,15 @@
 //! What the driver models share: input checks and the fallback, steering and speed caps, lead
 //! detection, and (in tests) the scenarios and observations their tests use.
 
-use crate::control::{curve_speed_limit, pure_pursuit};
+use v2t_model::driving::{CurvePreview, curve_speed_ahead};
+
+use crate::control::pure_pursuit;
 use crate::observation::{Perceived, VutObservation};
 use crate::plant::ActuationRequest;
 use crate::scenario::Scenario;
 
 /// Never aim below this speed on a free road (keeps `v/v0` finite), m/s.
-pub(crate) const MIN_DESIRED_MPS: f64 = 0.5;
-/// Curvature is previewed this far beyond the braking distance, m.
-const CURVE_PREVIEW_MIN_M: f64 = 10.0;
-/// Spacing of the curve-speed preview windows, m.
-const CURVE_PREVIEW_STEP_M: f64 = 5.0;
+const MIN_DESIRED_MPS: f64 = v2t_model::driving::MIN_DESIRED_SPEED_MPS;
 /// A BV whose centre is closer than this to the VUT's route is in the VUT's lane, m.
 pub(crate) const LANE_HALF_WIDTH_M: f64 = 1.6;
 /// Deceleration requested when an input is not finite, m/s².
@@ -57,22 +55,20 @@ pub(crate) fn finish(obs: &VutObservation<'_>, accel_mps2: f64, max_accel_mps2: 
     ActuationRequest { accel_mps2: accel, steer_rad: steering(obs) }
 }
 
-/// Desired speed capped by the curvature ahead: the lowest `√(v_curve² + 2 b d)` over the curve
-/// speed limits `v_curve` at distances `d` within the braking distance (plus a margin).
+/// Desired speed capped by the curvature ahead ([`curve_speed_ahead`] with the
+/// [`CurvePreview::DRIVER`] preview, braking at `decel_mps2`) and by the vehicle's top speed.
 pub(crate) fn speed_cap(obs: &VutObservation<'_>, decel_mps2: f64) -> f64 {
     let agent = &obs.scenario.vut.agent;
-    let b = decel_mps2.max(0.1);
-    let v = obs.own.state.speed_mps.max(0.0);
-    let preview = v * v / (2.0 * b) + CURVE_PREVIEW_MIN_M;
-    let steps = (preview / CURVE_PREVIEW_STEP_M).ceil().clamp(1.0, 100.0) as usize;
-    let cap = (0..steps)
-        .map(|i| {
-            let d = i as f64 * CURVE_PREVIEW_STEP_M;
-            let v_curve = curve_speed_limit(&agent.route, obs.own.s_m + d, CURVE_PREVIEW_STEP_M, &agent.vehicle);
-            (v_curve * v_curve + 2.0 * b * d).sqrt()
-        })
-        .fold(f64::INFINITY, f64::min);
-    obs.scenario.vut.desired_speed_mps.min(cap).min(agent.vehicle.limits.max_speed_mps).max(MIN_DESIRED_MPS)
+    let lim = &agent.vehicle.limits;
+    let cap = curve_speed_ahead(
+        &agent.route,
+        obs.own.s_m,
+        obs.own.state.speed_mps,
+        lim.max_lat_accel_mps2,
+        decel_mps2,
+        &CurvePreview::DRIVER,
+    );
+    obs.scenario.vut.desired_speed_mps.min(cap).min(lim.max_speed_mps).max(MIN_DESIRED_MPS)
 }
 
 /// Half the extent of a footprint along a direction at `rel_heading_rad` to its long axis:

@@ -1,6 +1,6 @@
 //! Intelligent Driver Model with gap acceptance at crossing conflicts.
 //!
-//! Longitudinal control is the IDM (Treiber, Hennecke & Helbing, 2000):
+//! Longitudinal control is the IDM (Treiber, Hennecke & Helbing, 2000; [`v2t_model::driving::Idm`]):
 //! `a = a_max [1 − (v/v0)^δ − (s*/s)²]` with `s* = s0 + max(0, v T + v Δv / (2 √(a_max b)))`,
 //! where `v0` is the desired speed capped by the route's curvature ahead, taken against the most
 //! restrictive of these obstacles (the smallest acceleration wins):
@@ -8,8 +8,8 @@
 //! - the **lead vehicle**: the nearest BV whose perceived position projects into the VUT's lane
 //!   (`|l| < 1.6 m` on the VUT's route) ahead of it, at bumper-to-bumper gap. Against vehicles the
 //!   IDM is blended with the constant-acceleration heuristic (the "enhanced IDM" of Kesting,
-//!   Treiber & Helbing, 2010, coolness 0.99) so that a close cut-in of a faster BV does not trigger
-//!   the plain IDM's emergency braking;
+//!   Treiber & Helbing, 2010, coolness 0.99, [`v2t_model::driving::Idm::enhanced_accel`]) so that
+//!   a close cut-in of a faster BV does not trigger the plain IDM's emergency braking;
 //! - a BV **merging** ahead (merge zones): before it reaches the VUT's corridor the VUT eases off if
 //!   it is alongside or closer than the safe gap; once it reaches the corridor it is followed;
 //! - a **standing obstacle** just before each crossing zone at which the VUT yields.
@@ -24,12 +24,13 @@
 //! flip-flopping. Lateral control is pure pursuit on the route.
 //!
 
+use v2t_model::driving::{Idm, Obstacle};
 use v2t_model::metrics::{ConflictKind, ConflictZone};
 
 use super::VutDriver;
 use super::common::{
-    LANE_HALF_WIDTH_M, MIN_DESIRED_MPS, STOP_MARGIN_M, STOPPED_MPS, fallback, finish, half_extent, inputs_finite,
-    lead_vehicle, speed_cap,
+    LANE_HALF_WIDTH_M, STOP_MARGIN_M, STOPPED_MPS, fallback, finish, half_extent, inputs_finite, lead_vehicle,
+    speed_cap,
 };
 use crate::observation::{Perceived, VutObservation};
 use crate::plant::ActuationRequest;
@@ -40,10 +41,6 @@ const GAP_HYSTERESIS_S: f64 = 0.3;
 const MERGE_PREVIEW_S: f64 = 2.0;
 /// Easing off for a merging BV decelerates at this fraction of the comfortable deceleration.
 const EASE_OFF_FRACTION: f64 = 0.5;
-/// Smallest gap used in the IDM interaction term (keeps it finite), m.
-const MIN_GAP_M: f64 = 0.1;
-/// Coolness factor of the enhanced IDM: weight of the constant-acceleration heuristic.
-const COOLNESS: f64 = 0.99;
 
 /// IDM and gap-acceptance parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -79,6 +76,17 @@ impl IdmParams {
     /// Short headway, brisk acceleration, small accepted gaps (`config/vut/builtin/idm-aggressive.toml`).
     pub fn aggressive() -> Self {
         super::builtin::idm_aggressive()
+    }
+
+    /// The car-following part: the IDM these parameters drive with.
+    pub fn car_following(&self) -> Idm {
+        Idm {
+            time_gap_s: self.desired_time_gap_s,
+            min_gap_m: self.min_gap_m,
+            max_accel_mps2: self.max_accel_mps2,
+            comfort_decel_mps2: self.comfort_decel_mps2,
+            accel_exponent: self.accel_exponent,
+        }
     }
 }
 
@@ -133,31 +141,6 @@ impl IdmDriver {
         &self.params
     }
 
-    /// IDM acceleration at speed `v` toward `v0`, against an obstacle `(gap, closing speed)`.
-    fn idm_accel(&self, v: f64, v0: f64, obstacle: Option<(f64, f64)>) -> f64 {
-        let p = &self.params;
-        let free = 1.0 - (v / v0.max(MIN_DESIRED_MPS)).powf(p.accel_exponent);
-        let interaction = obstacle.map_or(0.0, |(gap_m, closing_mps)| {
-            let sqrt_ab = (p.max_accel_mps2 * p.comfort_decel_mps2).max(1e-6).sqrt();
-            let dynamic = v * p.desired_time_gap_s + v * closing_mps / (2.0 * sqrt_ab);
-            ((p.min_gap_m + dynamic.max(0.0)) / gap_m.max(MIN_GAP_M)).powi(2)
-        });
-        p.max_accel_mps2 * (free - interaction)
-    }
-
-    /// Enhanced-IDM acceleration behind a vehicle at `gap_m` driving at `lead_mps` (its acceleration
-    /// unknown, taken as 0): the IDM, softened toward the constant-acceleration heuristic when it
-    /// brakes harder than the kinematics require.
-    fn eidm_accel(&self, v: f64, v0: f64, gap_m: f64, lead_mps: f64) -> f64 {
-        let idm = self.idm_accel(v, v0, Some((gap_m, v - lead_mps)));
-        let cah = if v <= lead_mps { 0.0 } else { -(v - lead_mps).powi(2) / (2.0 * gap_m.max(MIN_GAP_M)) };
-        if idm >= cah {
-            return idm;
-        }
-        let b = self.params.comfort_decel_mps2.max(0.1);
-        (1.0 - COOLNESS) * idm + COOLNESS * (cah + b * ((idm - cah) / b).tanh())
-    }
-
     /// Updates the decision at crossing `index` and returns the gap to its stop point when yielding.
     fn crossing_gap(
         &mut self,
@@ -190,6 +173,7 @@ impl IdmDriver {
     fn merge_accel(&self, obs: &VutObservation<'_>, v: f64, v0: f64) -> f64 {
         let route = &obs.scenario.vut.agent.route;
         let p = &self.params;
+        let idm = p.car_following();
         let mut accel = f64::INFINITY;
         for c in obs.scenario.conflicts.iter().filter(|c| c.zone.kind == ConflictKind::Merge) {
             let Some(bv) = obs.bvs.get(c.bv_index) else { continue };
@@ -211,7 +195,7 @@ impl IdmDriver {
             let safe_gap = p.min_gap_m + v * p.desired_time_gap_s;
             if bv.s_m >= b.enter_s_m && gap > 0.0 {
                 let along = (v_b * rel.cos()).max(0.0);
-                accel = accel.min(self.eidm_accel(v, v0, gap, along));
+                accel = accel.min(idm.enhanced_accel(v, v0, Obstacle { gap_m: gap, speed_mps: along }));
             } else if ahead && gap < safe_gap {
                 accel = accel.min(-EASE_OFF_FRACTION * p.comfort_decel_mps2);
             }
@@ -274,9 +258,10 @@ impl VutDriver for IdmDriver {
         self.last_t_s = obs.t_s;
         let v = obs.own.state.speed_mps.max(0.0);
         let v0 = speed_cap(obs, self.params.comfort_decel_mps2);
-        let mut accel = self.idm_accel(v, v0, None);
+        let idm = self.params.car_following();
+        let mut accel = idm.accel(v, v0, None);
         if let Some(lead) = lead_vehicle(obs.scenario, &obs.own, obs.bvs) {
-            accel = accel.min(self.eidm_accel(v, v0, lead.gap_m, lead.speed_mps));
+            accel = accel.min(idm.enhanced_accel(v, v0, Obstacle { gap_m: lead.gap_m, speed_mps: lead.speed_mps }));
         }
         accel = accel.min(self.merge_accel(obs, v, v0));
         for (i, c) in obs.scenario.conflicts.iter().enumerate() {
@@ -284,7 +269,7 @@ impl VutDriver for IdmDriver {
                 continue;
             }
             if let Some(gap) = self.crossing_gap(i, &c.zone, obs.bvs.get(c.bv_index), &obs.own, v0) {
-                accel = accel.min(self.idm_accel(v, v0, Some((gap, v))));
+                accel = accel.min(idm.accel(v, v0, Some(Obstacle { gap_m: gap, speed_mps: 0.0 })));
             }
         }
         finish(obs, accel, self.params.max_accel_mps2)

@@ -20,12 +20,12 @@
 //! lowered each period where the speed cap from the curvature ahead requires it. Lateral control
 //! is pure pursuit on the route.
 
+use v2t_model::driving::{CURVE_HALF_WINDOW_M, curve_speed};
 use v2t_model::geometry::OrientedBox;
 use v2t_model::metrics::{ConflictKind, OccupancyInterval};
 
 use super::VutDriver;
 use super::common::{FALLBACK_DECEL_MPS2, LANE_HALF_WIDTH_M, fallback, finish, half_extent, inputs_finite, speed_cap};
-use crate::control::curve_speed_limit;
 use crate::observation::VutObservation;
 use crate::plant::ActuationRequest;
 
@@ -35,8 +35,6 @@ const COLLISION_COST: f64 = 1e6;
 const MIN_STEP_S: f64 = 0.01;
 /// Largest number of rollout steps.
 const MAX_STEPS: usize = 200;
-/// Window over which the rollout reads the curve speed limit at each step, m.
-const CURVE_WINDOW_M: f64 = 5.0;
 /// Deceleration behind the speed cap applied between replans, m/s².
 const CAP_DECEL_MPS2: f64 = 2.0;
 /// Time constant with which the held acceleration gives way to the speed cap, s.
@@ -164,8 +162,8 @@ impl SamplingPlanner {
         let mut cost = p.comfort_weight * a * a + p.change_weight * (a - self.chosen_mps2).powi(2);
         let (mut s, mut v) = (obs.own.s_m, obs.own.state.speed_mps.max(0.0));
         for k in 1..=n {
-            let curve = curve_speed_limit(&agent.route, s, CURVE_WINDOW_M, &agent.vehicle);
-            let v_max = obs.scenario.vut.desired_speed_mps.min(curve).max(0.0);
+            let curve = curve_speed(&agent.route, s, CURVE_HALF_WINDOW_M, agent.vehicle.limits.max_lat_accel_mps2);
+            let v_max = obs.scenario.vut.desired_speed_mps.min(curve).min(agent.vehicle.limits.max_speed_mps).max(0.0);
             let v_next = (v + a * step).min(v_max).max(0.0);
             s += 0.5 * (v + v_next) * step;
             v = v_next;
