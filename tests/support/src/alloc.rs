@@ -2,9 +2,12 @@
 //! nothing and for `v2t-bench game` (allocations per decision). It forwards every call to the
 //! system allocator unchanged. A binary opts in with
 //!
-//! ```ignore
+//! ```
 //! #[global_allocator]
 //! static GLOBAL: v2t_test_support::alloc::Counting = v2t_test_support::alloc::Counting;
+//!
+//! let (v, n) = v2t_test_support::alloc::count(|| Vec::<u8>::with_capacity(64));
+//! assert_eq!((v.capacity(), n), (64, 1));
 //! ```
 //!
 //! and then reads [`on_this_thread`] (tests run on many threads at once: only this thread's
