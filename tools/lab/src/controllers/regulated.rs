@@ -76,7 +76,7 @@ pub enum RegulatedBvError {
 
 impl RegulatedBv {
     /// A regulator with `params` for BV `bv_index` of `scenario`, aiming at the scenario's target,
-    /// around the prior the BV would have received ([`regulation_for`]).
+    /// around the prior the BV would have received (`regulation_for`).
     pub fn new(params: RegulatorParams, scenario: &Scenario, bv_index: usize) -> Result<Self, RegulatedBvError> {
         Ok(Self {
             regulation: regulation_for(params, scenario, bv_index)?,
