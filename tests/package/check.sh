@@ -109,5 +109,12 @@ fi
 echo "== the installed launcher on vcan0 in the User-Mode-Linux guest"
 runtime="$(cargo test -p v2t-lab --test runtime --no-run 2>&1 | sed -n 's|^ *Executable tests/runtime\.rs (\(.*\))$|\1|p' | tail -n 1)"
 [ -x "$runtime" ] || fail "could not build the runtime test"
-V2T_EDGE_BIN="$edge" V2T_EDGE_CONFIG=tests/vcan/edge_guest.toml tests/vcan/run-guest.sh -- "$runtime" a_yielding_left_turn --nocapture
-echo "== package: all passed"
+rc=0
+V2T_EDGE_BIN="$edge" V2T_EDGE_CONFIG=tests/vcan/edge_guest.toml tests/vcan/run-guest.sh -- "$runtime" a_yielding_left_turn --nocapture || rc=$?
+if [ "$rc" = 77 ]; then
+  echo "== package: NOT RUN: the installed launcher on vcan0 (the UML kernel cannot boot on this host's CPU; see above); every other step passed"
+elif [ "$rc" != 0 ]; then
+  fail "the installed launcher on vcan0 failed (exit $rc)"
+else
+  echo "== package: all passed"
+fi

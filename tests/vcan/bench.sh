@@ -31,12 +31,29 @@ for exe in "$vcan" "$runtime"; do
   fi
 done
 
+# A guest run that cannot start on this host (run-guest.sh's 77) is counted as not run, never as
+# passed, and named in the last line.
+not_run=0
+guest() {
+  local rc=0
+  "$here/run-guest.sh" "$@" || rc=$?
+  if [ "$rc" = 77 ]; then
+    not_run=$((not_run + 1))
+    return 0
+  fi
+  return "$rc"
+}
+
 echo "== vcan: v2t-can over SocketCAN (parallel)"
-"$here/run-guest.sh" -- "$vcan"
+guest -- "$vcan"
 echo "== vcan: v2t-can over SocketCAN (one thread)"
-"$here/run-guest.sh" -- "$vcan" --test-threads=1
+guest -- "$vcan" --test-threads=1
 echo "== vcan: the onboard runtime's closed loop with the gateway and the ECU on vcan0"
 # The guest's system calls are slow and now and then a heartbeat comes late: its runtime uses
 # tests/vcan/edge_guest.toml (watchdog 250 ms instead of 60 ms; the 60 ms one is tested natively).
-V2T_EDGE_CONFIG="$here/edge_guest.toml" "$here/run-guest.sh" -- "$runtime" a_yielding_left_turn --nocapture
-echo "== vcan: all passed"
+V2T_EDGE_CONFIG="$here/edge_guest.toml" guest -- "$runtime" a_yielding_left_turn --nocapture
+if [ "$not_run" -gt 0 ]; then
+  echo "== vcan: NOT RUN: $not_run of 3 guest runs (the UML kernel cannot boot on this host's CPU; see above)"
+else
+  echo "== vcan: all passed"
+fi
