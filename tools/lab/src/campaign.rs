@@ -477,29 +477,12 @@ fn summarize(cases: &[CampaignCase], runs: usize) -> Vec<VutSummary> {
                 })
                 .collect();
             let all_runs: Vec<&CampaignRun> = mine.iter().flat_map(|c| c.runs.iter()).collect();
-            let single: Vec<f64> = reachable
-                .iter()
-                .flat_map(|c| {
-                    let tau = c.tau_s;
-                    c.runs
-                        .iter()
-                        .filter(|r| r.run >= CALIBRATED_FROM)
-                        .map(move |r| r.pet_s.map_or(1.0, |p| (p - tau).abs() / tau))
-                })
-                .collect();
             VutSummary {
                 vut: vut.to_owned(),
                 reachable_cases: reachable.len(),
                 run1: (mean(&run1), max(&run1)),
                 calibrated: (mean(&cal_all), max(&cal_all)),
-                calibrated_single: crate::stats::SingleRuns {
-                    mean_error_rel: mean(&single),
-                    within_10_frac: if single.is_empty() {
-                        0.0
-                    } else {
-                        single.iter().filter(|e| **e <= 0.10).count() as f64 / single.len() as f64
-                    },
-                },
+                calibrated_single: pooled_single_runs(&reachable),
                 calibrated_within_10: reachable
                     .iter()
                     .filter(|c| runs >= CALIBRATED_FROM && max(&cal(c)) <= 0.10)
@@ -516,6 +499,14 @@ fn summarize(cases: &[CampaignCase], runs: usize) -> Vec<VutSummary> {
             }
         })
         .collect()
+}
+
+/// The calibrated runs of `cases` scored one by one, each against its case's τ, pooled.
+fn pooled_single_runs(cases: &[&&CampaignCase]) -> crate::stats::SingleRuns {
+    crate::stats::SingleRuns::pool(cases.iter().filter_map(|c| {
+        let calibrated = || c.runs.iter().filter(|r| r.run >= CALIBRATED_FROM);
+        Some((crate::stats::SingleRuns::of(calibrated().map(|r| r.pet_s), c.tau_s)?, calibrated().count()))
+    }))
 }
 
 /// The cause as a table word.

@@ -230,15 +230,11 @@ impl RunStats {
     /// the share of runs within ±10 % of τ (a run without a measured PET, or that failed, counts
     /// as error 1 and outside; a failed run counts among the unmeasured). `None` without a run.
     pub fn single_runs(&self, tau_s: f64) -> Option<SingleRuns> {
-        let runs = self.repeats.max(self.pets_s.len());
-        (runs > 0).then(|| {
-            let errs = self.pets_s.iter().map(|p| (p - tau_s).abs() / tau_s);
-            let missing = (runs - self.pets_s.len()) as f64;
-            SingleRuns {
-                mean_error_rel: (errs.clone().sum::<f64>() + missing) / runs as f64,
-                within_10_frac: errs.filter(|e| *e <= 0.10).count() as f64 / runs as f64,
-            }
-        })
+        let missing = self.repeats.saturating_sub(self.pets_s.len());
+        SingleRuns::of(
+            self.pets_s.iter().map(Some).chain(std::iter::repeat_n(None, missing)).map(|p| p.copied()),
+            tau_s,
+        )
     }
 }
 
@@ -249,6 +245,36 @@ pub struct SingleRuns {
     pub mean_error_rel: f64,
     /// Share of the runs within ±10 % of τ.
     pub within_10_frac: f64,
+}
+
+impl SingleRuns {
+    /// The runs' PETs (`None`: no PET) scored against `tau_s`: error 1 and outside for a run without
+    /// a PET. `None` without a run.
+    pub fn of(pets_s: impl Iterator<Item = Option<f64>>, tau_s: f64) -> Option<Self> {
+        let (mut runs, mut sum, mut within) = (0_usize, 0.0, 0_usize);
+        for p in pets_s {
+            let e = p.map_or(1.0, |p| (p - tau_s).abs() / tau_s);
+            runs += 1;
+            sum += e;
+            within += usize::from(e <= 0.10);
+        }
+        (runs > 0).then(|| Self { mean_error_rel: sum / runs as f64, within_10_frac: within as f64 / runs as f64 })
+    }
+    /// Cases' single runs pooled, each weighted by its number of runs (zero without a run).
+    pub fn pool(cases: impl Iterator<Item = (Self, usize)>) -> Self {
+        let (mut runs, mut err, mut within) = (0.0, 0.0, 0.0);
+        for (s, n) in cases {
+            let n = n as f64;
+            runs += n;
+            err += s.mean_error_rel * n;
+            within += s.within_10_frac * n;
+        }
+        if runs > 0.0 {
+            Self { mean_error_rel: err / runs, within_10_frac: within / runs }
+        } else {
+            Self { mean_error_rel: 0.0, within_10_frac: 0.0 }
+        }
+    }
 }
 
 #[cfg(test)]

@@ -107,20 +107,7 @@ fn mean_max<'a>(cases: impl Iterator<Item = &'a SteerCase>) -> (f64, f64) {
 /// The single runs of `cases` pooled (each case weighted by its runs): mean error and share within
 /// ±10 % of τ.
 fn single_runs<'a>(cases: impl Iterator<Item = &'a SteerCase>) -> SingleRuns {
-    let (mut runs, mut err, mut within) = (0.0, 0.0, 0.0);
-    for c in cases {
-        if let Some(s) = c.single {
-            let n = c.stats.repeats.max(c.stats.pets_s.len()) as f64;
-            runs += n;
-            err += s.mean_error_rel * n;
-            within += s.within_10_frac * n;
-        }
-    }
-    if runs > 0.0 {
-        SingleRuns { mean_error_rel: err / runs, within_10_frac: within / runs }
-    } else {
-        SingleRuns { mean_error_rel: 0.0, within_10_frac: 0.0 }
-    }
+    SingleRuns::pool(cases.filter_map(|c| Some((c.single?, c.stats.repeats.max(c.stats.pets_s.len())))))
 }
 
 /// One case: one run per seed, every BV regulated by `settings` (with the
