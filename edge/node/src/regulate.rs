@@ -102,7 +102,7 @@ impl Regulation {
             solve_ns: 0,
         };
         self.header = plan.header;
-        let (Some(prior_id), true) = (self.prior_id, self.inner.context().is_some()) else { return plan };
+        let Some(prior_id) = self.prior_id else { return plan };
         plan.prior_id = prior_id;
         if !bv.is_finite() {
             plan.status = PlanStatus::Fallback.code();
