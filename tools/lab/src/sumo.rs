@@ -6,6 +6,11 @@
 //! sensing and delay model ([`v2t_sim::external`]); PET, collisions, overlaps and order are measured
 //! by our own metrics on the poses, never by SUMO's.
 //!
+//! What SUMO believes of a BV: its pose and, each step, a top speed equal to its true speed. SUMO's
+//! junction model predicts a foe's arrival from the foe's own plan; an imposed vehicle's plan would
+//! otherwise be to accelerate to the lane's limit, so a parked BV looked, to SUMO's VUT, like a car
+//! about to arrive (fixed 2026-11-27; before/after figures in `docs/BENCHMARKS.md`).
+//!
 //! Timing: at control tick `t` each BV is put where it truly is at `t`, SUMO advances one step of one
 //! control period, and the VUT's state at `t + period` comes back. So SUMO's VUT sees the BVs one
 //! control period late — the builtin world's VUT perceives them `perception_delay_s` (0.1 s) late.
@@ -38,6 +43,9 @@ pub const MAX_OFF_LANE_M: f64 = 0.5;
 /// The same for a BV's route, m: half a 3.5 m lane and a margin, so a lane change passes (between
 /// two lanes the BV is on neither centre line; SUMO maps it onto the nearer).
 pub const MAX_OFF_LANE_BV_M: f64 = 2.0;
+/// The least speed SUMO is told an imposed BV can reach, m/s: SUMO refuses a vehicle whose top
+/// speed is zero, and a BV at 1 cm/s is, to every driver, parked.
+const MIN_BELIEVED_SPEED_MPS: f64 = 0.01;
 /// SUMO must insert the VUT within this distance of its start, m.
 const MAX_INSERT_ERROR_M: f64 = 0.5;
 /// Attributes of the VUT's `<vType>` that come from the vehicle file, never from a driver file.
@@ -522,9 +530,16 @@ impl SumoVut {
     }
 
     fn advance_inner(&mut self, bvs: &[State]) -> Result<State, SumoError> {
-        // SUMO takes the BV's speed from how far it moved in the step.
-        let mut requests = Vec::with_capacity(bvs.len());
+        // SUMO takes the BV's speed from how far it moved in the step. What its drivers *predict*
+        // of the BV is another matter: a junction foe's arrival is estimated from the foe's own
+        // plan, and an imposed vehicle's plan is its car-following model's, which accelerates to
+        // the lane's limit; a BV parked 50 m from the junction then "arrives" in a few seconds and
+        // the VUT waits for it. Capping the BV's speed at its true speed each step makes SUMO
+        // predict what a driver who sees the BV predicts: it goes on at the speed it has
+        // (`tests/sumo.rs` holds the known answers: parked, far and near).
+        let mut requests = Vec::with_capacity(2 * bvs.len());
         for ((st, half), id) in bvs.iter().zip(&self.bv_half_lengths_m).zip(&self.bv_ids) {
+            requests.push(Request::SetMaxSpeed { vehicle: id, mps: st.speed_mps.max(MIN_BELIEVED_SPEED_MPS) });
             // keepRoute 1: onto the nearest lane of the BV's own route, so SUMO's drivers see it on
             // its route (a junction's conflicts, a lane's leader) wherever our plant has put it.
             requests.push(Request::MoveToXy(MoveToXy {
