@@ -313,6 +313,17 @@ fn num(node: Node<'_, '_>, name: &str, context: &str) -> Result<f64, MapError> {
             message: format!("<{}> {name}={text:?} is not finite (line {})", node.tag_name().name(), line_of(node)),
         });
     }
+    if value != 0.0 && value.abs() < f64::MIN_POSITIVE {
+        return Err(MapError::Invalid {
+            context: context.to_owned(),
+            message: format!(
+                "<{}> {name}={text:?} is subnormal (nonzero but below {:e}): no map means it (line {})",
+                node.tag_name().name(),
+                f64::MIN_POSITIVE,
+                line_of(node)
+            ),
+        });
+    }
     if value.abs() > MAX_MAGNITUDE {
         return Err(MapError::Invalid {
             context: context.to_owned(),
@@ -326,16 +337,22 @@ fn num(node: Node<'_, '_>, name: &str, context: &str) -> Result<f64, MapError> {
     Ok(value)
 }
 
-/// A length from the map: positive (or 0 when `zero_ok`), at most [`MAX_ROAD_LENGTH_M`].
+/// Shortest road or geometry that means anything, m: a millimetre. A shorter positive length
+/// (down to the subnormal numbers, which pass every "> 0") is a mistake, and the curve formulas
+/// divide by it.
+pub const MIN_LENGTH_M: f64 = 1.0e-3;
+
+/// A length from the map: at least [`MIN_LENGTH_M`] (or exactly 0 when `zero_ok`), at most
+/// [`MAX_ROAD_LENGTH_M`].
 fn length_within(length: f64, zero_ok: bool, context: &str) -> Result<f64, MapError> {
-    let low_ok = if zero_ok { length >= 0.0 } else { length > 0.0 };
+    let low_ok = length >= MIN_LENGTH_M || (zero_ok && length == 0.0);
     if low_ok && length <= MAX_ROAD_LENGTH_M {
         Ok(length)
     } else {
-        let low = if zero_ok { "[0" } else { "(0" };
+        let zero = if zero_ok { "0 or " } else { "" };
         Err(MapError::Invalid {
             context: context.to_owned(),
-            message: format!("length {length} must lie in {low}, {MAX_ROAD_LENGTH_M}] m"),
+            message: format!("length {length} must be {zero}within [{MIN_LENGTH_M}, {MAX_ROAD_LENGTH_M}] m"),
         })
     }
 }

@@ -196,6 +196,72 @@ fn absurd_lengths_coordinates_and_widths_leave_out_their_road_with_the_bound() {
     assert!(w.contains("a=100000") && w.contains("±100 m"), "{w}");
 }
 
+/// Subnormal numbers pass every "> 0" check; a geometry of length 1e-320 holding a spiral once
+/// panicked the junction builder. Now any subnormal attribute, and any road or geometry shorter
+/// than a millimetre, leaves its road out with a warning naming the road, the attribute and the
+/// bound.
+#[test]
+fn subnormal_and_sub_millimetre_lengths_leave_their_road_out_by_name() {
+    for (from, to, needle) in [
+        (r#"length="50">"#, r#"length="1e-320">"#, "subnormal"),
+        (r#"x="50" y="0""#, r#"x="50" y="5e-324""#, "subnormal"),
+        (r#"length="50">"#, r#"length="1e-4">"#, "[0.001, 100000] m"),
+        (r#"<road id="2" length="50""#, r#"<road id="2" length="1e-5""#, "within [0.001, 100000] m"),
+    ] {
+        let mut roads = good_pair();
+        roads[1] = roads[1].replace(from, to);
+        assert_ne!(roads[1], good_pair()[1], "{from}");
+        let map = Map::parse(&doc(&roads), "t").unwrap();
+        assert_eq!(map.document.roads.len(), 1, "{to}");
+        let w = map.warnings.iter().find(|w| w.context.starts_with("road 2")).unwrap().to_string();
+        assert!(w.contains(needle), "{to}: {w}");
+    }
+    // A geometry of length exactly 0 stays allowed (some exporters write one), as before.
+    let mut roads = good_pair();
+    roads[1] = roads[1].replace(r#"<planView><geometry s="0" x="50" y="0" hdg="0" length="50"><line/></geometry>"#,
+        r#"<planView><geometry s="0" x="50" y="0" hdg="0" length="0"><line/></geometry><geometry s="0" x="50" y="0" hdg="0" length="50"><line/></geometry>"#);
+    let map = Map::parse(&doc(&roads), "t").unwrap();
+    assert_eq!(map.document.roads.len(), 2, "{:?}", map.warnings);
+}
+
+/// The proving ground with one junction spiral shortened to a subnormal length loads, leaves
+/// that connecting road out by name, and does not panic.
+#[test]
+fn the_proving_ground_with_a_subnormal_spiral_loads_without_it() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/maps/proving_ground.xodr");
+    let xml = std::fs::read_to_string(&path).unwrap();
+    let mut shortened = 0;
+    let mut out = String::with_capacity(xml.len());
+    let mut rest = xml.as_str();
+    // The 17th spiral geometry of the file is a junction's connecting road.
+    let mut spirals = 0;
+    while let Some(at) = rest.find("<geometry ") {
+        let (head, tail) = rest.split_at(at);
+        out.push_str(head);
+        let end = tail.find('>').unwrap() + 1;
+        let (tag, after) = tail.split_at(end);
+        let is_spiral = after.trim_start().starts_with("<spiral");
+        if is_spiral {
+            spirals += 1;
+        }
+        if is_spiral && spirals == 17 {
+            let start = tag.find("length=\"").unwrap() + 8;
+            let stop = start + tag[start..].find('"').unwrap();
+            out.push_str(&format!("{}1e-320{}", &tag[..start], &tag[stop..]));
+            shortened += 1;
+        } else {
+            out.push_str(tag);
+        }
+        rest = after;
+    }
+    out.push_str(rest);
+    assert_eq!(shortened, 1);
+    let map = Map::parse(&out, "proving_ground").unwrap();
+    let w = map.warnings.iter().find(|w| w.to_string().contains("subnormal")).expect("a warning names it");
+    assert!(w.context.starts_with("road "), "{w}");
+    let _ = TopologyLibrary::build(&map);
+}
+
 /// A lane whose width polynomial grows without bound (found by the mutation harness: `d = 1e6`
 /// made a 3.5 m lane 10¹² m wide and hung the topology library) leaves its road out, named.
 #[test]
