@@ -12,7 +12,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::{Point2, wrap_angle};
-use crate::validate::{Validate, ValidationError, finite, in_range, positive};
+use crate::validate::{Validate, ValidationError, finite, in_range};
 
 /// A problem building a path.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -65,8 +65,16 @@ const MIN_SEGMENT_M: f64 = 1e-6;
 /// Longest primitive of a path specification (a line, a clothoid, a lane change), m: longer than
 /// any straight of a proving ground.
 pub const MAX_SEGMENT_LENGTH_M: f64 = 10_000.0;
+/// Shortest primitive of a path specification, m: a millimetre. A shorter positive length (down
+/// to the subnormal numbers, which pass every "> 0") is a mistake.
+pub const MIN_SEGMENT_LENGTH_M: f64 = 1.0e-3;
 /// Largest arc radius of a path specification, m.
 pub const MAX_RADIUS_M: f64 = 10_000.0;
+/// Smallest arc radius, m: the tightest curvature a clothoid may have ([`MAX_CURVATURE_1PM`]).
+/// A smaller radius turned the heading within a sample (a radius of 1e-310 m was a 67° jump).
+pub const MIN_RADIUS_M: f64 = 1.0 / MAX_CURVATURE_1PM;
+/// Smallest arc angle, degrees.
+pub const MIN_ANGLE_DEG: f64 = 0.01;
 /// Largest curvature of a clothoid, 1/m (a radius of 0.1 m: tighter than any vehicle turns).
 pub const MAX_CURVATURE_1PM: f64 = 10.0;
 /// Most primitives in one path specification.
@@ -486,13 +494,15 @@ impl Validate for SegmentSpec {
         match *self {
             Self::Line { length_m } => length("length_m", length_m),
             Self::Arc { radius_m, angle_deg } => {
-                positive("radius_m", radius_m)?;
-                in_range("radius_m", radius_m, 0.0, MAX_RADIUS_M)?;
+                in_range("radius_m", radius_m, MIN_RADIUS_M, MAX_RADIUS_M)?;
                 finite("angle_deg", angle_deg)?;
-                if angle_deg.abs() > 0.0 && angle_deg.abs() <= 360.0 {
+                if angle_deg.abs() >= MIN_ANGLE_DEG && angle_deg.abs() <= 360.0 {
                     Ok(())
                 } else {
-                    Err(ValidationError::new("angle_deg", format!("must be non-zero and within ±360, got {angle_deg}")))
+                    Err(ValidationError::new(
+                        "angle_deg",
+                        format!("|angle| must lie within [{MIN_ANGLE_DEG}, 360] degrees, got {angle_deg}"),
+                    ))
                 }
             }
             Self::Clothoid { length_m, curvature_start_1pm, curvature_end_1pm } => {
@@ -516,10 +526,9 @@ impl Validate for SegmentSpec {
     }
 }
 
-/// A primitive's length: positive, at most [`MAX_SEGMENT_LENGTH_M`].
+/// A primitive's length: within [[`MIN_SEGMENT_LENGTH_M`], [`MAX_SEGMENT_LENGTH_M`]].
 fn length(field: &str, value: f64) -> Result<(), ValidationError> {
-    positive(field, value)?;
-    in_range(field, value, 0.0, MAX_SEGMENT_LENGTH_M)
+    in_range(field, value, MIN_SEGMENT_LENGTH_M, MAX_SEGMENT_LENGTH_M)
 }
 
 impl SegmentSpec {

@@ -177,3 +177,28 @@ fn absurd_sizes_are_refused_with_the_field_and_the_bound() {
         PathSpec { start_x_m: 0.0, segments: vec![SegmentSpec::Line { length_m: 1.0 }; MAX_SEGMENTS + 1], ..far };
     assert!(many.validate().unwrap_err().to_string().contains("at most 1000 segments"));
 }
+
+/// Subnormal and sub-physical sizes pass every "> 0" but mean nothing: a radius of 1e-310 m made a
+/// 67° heading jump within one sample. Each is refused with its field and the smallest allowed value.
+#[test]
+fn sizes_below_their_physical_minimum_are_refused_with_the_bound() {
+    for (seg, field, bound) in [
+        (SegmentSpec::Arc { radius_m: 1e-310, angle_deg: 67.0 }, "radius_m", "0.1"),
+        (SegmentSpec::Arc { radius_m: 0.05, angle_deg: 90.0 }, "radius_m", "0.1"),
+        (SegmentSpec::Arc { radius_m: 20.0, angle_deg: 1e-320 }, "angle_deg", "0.01"),
+        (SegmentSpec::Line { length_m: 5e-324 }, "length_m", "0.001"),
+        (SegmentSpec::Line { length_m: 1e-4 }, "length_m", "0.001"),
+        (
+            SegmentSpec::Clothoid { length_m: 1e-310, curvature_start_1pm: 0.0, curvature_end_1pm: 0.05 },
+            "length_m",
+            "0.001",
+        ),
+        (SegmentSpec::LaneChange { length_m: 1e-310, offset_m: 0.0 }, "length_m", "0.001"),
+    ] {
+        let e = seg.validate().unwrap_err().to_string();
+        assert!(e.contains(field) && e.contains(bound), "{seg:?}: {e}");
+    }
+    // The smallest allowed values themselves still build.
+    let path = PathBuilder::new(0.0, 0.0, 0.0).line(MIN_SEGMENT_LENGTH_M).arc(MIN_RADIUS_M, MIN_ANGLE_DEG.to_radians());
+    assert!(path.build(0.5).is_ok());
+}
