@@ -56,10 +56,24 @@ pub struct Map {
 }
 
 impl Map {
-    /// Parses OpenDRIVE XML; `name` is used when the header has none.
+    /// Parses OpenDRIVE XML; `name` is used when the header has none. A map with no drivable lane
+    /// left is an error (with the first warnings that say why).
     pub fn parse(xml: &str, name: &str) -> Result<Self, MapError> {
         let (document, mut warnings) = xodr::parse(xml)?;
         let graph = graph::LaneGraph::build(&document, &mut warnings);
+        if !graph.lanes.iter().any(|l| l.drivable) {
+            let shown: Vec<String> = warnings.iter().take(3).map(ToString::to_string).collect();
+            return Err(MapError::Invalid {
+                context: "map".into(),
+                message: format!(
+                    "no drivable lane (a lane is drivable when its type is driven on and it is at least 1 m wide); \
+                     {} warning(s){}{}",
+                    warnings.len(),
+                    if shown.is_empty() { "" } else { ": " },
+                    shown.join("; ")
+                ),
+            });
+        }
         let name = if document.name.trim().is_empty() { name.to_owned() } else { document.name.clone() };
         Ok(Self { name, document, graph, warnings })
     }

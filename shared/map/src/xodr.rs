@@ -433,8 +433,11 @@ pub fn parse(xml: &str) -> Result<(Document, Vec<MapWarning>), MapError> {
     let mut roads = Vec::new();
     for node in children(root, "road") {
         let id = node.attribute("id").unwrap_or("?").to_owned();
-        match road(node) {
+        let mut found = Vec::new();
+        let parsed = road(node, &mut found);
+        match parsed {
             Ok(r) => {
+                warnings.append(&mut found);
                 if roads.iter().any(|o: &Road| o.id == r.id) {
                     warnings.push(MapWarning::new(ctx_road(&id), "a second road with this id is left out"));
                 } else {
@@ -460,9 +463,12 @@ pub fn parse(xml: &str) -> Result<(Document, Vec<MapWarning>), MapError> {
     Ok((Document { revision, name, geo_reference, roads, junctions }, warnings))
 }
 
-fn road(node: Node<'_, '_>) -> Result<Road, MapError> {
+/// One road; what is wrong but usable (unsorted `s`, a lane of no width, a number in an element
+/// this reader does not use) goes to `warnings`.
+fn road(node: Node<'_, '_>, warnings: &mut Vec<MapWarning>) -> Result<Road, MapError> {
     let id = attr(node, "id", "road")?.to_owned();
     let ctx = ctx_road(&id);
+    unread_numbers(node, &ctx, warnings);
     let length = length_within(num(node, "length", &ctx)?, false, &ctx)?;
     let junction = node.attribute("junction").map(str::trim).filter(|j| !j.is_empty() && *j != "-1").map(str::to_owned);
     let rule = match node.attribute("rule") {
@@ -505,6 +511,13 @@ fn road(node: Node<'_, '_>) -> Result<Road, MapError> {
     if plan_view.is_empty() {
         return Err(MapError::Invalid { context: ctx, message: "<planView> has no <geometry>".into() });
     }
+    if let Some(w) = plan_view.windows(2).find(|w| matches!(w, [a, b] if b.s < a.s)) {
+        let (before, after) = (w.first().map_or(0.0, |g| g.s), w.get(1).map_or(0.0, |g| g.s));
+        warnings.push(MapWarning::new(
+            ctx.clone(),
+            format!("<planView> geometries are not in increasing s (s={after} after s={before}); read in s order"),
+        ));
+    }
     plan_view.sort_by(|a, b| a.s.total_cmp(&b.s));
     let lanes =
         child(node, "lanes").ok_or_else(|| MapError::Invalid { context: ctx.clone(), message: "no <lanes>".into() })?;
@@ -513,12 +526,29 @@ fn road(node: Node<'_, '_>) -> Result<Road, MapError> {
         lane_offsets.push(poly(o, "s", &ctx)?);
     }
     lane_offsets.sort_by(|a, b| a.s.total_cmp(&b.s));
-    let mut sections = Vec::new();
+    let mut sections: Vec<LaneSection> = Vec::new();
     for (k, sec) in children(lanes, "laneSection").enumerate() {
-        sections.push(section(sec, &format!("{ctx} laneSection {k}"))?);
+        let sctx = format!("{ctx} laneSection {k}");
+        let section = section(sec, &sctx, warnings)?;
+        if section.s < 0.0 {
+            warnings.push(MapWarning::new(
+                sctx,
+                format!("starts at s={} before the road's start (s ≥ 0); left out (line {})", section.s, line_of(sec)),
+            ));
+            continue;
+        }
+        if let Some(last) = sections.last()
+            && section.s < last.s
+        {
+            warnings.push(MapWarning::new(
+                sctx,
+                format!("at s={} after a section at s={}: not in increasing s; read in s order", section.s, last.s),
+            ));
+        }
+        sections.push(section);
     }
     if sections.is_empty() {
-        return Err(MapError::Invalid { context: ctx, message: "<lanes> has no <laneSection>".into() });
+        return Err(MapError::Invalid { context: ctx, message: "<lanes> has no usable <laneSection>".into() });
     }
     sections.sort_by(|a, b| a.s.total_cmp(&b.s));
     Ok(Road {
@@ -594,7 +624,7 @@ fn geometry(g: Node<'_, '_>, ctx: &str) -> Result<Geometry, MapError> {
     Ok(Geometry { s, x: num(g, "x", ctx)?, y: num(g, "y", ctx)?, hdg: num(g, "hdg", ctx)?, length, kind })
 }
 
-fn section(sec: Node<'_, '_>, ctx: &str) -> Result<LaneSection, MapError> {
+fn section(sec: Node<'_, '_>, ctx: &str, warnings: &mut Vec<MapWarning>) -> Result<LaneSection, MapError> {
     let s = num(sec, "s", ctx)?;
     let mut left = Vec::new();
     let mut right = Vec::new();
@@ -649,6 +679,18 @@ fn section(sec: Node<'_, '_>, ctx: &str) -> Result<LaneSection, MapError> {
                 });
             }
             widths.sort_by(|a, b| a.s.total_cmp(&b.s));
+            if !border
+                && let Some(w) = widths.iter().find(|w| w.a <= 0.0)
+                && l.attribute("type").is_some_and(|t| t.trim() != "none")
+            {
+                warnings.push(MapWarning::new(
+                    lctx.clone(),
+                    format!(
+                        "<width> at sOffset {} starts at a={} m, not a positive width: the lane is not drivable there",
+                        w.s, w.a
+                    ),
+                ));
+            }
             let lane = Lane {
                 id,
                 kind: l.attribute("type").unwrap_or("none").to_owned(),
@@ -679,6 +721,34 @@ fn section(sec: Node<'_, '_>, ctx: &str) -> Result<LaneSection, MapError> {
         }
     }
     Ok(LaneSection { s, left, right, center_marks })
+}
+
+/// Elements of a road this reader does not use (elevation, lateral profile, objects, signals):
+/// a number there that is not a finite, normal number still makes the map wrong, so it is named.
+fn unread_numbers(road: Node<'_, '_>, ctx: &str, warnings: &mut Vec<MapWarning>) {
+    const UNREAD: [&str; 4] = ["elevationProfile", "lateralProfile", "objects", "signals"];
+    const TEXT: [&str; 6] = ["id", "name", "type", "subtype", "country", "orientation"];
+    for part in road.children().filter(|n| n.is_element() && UNREAD.contains(&n.tag_name().name())) {
+        for n in part.descendants().filter(roxmltree::Node::is_element) {
+            for a in n.attributes().filter(|a| !TEXT.contains(&a.name())) {
+                let Ok(x) = a.value().trim().parse::<f64>() else { continue };
+                if !x.is_finite() || (x != 0.0 && x.abs() < f64::MIN_POSITIVE) {
+                    warnings.push(MapWarning::new(
+                        ctx.to_owned(),
+                        format!(
+                            "<{}> {}={:?} is not a finite normal number (line {}); this reader does not use <{}>, \
+                             but the map is wrong",
+                            n.tag_name().name(),
+                            a.name(),
+                            a.value(),
+                            line_of(n),
+                            part.tag_name().name()
+                        ),
+                    ));
+                }
+            }
+        }
+    }
 }
 
 fn marks(lane: Node<'_, '_>, ctx: &str) -> Result<Vec<RoadMark>, MapError> {

@@ -262,6 +262,50 @@ fn the_proving_ground_with_a_subnormal_spiral_loads_without_it() {
     let _ = TopologyLibrary::build(&map);
 }
 
+/// Maps that are wrong but used to load silently: each is now named in a warning (and the part
+/// that cannot be used is left out); a map with no drivable lane left is an error.
+#[test]
+fn wrong_but_loadable_maps_are_named_and_a_map_without_a_drivable_lane_is_refused() {
+    let warned = |roads: &[String], needle: &str| {
+        let map = Map::parse(&doc(roads), "t").unwrap();
+        let w: Vec<String> = map.warnings.iter().map(ToString::to_string).collect();
+        assert!(w.iter().any(|w| w.contains(needle)), "expected {needle:?} in {w:?}");
+        map
+    };
+    // A negative lane width on one road: named, that lane not drivable, the map still loads.
+    let mut roads = good_pair();
+    roads[1] = road("2", 50.0, "", "<line/>", "-3.5");
+    let map = warned(&roads, "a=-3.5 m, not a positive width");
+    assert_eq!(map.graph.lanes.iter().filter(|l| l.drivable).count(), 1);
+    // Every width negative: nothing drivable is left, exit 2 for the CLI.
+    let all = vec![road("1", 0.0, "", "<line/>", "-3.5"), road("2", 50.0, "", "<line/>", "0")];
+    let e = Map::parse(&doc(&all), "t").unwrap_err().to_string();
+    assert!(e.contains("no drivable lane") && e.contains("not a positive width"), "{e}");
+    // Geometries out of s order.
+    let mut roads = good_pair();
+    roads[1] = roads[1].replace(
+        r#"<planView><geometry s="0" x="50" y="0" hdg="0" length="50"><line/></geometry>"#,
+        r#"<planView><geometry s="25" x="75" y="0" hdg="0" length="25"><line/></geometry><geometry s="0" x="50" y="0" hdg="0" length="25"><line/></geometry>"#,
+    );
+    warned(&roads, "not in increasing s (s=0 after s=25)");
+    // A lane section before the road's start is left out; the road keeps its other section.
+    let mut roads = good_pair();
+    let section = roads[1].split("<lanes>").nth(1).unwrap().split("</lanes>").next().unwrap().to_owned();
+    roads[1] = roads[1].replace(
+        &section,
+        &format!("{}{section}", section.replace(r#"<laneSection s="0">"#, r#"<laneSection s="-5">"#)),
+    );
+    let map = warned(&roads, "starts at s=-5 before the road's start");
+    assert_eq!(map.document.roads.len(), 2);
+    // NaN in an element the reader does not use (elevation) is named with its line.
+    let mut roads = good_pair();
+    roads[1] = roads[1].replace(
+        "<lanes>",
+        r#"<elevationProfile><elevation s="0" a="NaN" b="0" c="0" d="0"/></elevationProfile><lanes>"#,
+    );
+    warned(&roads, r#"<elevation> a="NaN" is not a finite normal number"#);
+}
+
 /// A lane whose width polynomial grows without bound (found by the mutation harness: `d = 1e6`
 /// made a 3.5 m lane 10¹² m wide and hung the topology library) leaves its road out, named.
 #[test]
