@@ -148,14 +148,12 @@ fn record(a: RecordArgs) -> anyhow::Result<()> {
 
 /// Reads a memory file: `None` when it does not exist; a malformed one is bad input naming the file.
 pub(crate) fn load(path: &Path) -> anyhow::Result<Option<CampaignMemory>> {
-    let text = match std::fs::read_to_string(path) {
-        Ok(t) => t,
+    let text = match v2t_files::bounds::read_text_within(path, v2t_files::bounds::CAMPAIGN_MEMORY) {
+        Ok(Ok(t)) => t,
+        Ok(Err(too_large)) => return Err(Usage(format!("{}: {too_large}", path.display())).into()),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
         Err(e) => return Err(Usage(format!("{}: {e}", path.display())).into()),
     };
-    if text.len() > 64 << 20 {
-        return Err(Usage(format!("{}: a campaign memory is at most 64 MiB", path.display())).into());
-    }
     v2t_lab::campaign::memory_from_json(&text)
         .map(Some)
         .map_err(|e| Usage(format!("{}: not a campaign memory: {e}", path.display())).into())

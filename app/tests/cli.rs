@@ -111,6 +111,33 @@ fn an_absurd_segment_length_is_refused_with_its_bound() {
     }
 }
 
+/// Files larger than their kind allows are refused before they are parsed (a 122 MB card once
+/// exhausted memory inside the TOML parser, exit 134): a card, a prior handed to `export xosc`, a
+/// map handed to `map inspect`, each sparse (nothing on disk), each exit 2 naming the bound.
+#[test]
+fn files_over_their_size_bound_are_refused_unread() {
+    let dir = tempdir("bounds");
+    let big = |name: &str, bytes: u64| {
+        let p = dir.path().join(name);
+        std::fs::File::create(&p).unwrap().set_len(bytes).unwrap();
+        p
+    };
+    let card = big("card.toml", 122_000_000);
+    expect_input_error(&card, &["card.toml", "122000000 bytes", "4194304 bytes allowed for a TOML file"]);
+    let map = big("huge.xodr", 1 << 30);
+    let o = video2track(&["map", "inspect", map.to_str().unwrap()]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("huge.xodr") && err.contains("268435456 bytes allowed for an OpenDRIVE map"), "{err}");
+    let prior = big("prior.json", 300_000_000);
+    let out = dir.path().join("out.xosc");
+    let o = video2track(&["export", "xosc", prior.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("prior.json") && err.contains("bytes allowed"), "{err}");
+    assert!(!out.exists());
+}
+
 #[test]
 fn negative_vehicle_dimension_names_the_vehicle_file() {
     let (_dir, card) = broken_card("negative", str::to_owned, |t| t.replace("width_m = 1.85", "width_m = -1.85"));

@@ -75,7 +75,8 @@ pub struct Exported {
 
 /// Exports `args.input` to `args.out`.
 pub fn export_xosc(args: &XoscArgs<'_>) -> Result<Exported, ExportError> {
-    let text = v2t_files::read_text(args.input)?;
+    // A prior, a grounded scenario or a run file: the largest of their bounds.
+    let text = v2t_files::read_text_within(args.input, v2t_files::bounds::RUN)?;
     let scenario = parse_input(&text).map_err(|source| ExportError::Input { path: args.input.to_owned(), source })?;
     let vut_vehicle: VehicleConfig = load_toml(args.vut_vehicle)?;
     let bv_vehicle: VehicleConfig = load_toml(args.bv_vehicle)?;

@@ -11,7 +11,8 @@ use v2t_model::realism::{HumanReference, ReferenceError};
 use v2t_model::semantics::{ScenarioSemantics, SemanticsError, parse_semantics_json};
 use v2t_model::validate::{Validate, ValidationError};
 
-use crate::{InputError, read_text};
+use crate::bounds::{self, SizeBound};
+use crate::{InputError, read_text, read_text_within};
 
 /// A JSON document that is not the one expected.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -44,9 +45,13 @@ fn typed<T: DeserializeOwned + Validate>(value: serde_json::Value, what: &'stati
     Ok(v)
 }
 
-fn document<T: DeserializeOwned + Validate>(path: &Path, what: &'static str) -> Result<T, InputError> {
+fn document<T: DeserializeOwned + Validate>(
+    path: &Path,
+    what: &'static str,
+    bound: SizeBound,
+) -> Result<T, InputError> {
     let bad = |source: DocumentError| InputError::Document { path: path.to_owned(), source };
-    let value: T = serde_json::from_str(&read_text(path)?)
+    let value: T = serde_json::from_str(&read_text_within(path, bound)?)
         .map_err(|e| bad(DocumentError::Shape { what, message: e.to_string() }))?;
     value.validate().map_err(|e| bad(e.into()))?;
     Ok(value)
@@ -54,20 +59,20 @@ fn document<T: DeserializeOwned + Validate>(path: &Path, what: &'static str) -> 
 
 /// Reads scenario semantics (what `abstract` writes, or a hand-written file).
 pub fn read_semantics(path: &Path) -> Result<ScenarioSemantics, InputError> {
-    parse_semantics_json(&read_text(path)?)
+    parse_semantics_json(&read_text_within(path, bounds::SEMANTICS)?)
         .map_err(|e| InputError::Document { path: path.to_owned(), source: e.into() })
 }
 
 /// Reads a grounded scenario (what `ground --out` writes).
 pub fn read_grounded(path: &Path) -> Result<GroundedScenario, InputError> {
-    document(path, "a grounded scenario")
+    document(path, "a grounded scenario", bounds::GROUNDED)
 }
 
 /// Reads a human reference of motion per manoeuvre class (what `corpus reference` writes), checked.
 pub fn read_human_reference(path: &Path) -> Result<HumanReference, InputError> {
     let bad = |source: DocumentError| InputError::Document { path: path.to_owned(), source };
     let what = "a human reference";
-    let r: HumanReference = serde_json::from_str(&read_text(path)?)
+    let r: HumanReference = serde_json::from_str(&read_text_within(path, bounds::HUMAN_REFERENCE)?)
         .map_err(|e| bad(DocumentError::Shape { what, message: e.to_string() }))?;
     r.validate().map_err(|e| {
         bad(match e {
@@ -92,7 +97,7 @@ pub fn human_reference_or_shipped(given: Option<&Path>) -> Result<Option<HumanRe
 
 /// Reads a trajectory prior (what `generate --out` writes).
 pub fn read_prior(path: &Path) -> Result<TrajectoryPrior, InputError> {
-    document(path, "a trajectory prior")
+    document(path, "a trajectory prior", bounds::PRIOR)
 }
 
 /// A document that stands for trajectory priors.

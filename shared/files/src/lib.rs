@@ -21,6 +21,7 @@
 //! assert!(bad.unwrap_err().to_string().contains("max_speed_mps"));
 //! ```
 
+pub mod bounds;
 mod documents;
 pub mod stdout;
 
@@ -117,6 +118,14 @@ pub enum InputError {
         /// Why.
         source: std::io::Error,
     },
+    /// The file is larger than its kind allows; it was not parsed.
+    #[error("{path}: {source}")]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Its size and the bound.
+        source: bounds::TooLarge,
+    },
     /// A TOML file did not parse or validate.
     #[error(transparent)]
     Config(#[from] ConfigError),
@@ -138,14 +147,24 @@ pub fn parse_toml<T: DeserializeOwned + Validate>(text: &str, origin: &str) -> R
     Ok(value)
 }
 
-/// Reads the text of `path`.
-pub fn read_text(path: &Path) -> Result<String, InputError> {
-    std::fs::read_to_string(path).map_err(|source| InputError::Read { path: path.to_owned(), source })
+/// Reads the text of `path`, refused unread when it is larger than `bound` allows.
+pub fn read_text_within(path: &Path, bound: bounds::SizeBound) -> Result<String, InputError> {
+    match bounds::read_text_within(path, bound) {
+        Ok(Ok(text)) => Ok(text),
+        Ok(Err(source)) => Err(InputError::TooLarge { path: path.to_owned(), source }),
+        Err(source) => Err(InputError::Read { path: path.to_owned(), source }),
+    }
 }
 
-/// Reads and validates a TOML file into `T`.
+/// Reads the text of a JSON document at `path` of any kind this crate reads (at most
+/// [`bounds::GROUNDED`], the largest document bound).
+pub fn read_text(path: &Path) -> Result<String, InputError> {
+    read_text_within(path, bounds::GROUNDED)
+}
+
+/// Reads and validates a TOML file into `T` (at most [`bounds::CONFIG`]).
 pub fn load_toml<T: DeserializeOwned + Validate>(path: &Path) -> Result<T, InputError> {
-    Ok(parse_toml(&read_text(path)?, &path.display().to_string())?)
+    Ok(parse_toml(&read_text_within(path, bounds::CONFIG)?, &path.display().to_string())?)
 }
 
 /// A path written in `file`, resolved relative to `file`'s folder.
