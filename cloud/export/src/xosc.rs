@@ -192,7 +192,7 @@ fn from_prior(p: &TrajectoryPrior, kind: SourceKind, grounded: Option<&GroundedS
             }
         })
         .collect();
-    ExportScenario { kind, name: p.fragment_id.clone(), tau_s: p.tau_s, style: p.style, agents }
+    ExportScenario { kind, name: p.fragment_id.clone(), tau_s: p.target.tau_s(), style: p.target.style(), agents }
 }
 
 fn from_run(run: RunFile) -> Result<ExportScenario, XoscError> {
