@@ -196,7 +196,7 @@ fn from_prior(p: &TrajectoryPrior, kind: SourceKind, grounded: Option<&GroundedS
 }
 
 fn from_run(run: RunFile) -> Result<ExportScenario, XoscError> {
-    let (tau_s, style) = (run.result.tau_s, run.result.style);
+    let (tau_s, style) = (run.result.target.tau_s(), run.result.target.style());
     if run.agent_ids.is_empty() {
         return Err(invalid("agent_ids", "no agents"));
     }
