@@ -109,16 +109,14 @@ pub fn run(c: CampaignCommand) -> anyhow::Result<()> {
             let m = load(&memory)?.ok_or_else(|| Usage(format!("{}: no such memory file", memory.display())))?;
             outln!("campaign memory of VUT `{}` in `{}`: {} tests", m.vut, m.world, m.cases.len())?;
             for c in &m.cases {
-                if let Ok(target) = Target::new(c.tau_s, c.style) {
-                    outln!(
-                        "  {} BV {} {} τ {:.2} s: {}",
-                        c.scenario,
-                        c.bv,
-                        c.style,
-                        c.tau_s,
-                        v2t_lab::campaign::case_line(&c.memory, target)
-                    )?;
-                }
+                outln!(
+                    "  {} BV {} {} τ {:.2} s: {}",
+                    c.scenario,
+                    c.bv,
+                    c.target.style(),
+                    c.target.tau_s(),
+                    v2t_lab::campaign::case_line(&c.memory, c.target)
+                )?;
             }
             Ok(())
         }

@@ -93,7 +93,10 @@ fn report(g: &Grounding) -> String {
     let _ = writeln!(
         s,
         "grounded on {}: {:?}, {:?} with τ = {:.2} s",
-        sc.fragment_id, sc.interaction_type, sc.style, sc.tau_s
+        sc.fragment_id,
+        sc.interaction_type,
+        sc.target.style(),
+        sc.target.tau_s()
     );
     for (agent, route) in sc.agents.iter().zip(&g.routes) {
         let start = &agent.start;

@@ -201,8 +201,8 @@ pub fn upload(a: UploadArgs) -> anyhow::Result<()> {
         "prior {id}: {} agents, {:.1} s, τ {} s, {:?}, {} drives {}",
         up.prior.agents.len(),
         up.prior.duration_s(),
-        up.prior.tau_s,
-        up.prior.style,
+        up.prior.target.tau_s(),
+        up.prior.target.style(),
         a.bv,
         up.bv_agent
     )?;

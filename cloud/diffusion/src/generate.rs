@@ -272,7 +272,7 @@ pub fn setup(
     let mut slot_agents: Vec<usize> = first_bv.into_iter().collect();
     slot_agents.push(vut);
     slot_agents.extend((0..scenario.agents.len()).filter(|i| Some(*i) != first_bv && *i != vut));
-    let bv_first = scenario.style == Style::Rush;
+    let bv_first = scenario.target.style() == Style::Rush;
     let mut slots = Vec::with_capacity(slot_agents.len());
     let mut x0s = Vec::with_capacity(slot_agents.len());
     for &i in &slot_agents {
@@ -536,7 +536,7 @@ pub fn measure(
         };
         let t_end = tv.last().copied().unwrap_or(0.0);
         let outcome = pet(passage(&tv, &sv, &c.vut_interval), passage(&tb, &sb, &c.bv_interval), t_end);
-        let wanted = if scenario.style == Style::Rush { Side::B } else { Side::A };
+        let wanted = if scenario.target.style() == Style::Rush { Side::B } else { Side::A };
         if outcome.first() == Some(wanted) {
             order_ok += 1;
         }

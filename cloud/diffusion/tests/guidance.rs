@@ -404,10 +404,10 @@ fn guided_posterior_mean_matches_the_formula() {
 #[test]
 fn context_from_a_grounded_scenario() {
     use v2t_diffusion::guidance::ConflictTiming;
-    use v2t_model::Style;
     use v2t_model::grounded::{AgentRole, AnchorState, GroundedAgent, GroundedConflict, GroundedScenario};
     use v2t_model::metrics::{ConflictKind, OccupancyInterval};
     use v2t_model::semantics::InteractionType;
+    use v2t_model::{Style, Target};
     let anchor = |id: &str, x: f64, y: f64, t: Option<f64>| AnchorState {
         anchor_id: id.into(),
         position: Point2::new(x, y),
@@ -439,8 +439,7 @@ fn context_from_a_grounded_scenario() {
             agent("bv2", AgentRole::Bv, -3.0, None),
         ],
         conflicts: vec![conflict("bv1"), conflict("bv2")],
-        tau_s: 1.5,
-        style: Style::Rush,
+        target: Target::new(1.5, Style::Rush).unwrap(),
     };
     let timing = ConflictTiming { bv_id: "bv1".into(), vut_time_s: 5.0, bv_time_s: 3.5 };
     let ctx = GuidanceContext::from_grounded(&scenario, &[timing], 0.5, vec![]).unwrap();

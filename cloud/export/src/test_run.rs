@@ -1,7 +1,7 @@
 //! Run files for the tests: a result that measured nothing and samples of given states.
 
-use v2t_model::Style;
 use v2t_model::kinematics::State;
+use v2t_model::{Style, Target};
 use v2t_sim::plant::ActuationRequest;
 use v2t_sim::runfile::RunFile;
 use v2t_sim::runner::{AgentSample, RunResult, TraceSample};
@@ -13,8 +13,7 @@ pub(crate) fn run(scenario: &str, agent_ids: &[&str], samples: &[(f64, Vec<State
         vut_model: "idm-normal".into(),
         bv_controller: "reference".into(),
         seed: 1,
-        style: Style::Rush,
-        tau_s: 2.0,
+        target: Target::new(2.0, Style::Rush).unwrap(),
         duration_s: samples.last().map_or(0.0, |s| s.0),
         completed: true,
         conflicts: Vec::new(),

@@ -192,11 +192,11 @@ fn from_prior(p: &TrajectoryPrior, kind: SourceKind, grounded: Option<&GroundedS
             }
         })
         .collect();
-    ExportScenario { kind, name: p.fragment_id.clone(), tau_s: p.tau_s, style: p.style, agents }
+    ExportScenario { kind, name: p.fragment_id.clone(), tau_s: p.target.tau_s(), style: p.target.style(), agents }
 }
 
 fn from_run(run: RunFile) -> Result<ExportScenario, XoscError> {
-    let (tau_s, style) = (run.result.tau_s, run.result.style);
+    let (tau_s, style) = (run.result.target.tau_s(), run.result.target.style());
     if run.agent_ids.is_empty() {
         return Err(invalid("agent_ids", "no agents"));
     }

@@ -194,8 +194,7 @@ pub(crate) fn ground_on(
         interaction_type: first.interaction_type,
         agents,
         conflicts: grounded_conflicts,
-        tau_s,
-        style: style(first),
+        target: Target::from_keys(tau_s, style(first)).map_err(|e| misfit!("the grounded scenario is invalid: {e}"))?,
     };
     scenario.validate().map_err(|e| misfit!("the grounded scenario is invalid: {e}"))?;
     Ok((scenario, routes, timing, notes))

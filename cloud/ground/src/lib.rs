@@ -47,7 +47,7 @@
 //! let grounding = ground(&map, &library, &semantics)?;
 //! let scenario = &grounding.scenario;
 //! assert_eq!(scenario.fragment_id, "J4");
-//! assert_eq!((scenario.style, scenario.tau_s), (Style::Rush, 2.9));
+//! assert_eq!((scenario.target.style(), scenario.target.tau_s()), (Style::Rush, 2.9));
 //! let vut = scenario.vut().unwrap();
 //! assert!(vut.start.anchor_id.starts_with("J4/entry/"));
 //! assert_eq!(scenario.bvs().count(), 1);

@@ -188,7 +188,7 @@ fn another_target_changes_the_timing_not_the_place() {
     let target = Target::new(4.0, Style::Yield).unwrap();
     let opts = GroundOptions { target: Some(target), ..GroundOptions::default() };
     let g = ground_with(&map, &lib, &s, &opts).unwrap();
-    assert_eq!((g.scenario.tau_s, g.scenario.style), (4.0, Style::Yield));
+    assert_eq!((g.scenario.target.tau_s(), g.scenario.target.style()), (4.0, Style::Yield));
     assert_eq!(g.scenario.fragment_id, video.scenario.fragment_id);
     assert!((g.timing[0].pet_s - 4.0).abs() < 1e-9, "{:?}", g.timing[0]);
     assert_eq!(g.timing[0].style, Style::Yield);

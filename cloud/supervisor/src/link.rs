@@ -176,14 +176,14 @@ pub fn prior_from_file(
     let mut prior = v2t_files::read_prior_or_grounded(path)?.into_prior();
     let bv_agent =
         prior.bv_agent(agent).map_err(|source| LinkError::Agent { path: path.to_owned(), source })?.id.clone();
-    let mut t = prior.target()?;
+    let mut t = prior.target;
     if let Some(tau) = target.0 {
         t = t.with_tau(tau)?;
     }
     if let Some(style) = target.1 {
         t = t.with_style(style);
     }
-    (prior.tau_s, prior.style) = (t.tau_s(), t.style());
+    prior.target = t;
     if !(valid_s > 0.0 && valid_s <= 86_400.0) {
         return Err(LinkError::Usage(format!("--valid-s must lie in (0, 86400] s, got {valid_s}")));
     }

@@ -484,8 +484,8 @@ pub fn serve(mut opts: ServeOptions, stop: &Arc<AtomicBool>) -> Result<(), LinkE
                             let text = format!(
                                 "prior {id} ({}, τ {} s, {:?})",
                                 file.display(),
-                                up.prior.tau_s,
-                                up.prior.style
+                                up.prior.target.tau_s(),
+                                up.prior.target.style()
                             );
                             send(&mqtt, &mut opts.signer, &bv, CloudBody::Prior(up)).map(|seq| (text, seq))
                         });

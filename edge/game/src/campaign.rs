@@ -281,31 +281,58 @@ fn aim_moved_in_vain(valid: &[(f64, f64)], tau: f64) -> bool {
         && (p_last - p_first) * aim_move.signum() < REACH_FOLLOW * aim_move.abs()
 }
 
-/// Which test a [`CaseMemory`] belongs to.
+/// Which test a [`CaseMemory`] belongs to. Its file is [`CaseEntryFile`]'s layout: the target as the
+/// two keys `style` and `tau_s`, range-checked as the file is read.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(try_from = "CaseEntryFile", into = "CaseEntryFile")]
 pub struct CaseEntry {
     /// Scenario name.
     pub scenario: String,
     /// Which BV of the scenario (index).
     pub bv: usize,
-    /// Who passes first.
-    pub style: Style,
-    /// The test's target τ, s.
-    pub tau_s: f64,
+    /// Who passes first and the test's target τ.
+    pub target: Target,
     /// What was learned.
     pub memory: CaseMemory,
 }
 
-impl CaseEntry {
-    fn is(&self, scenario: &str, bv: usize, target: Target) -> bool {
-        self.scenario == scenario && self.bv == bv && self.style == target.style() && self.tau_s == target.tau_s()
+/// The file form of a [`CaseEntry`]: its fields in the same order, the target written as `style`
+/// and `tau_s` (s).
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CaseEntryFile {
+    scenario: String,
+    bv: usize,
+    style: Style,
+    tau_s: f64,
+    memory: CaseMemory,
+}
+
+impl TryFrom<CaseEntryFile> for CaseEntry {
+    type Error = ValidationError;
+
+    fn try_from(f: CaseEntryFile) -> Result<Self, Self::Error> {
+        Ok(Self { scenario: f.scenario, bv: f.bv, target: Target::from_keys(f.tau_s, f.style)?, memory: f.memory })
     }
 }
 
-/// Everything one campaign learned about one VUT: the file the next run loads.
+impl From<CaseEntry> for CaseEntryFile {
+    fn from(c: CaseEntry) -> Self {
+        Self { scenario: c.scenario, bv: c.bv, style: c.target.style(), tau_s: c.target.tau_s(), memory: c.memory }
+    }
+}
+
+impl CaseEntry {
+    fn is(&self, scenario: &str, bv: usize, target: Target) -> bool {
+        self.scenario == scenario && self.bv == bv && self.target == target
+    }
+}
+
+/// Everything one campaign learned about one VUT: the file the next run loads. It is read through
+/// [`CampaignMemoryFile`], so that a case whose target is out of range is refused naming it
+/// (`cases[3].tau_s`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(try_from = "CampaignMemoryFile")]
 pub struct CampaignMemory {
     /// Layout version ([`FORMAT`]).
     pub format: u32,
@@ -315,6 +342,30 @@ pub struct CampaignMemory {
     pub world: String,
     /// One entry per test.
     pub cases: Vec<CaseEntry>,
+}
+
+/// A [`CampaignMemory`] as read, its cases not yet checked (it is written as the memory itself).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CampaignMemoryFile {
+    format: u32,
+    vut: String,
+    world: String,
+    cases: Vec<CaseEntryFile>,
+}
+
+impl TryFrom<CampaignMemoryFile> for CampaignMemory {
+    type Error = ValidationError;
+
+    fn try_from(f: CampaignMemoryFile) -> Result<Self, Self::Error> {
+        let cases = f
+            .cases
+            .into_iter()
+            .enumerate()
+            .map(|(i, c)| CaseEntry::try_from(c).map_err(|e| e.within(&format!("cases[{i}]"))))
+            .collect::<Result<_, _>>()?;
+        Ok(Self { format: f.format, vut: f.vut, world: f.world, cases })
+    }
 }
 
 /// A memory used against a VUT it was not learned from.
@@ -364,13 +415,7 @@ impl CampaignMemory {
         let i = match self.cases.iter().position(|c| c.is(scenario, bv, target)) {
             Some(i) => i,
             None => {
-                self.cases.push(CaseEntry {
-                    scenario: scenario.to_owned(),
-                    bv,
-                    style: target.style(),
-                    tau_s: target.tau_s(),
-                    memory: CaseMemory::default(),
-                });
+                self.cases.push(CaseEntry { scenario: scenario.to_owned(), bv, target, memory: CaseMemory::default() });
                 self.cases.len() - 1
             }
         };
@@ -396,7 +441,6 @@ impl Validate for RunRecord {
 
 impl Validate for CaseEntry {
     fn validate(&self) -> Result<(), ValidationError> {
-        in_range("tau_s", self.tau_s, Target::TAU_MIN_S, Target::TAU_MAX_S)?;
         if self.bv > 64 {
             return Err(ValidationError::new("bv", format!("must lie in [0, 64], got {}", self.bv)));
         }

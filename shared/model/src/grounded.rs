@@ -4,12 +4,12 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::Style;
 use crate::geometry::Point2;
 use crate::metrics::{ConflictKind, OccupancyInterval};
 use crate::semantics::InteractionType;
 use crate::validate::plausible::{self, MAX_AGENTS, MAX_ROUTE_LENGTH_M, MAX_ROUTE_POINTS, MAX_SCENARIO_TIME_S};
 use crate::validate::{Validate, ValidationError, finite, in_range};
+use crate::{Style, Target};
 
 /// The vehicle under test or a background vehicle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -86,9 +86,10 @@ pub struct GroundedConflict {
     pub bv_interval: OccupancyInterval,
 }
 
-/// A scenario grounded on a map fragment.
+/// A scenario grounded on a map fragment. Its file is [`GroundedScenarioFile`]'s layout: the target
+/// as the two keys `tau_s` and `style`, range-checked as the file is read.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(try_from = "GroundedScenarioFile", into = "GroundedScenarioFile")]
 pub struct GroundedScenario {
     /// Topology fragment the scenario was placed on.
     pub fragment_id: String,
@@ -98,18 +99,51 @@ pub struct GroundedScenario {
     pub agents: Vec<GroundedAgent>,
     /// One conflict per BV.
     pub conflicts: Vec<GroundedConflict>,
-    /// Target PET τ, s.
-    pub tau_s: f64,
-    /// Who passes first.
-    pub style: Style,
+    /// Target PET τ and who passes first.
+    pub target: Target,
+}
+
+/// The file form of a [`GroundedScenario`]: its fields in the same order, the target written as
+/// `tau_s` (s) and `style`.
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GroundedScenarioFile {
+    fragment_id: String,
+    interaction_type: InteractionType,
+    agents: Vec<GroundedAgent>,
+    conflicts: Vec<GroundedConflict>,
+    tau_s: f64,
+    style: Style,
+}
+
+impl TryFrom<GroundedScenarioFile> for GroundedScenario {
+    type Error = ValidationError;
+
+    fn try_from(f: GroundedScenarioFile) -> Result<Self, Self::Error> {
+        Ok(Self {
+            fragment_id: f.fragment_id,
+            interaction_type: f.interaction_type,
+            agents: f.agents,
+            conflicts: f.conflicts,
+            target: Target::from_keys(f.tau_s, f.style)?,
+        })
+    }
+}
+
+impl From<GroundedScenario> for GroundedScenarioFile {
+    fn from(g: GroundedScenario) -> Self {
+        Self {
+            fragment_id: g.fragment_id,
+            interaction_type: g.interaction_type,
+            agents: g.agents,
+            conflicts: g.conflicts,
+            tau_s: g.target.tau_s(),
+            style: g.target.style(),
+        }
+    }
 }
 
 impl GroundedScenario {
-    /// τ and style as a [`crate::Target`] (an error only for a scenario that does not validate).
-    pub fn target(&self) -> Result<crate::Target, crate::TargetError> {
-        crate::Target::new(self.tau_s, self.style)
-    }
-
     /// The VUT.
     pub fn vut(&self) -> Option<&GroundedAgent> {
         self.agents.iter().find(|a| a.role == AgentRole::Vut)
@@ -205,7 +239,7 @@ impl Validate for GroundedScenario {
         if self.conflicts.is_empty() {
             return Err(ValidationError::new("conflicts", "needs at least one conflict"));
         }
-        crate::Target::check_tau("tau_s", self.tau_s)
+        Ok(())
     }
 }
 
@@ -243,8 +277,7 @@ mod tests {
                 vut_interval: interval,
                 bv_interval: interval,
             }],
-            tau_s: 2.0,
-            style: Style::Rush,
+            target: Target::new(2.0, Style::Rush).unwrap(),
         }
     }
 
@@ -270,5 +303,25 @@ mod tests {
         let mut far = scenario();
         far.conflicts[0].vut_interval.exit_s_m = 1e12;
         assert_eq!(far.validate().unwrap_err().field, "conflicts[0].vut_interval.exit_s_m");
+    }
+
+    #[test]
+    fn the_file_keeps_tau_and_style_as_two_keys_and_refuses_a_tau_out_of_range() {
+        let g = scenario();
+        let json = serde_json::to_string_pretty(&g).unwrap();
+        let keys: Vec<&str> = json.lines().filter(|l| l.starts_with("  \"")).map(str::trim).collect();
+        assert_eq!(keys.last().copied(), Some("\"style\": \"rush\""), "{json}");
+        assert_eq!(keys.get(keys.len() - 2).copied(), Some("\"tau_s\": 2.0,"), "{json}");
+        let back: GroundedScenario = serde_json::from_str(&json).unwrap();
+        assert_eq!(back, g);
+        assert_eq!(serde_json::to_string_pretty(&back).unwrap(), json);
+        let e = serde_json::from_str::<GroundedScenario>(&json.replace("\"tau_s\": 2.0", "\"tau_s\": 31.0"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`tau_s`") && e.contains("[0.1, 30]"), "{e}");
+        let e = serde_json::from_str::<GroundedScenario>(&json.replace("\"rush\"", "\"fast\"")).unwrap_err();
+        assert!(e.to_string().contains("fast"), "{e}");
+        let e = serde_json::from_str::<GroundedScenario>(&json.replacen('{', "{\"x\": 1,", 1)).unwrap_err();
+        assert!(e.to_string().contains("unknown field `x`"), "{e}");
     }
 }

@@ -3,7 +3,6 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::Style;
 use crate::grounded::{AgentRole, GroundedConflict, GroundedScenario};
 use crate::kinematics::{Control, State, step};
 use crate::path::ReferencePath;
@@ -11,6 +10,7 @@ use crate::validate::plausible::{
     self, MAX_ACCEL_MPS2, MAX_AGENTS, MAX_SCENARIO_TIME_S, MAX_SPEED_MPS, MAX_YAW_RATE_RADPS,
 };
 use crate::validate::{Validate, ValidationError, in_range};
+use crate::{Style, Target};
 
 /// One agent's reference: `states[k]` at `t = k·dt`, `controls[k]` applied over `[k·dt, (k+1)·dt)`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -26,9 +26,10 @@ pub struct AgentTrajectory {
     pub controls: Vec<Control>,
 }
 
-/// The priors for one scenario.
+/// The priors for one scenario. Its file is [`TrajectoryPriorFile`]'s layout: the target as the two
+/// keys `tau_s` and `style`, range-checked as the file is read.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(try_from = "TrajectoryPriorFile", into = "TrajectoryPriorFile")]
 pub struct TrajectoryPrior {
     /// Grounded fragment id.
     pub fragment_id: String,
@@ -38,18 +39,51 @@ pub struct TrajectoryPrior {
     pub agents: Vec<AgentTrajectory>,
     /// Conflicts between each BV and the VUT.
     pub conflicts: Vec<GroundedConflict>,
-    /// Target PET τ, s.
-    pub tau_s: f64,
-    /// Who passes first.
-    pub style: Style,
+    /// Target PET τ and who passes first.
+    pub target: Target,
+}
+
+/// The file form of a [`TrajectoryPrior`]: its fields in the same order, the target written as
+/// `tau_s` (s) and `style`.
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TrajectoryPriorFile {
+    fragment_id: String,
+    dt_s: f64,
+    agents: Vec<AgentTrajectory>,
+    conflicts: Vec<GroundedConflict>,
+    tau_s: f64,
+    style: Style,
+}
+
+impl TryFrom<TrajectoryPriorFile> for TrajectoryPrior {
+    type Error = ValidationError;
+
+    fn try_from(f: TrajectoryPriorFile) -> Result<Self, Self::Error> {
+        Ok(Self {
+            fragment_id: f.fragment_id,
+            dt_s: f.dt_s,
+            agents: f.agents,
+            conflicts: f.conflicts,
+            target: Target::from_keys(f.tau_s, f.style)?,
+        })
+    }
+}
+
+impl From<TrajectoryPrior> for TrajectoryPriorFile {
+    fn from(p: TrajectoryPrior) -> Self {
+        Self {
+            fragment_id: p.fragment_id,
+            dt_s: p.dt_s,
+            agents: p.agents,
+            conflicts: p.conflicts,
+            tau_s: p.target.tau_s(),
+            style: p.target.style(),
+        }
+    }
 }
 
 impl TrajectoryPrior {
-    /// τ and style as a [`crate::Target`] (an error only for a prior that does not validate).
-    pub fn target(&self) -> Result<crate::Target, crate::TargetError> {
-        crate::Target::new(self.tau_s, self.style)
-    }
-
     /// The BV agent `agent` names, or the first BV when `None`.
     pub fn bv_agent(&self, agent: Option<&str>) -> Result<&AgentTrajectory, ValidationError> {
         let mut bvs = self.agents.iter().filter(|a| a.role == AgentRole::Bv);
@@ -123,8 +157,7 @@ impl TrajectoryPrior {
             dt_s,
             agents,
             conflicts: scenario.conflicts.clone(),
-            tau_s: scenario.tau_s,
-            style: scenario.style,
+            target: scenario.target,
         }
     }
 
@@ -255,8 +288,7 @@ impl Validate for TrajectoryPrior {
                 ));
             }
         }
-        self.conflicts.validate().map_err(|e| e.within("conflicts"))?;
-        crate::Target::check_tau("tau_s", self.tau_s)
+        self.conflicts.validate().map_err(|e| e.within("conflicts"))
     }
 }
 
@@ -273,8 +305,7 @@ mod tests {
             dt_s: 0.1,
             agents: vec![AgentTrajectory { id: "bv1".into(), role: AgentRole::Bv, states, controls }],
             conflicts: vec![],
-            tau_s: 2.0,
-            style: Style::Rush,
+            target: Target::new(2.0, Style::Rush).unwrap(),
         }
     }
 
@@ -337,5 +368,24 @@ mod tests {
         let mut many = prior();
         many.agents = vec![many.agents[0].clone(); MAX_AGENTS + 1];
         assert_eq!(many.validate().unwrap_err().field, "agents");
+    }
+
+    #[test]
+    fn the_file_keeps_tau_and_style_as_two_keys_and_refuses_a_tau_out_of_range() {
+        let mut p = prior();
+        p.agents[0].states.truncate(2);
+        p.agents[0].controls.truncate(1);
+        let json = serde_json::to_string(&p).unwrap();
+        assert!(json.starts_with(r#"{"fragment_id":"x1","dt_s":0.1,"agents":[{"id":"bv1","#), "{json}");
+        assert!(json.ends_with(r#""conflicts":[],"tau_s":2.0,"style":"rush"}"#), "{json}");
+        let back: TrajectoryPrior = serde_json::from_str(&json).unwrap();
+        assert_eq!(back, p);
+        assert_eq!(serde_json::to_string(&back).unwrap(), json);
+        let e = serde_json::from_str::<TrajectoryPrior>(&json.replace(r#""tau_s":2.0"#, r#""tau_s":0.05"#))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`tau_s`") && e.contains("[0.1, 30]"), "{e}");
+        let e = serde_json::from_str::<TrajectoryPrior>(&json.replace(r#""tau_s":2.0,"#, "")).unwrap_err();
+        assert!(e.to_string().contains("missing field `tau_s`"), "{e}");
     }
 }

@@ -2,9 +2,10 @@
 //! style, who passes the conflict zone first.
 //!
 //! One type, one range, one parser: every command-line option, configuration file, link frame and
-//! regulator input that names a target goes through [`Target::new`] (or [`Target::check_tau`] for
-//! a document that keeps τ and the style as two fields), so a τ that one part of the system would
-//! refuse can never reach another.
+//! regulator input that names a target goes through [`Target::new`] (or [`Target::from_keys`] for
+//! a file that writes τ and the style as two keys of the document, [`Target::check_tau`] for a τ
+//! that is a number of its own), so a τ that one part of the system would refuse can never reach
+//! another.
 //!
 //! ```
 //! use v2t_model::{Style, Target};
@@ -144,8 +145,15 @@ impl Target {
         Self::new(tau_s, self.style)
     }
 
-    /// The range check for documents that keep τ as a field of their own (`tau_s` of a card, a
-    /// grounded scenario, a prior, the semantics' PET label): the field named in the error.
+    /// The target of a document whose file writes τ and the style as two keys of its own, `tau_s`
+    /// and `style` (a scenario card, a grounded scenario, a prior, a run result, a campaign
+    /// memory's case): the error names the field `tau_s` and the range.
+    pub fn from_keys(tau_s: f64, style: Style) -> Result<Self, ValidationError> {
+        Self::new(tau_s, style).map_err(|e| ValidationError::new("tau_s", e.to_string()))
+    }
+
+    /// The range check for a τ that is a number of its own, not part of a target (the semantics'
+    /// PET label, a wire payload's τ): the field named in the error.
     pub fn check_tau(field: &str, tau_s: f64) -> Result<(), ValidationError> {
         Self::new(tau_s, Style::Rush).map(|_| ()).map_err(|e| ValidationError::new(field, e.to_string()))
     }
@@ -179,6 +187,9 @@ mod tests {
         let e = Target::check_tau("tau_s", 0.0).unwrap_err();
         assert_eq!(e.field, "tau_s");
         assert!(e.problem.contains("[0.1, 30]"), "{e}");
+        let e = Target::from_keys(30.5, Style::Yield).unwrap_err();
+        assert_eq!(e.to_string(), "field `tau_s`: τ must lie in [0.1, 30] s, got 30.5");
+        assert_eq!(Target::from_keys(2.0, Style::Yield).unwrap(), Target::new(2.0, Style::Yield).unwrap());
     }
 
     #[test]

@@ -2,10 +2,10 @@
 //! `config/scenarios/` (read with `v2t-files`, which names the file, line and field of every error).
 
 use serde::{Deserialize, Serialize};
-use v2t_model::Style;
 use v2t_model::path::PathSpec;
 use v2t_model::validate::plausible::MAX_SCENARIO_TIME_S;
 use v2t_model::validate::{Validate, ValidationError, in_range, positive};
+use v2t_model::{Style, Target};
 
 /// Global settings of the simulated proving ground.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -58,9 +58,11 @@ impl Validate for SimSettings {
     }
 }
 
-/// A scenario card: the geometry, vehicles and references of one test scenario.
+/// A scenario card: the geometry, vehicles and references of one test scenario. Its file is
+/// [`ScenarioCardFile`]'s layout: the target as the two keys `tau_s` and `style`, range-checked as
+/// the file is read.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(try_from = "ScenarioCardFile", into = "ScenarioCardFile")]
 pub struct ScenarioCard {
     /// Short name.
     pub name: String,
@@ -70,14 +72,58 @@ pub struct ScenarioCard {
     pub sim: String,
     /// Simulated duration, s.
     pub duration_s: f64,
-    /// Target PET τ, s (for the regulator and for reporting).
-    pub tau_s: f64,
-    /// Intended passing order.
-    pub style: Style,
+    /// Target PET τ (for the regulator and for reporting) and intended passing order.
+    pub target: Target,
     /// The vehicle under test.
     pub vut: VutCard,
     /// One or two background vehicles.
     pub bvs: Vec<BvCard>,
+}
+
+/// The file form of a [`ScenarioCard`]: its fields in the same order, the target written as
+/// `tau_s` (s) and `style`.
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ScenarioCardFile {
+    name: String,
+    description: String,
+    sim: String,
+    duration_s: f64,
+    tau_s: f64,
+    style: Style,
+    vut: VutCard,
+    bvs: Vec<BvCard>,
+}
+
+impl TryFrom<ScenarioCardFile> for ScenarioCard {
+    type Error = ValidationError;
+
+    fn try_from(f: ScenarioCardFile) -> Result<Self, Self::Error> {
+        Ok(Self {
+            name: f.name,
+            description: f.description,
+            sim: f.sim,
+            duration_s: f.duration_s,
+            target: Target::from_keys(f.tau_s, f.style)?,
+            vut: f.vut,
+            bvs: f.bvs,
+        })
+    }
+}
+
+impl From<ScenarioCard> for ScenarioCardFile {
+    fn from(c: ScenarioCard) -> Self {
+        Self {
+            name: c.name,
+            description: c.description,
+            sim: c.sim,
+            duration_s: c.duration_s,
+            tau_s: c.target.tau_s(),
+            style: c.target.style(),
+            vut: c.vut,
+            bvs: c.bvs,
+        }
+    }
 }
 
 /// The VUT of a card.
@@ -171,7 +217,6 @@ impl Validate for ScenarioCard {
         }
         positive("duration_s", self.duration_s)?;
         in_range("duration_s", self.duration_s, 0.1, 600.0)?;
-        v2t_model::Target::check_tau("tau_s", self.tau_s)?;
         self.vut.validate().map_err(|e| e.within("vut"))?;
         if !(1..=2).contains(&self.bvs.len()) {
             return Err(ValidationError::new("bvs", format!("needs 1 or 2 BVs, got {}", self.bvs.len())));
@@ -225,5 +270,47 @@ perception_delay_s = 0.1
 
         let broken = parse_toml::<SimSettings>("plant_dt_s = [", "d.toml").unwrap_err();
         assert!(matches!(broken, ConfigError::Parse { .. }));
+    }
+
+    #[test]
+    fn every_shipped_card_loads_and_its_file_keeps_tau_and_style_as_two_keys() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/scenarios");
+        let mut cards = 0;
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_none_or(|e| e != "toml") {
+                continue;
+            }
+            let text = std::fs::read_to_string(&path).unwrap();
+            let card: ScenarioCard = parse_toml(&text, "card.toml").unwrap();
+            let key = |k: &str| text.lines().find_map(|l| l.strip_prefix(&format!("{k} = "))).unwrap().to_owned();
+            assert_eq!(card.target.tau_s(), key("tau_s").parse::<f64>().unwrap(), "{}", path.display());
+            assert_eq!(format!("\"{}\"", card.target.style()), key("style"), "{}", path.display());
+            // Written back: the same two keys in the same place, and read back the same card.
+            let toml = toml::to_string(&card).unwrap();
+            let (tau, style) = (card.target.tau_s(), card.target.style());
+            let expected = format!("duration_s = {:?}\ntau_s = {tau:?}\nstyle = \"{style}\"\n", card.duration_s);
+            assert!(toml.contains(&expected), "{toml}");
+            assert_eq!(parse_toml::<ScenarioCard>(&toml, "again.toml").unwrap(), card);
+            let json = serde_json::to_string(&card).unwrap();
+            let expected = format!(r#","duration_s":{:?},"tau_s":{tau:?},"style":"{style}","vut":{{"#, card.duration_s);
+            assert!(json.contains(&expected), "{json}");
+            assert_eq!(serde_json::to_string(&serde_json::from_str::<ScenarioCard>(&json).unwrap()).unwrap(), json);
+            cards += 1;
+        }
+        assert!(cards >= 3, "{cards} cards in {}", dir.display());
+    }
+
+    #[test]
+    fn a_card_with_tau_out_of_range_is_refused_naming_tau_s_and_the_range() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config/scenarios/left_turn_basic.toml");
+        let text = std::fs::read_to_string(path).unwrap();
+        for bad in ["tau_s = 0.05", "tau_s = 31.0", "tau_s = nan"] {
+            let e = parse_toml::<ScenarioCard>(&text.replace("tau_s = 2.0", bad), "card.toml").unwrap_err().to_string();
+            assert!(e.starts_with("card.toml: ") && e.contains("`tau_s`") && e.contains("[0.1, 30]"), "{bad}: {e}");
+        }
+        let e = parse_toml::<ScenarioCard>(&text.replace("style = \"rush\"", "style = \"fast\""), "card.toml");
+        let e = e.unwrap_err().to_string();
+        assert!(e.contains("style") && e.contains("fast"), "{e}");
     }
 }

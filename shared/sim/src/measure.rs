@@ -4,9 +4,10 @@
 //! same code on the same numbers, so the two agree exactly.
 
 use serde::{Deserialize, Serialize};
-use v2t_model::Style;
 use v2t_model::kinematics::State;
 use v2t_model::metrics::{ConflictZone, Dimensions, Motion, MotionSnapshot, PetOutcome, Side, passage, pet, ttc_2d};
+use v2t_model::validate::ValidationError;
+use v2t_model::{Style, Target};
 
 use crate::runner::{CollisionEvent, ConflictResult, FirstThrough, RunResult};
 
@@ -45,8 +46,11 @@ pub struct ConflictSetup {
     pub zone: ConflictZone,
 }
 
-/// What a run is measured against, apart from its truth.
+/// What a run is measured against, apart from its truth. A recording keeps it in the layout of
+/// [`MeasureSetupFile`]: the target as the two keys `style` and `tau_s`, range-checked as it is
+/// read.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "MeasureSetupFile", into = "MeasureSetupFile")]
 pub struct MeasureSetup {
     /// Scenario name.
     pub scenario: String,
@@ -56,14 +60,57 @@ pub struct MeasureSetup {
     pub bv_controller: String,
     /// Random seed.
     pub seed: u64,
-    /// Intended order.
-    pub style: Style,
-    /// Target PET τ, s.
-    pub tau_s: f64,
+    /// Intended order and target PET τ.
+    pub target: Target,
     /// One per BV.
     pub conflicts: Vec<ConflictSetup>,
     /// TTC is taken every this many steps (the record period).
     pub ttc_every: usize,
+}
+
+/// The serialized form of a [`MeasureSetup`]: its fields in the same order, the target written as
+/// `style` and `tau_s` (s).
+#[derive(Debug, Serialize, Deserialize)]
+struct MeasureSetupFile {
+    scenario: String,
+    vut_model: String,
+    bv_controller: String,
+    seed: u64,
+    style: Style,
+    tau_s: f64,
+    conflicts: Vec<ConflictSetup>,
+    ttc_every: usize,
+}
+
+impl TryFrom<MeasureSetupFile> for MeasureSetup {
+    type Error = ValidationError;
+
+    fn try_from(f: MeasureSetupFile) -> Result<Self, Self::Error> {
+        Ok(Self {
+            scenario: f.scenario,
+            vut_model: f.vut_model,
+            bv_controller: f.bv_controller,
+            seed: f.seed,
+            target: Target::from_keys(f.tau_s, f.style)?,
+            conflicts: f.conflicts,
+            ttc_every: f.ttc_every,
+        })
+    }
+}
+
+impl From<MeasureSetup> for MeasureSetupFile {
+    fn from(m: MeasureSetup) -> Self {
+        Self {
+            scenario: m.scenario,
+            vut_model: m.vut_model,
+            bv_controller: m.bv_controller,
+            seed: m.seed,
+            style: m.target.style(),
+            tau_s: m.target.tau_s(),
+            conflicts: m.conflicts,
+            ttc_every: m.ttc_every,
+        }
+    }
 }
 
 /// Footprint distance below which two vehicles touch, m.
@@ -85,7 +132,7 @@ pub fn measure(setup: &MeasureSetup, log: &TruthLog) -> RunResult {
             Side::A => FirstThrough::Vut,
             Side::B => FirstThrough::Bv,
         });
-        let wanted = match setup.style {
+        let wanted = match setup.target.style() {
             Style::Rush => FirstThrough::Bv,
             Style::Yield => FirstThrough::Vut,
         };
@@ -109,8 +156,7 @@ pub fn measure(setup: &MeasureSetup, log: &TruthLog) -> RunResult {
         vut_model: setup.vut_model.clone(),
         bv_controller: setup.bv_controller.clone(),
         seed: setup.seed,
-        style: setup.style,
-        tau_s: setup.tau_s,
+        target: setup.target,
         duration_s: t_end,
         completed,
         conflicts,

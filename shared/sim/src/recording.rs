@@ -145,7 +145,7 @@ pub fn write_with_plans(run: &RunOutcome, plans: &[PlanRecord], path: &Path) -> 
             }
         }
         while let Some(sample) = samples.next_if(|s| s.t_s <= *t) {
-            for (ch, msg) in sample_messages(sample, &run.agent_ids, &dims, &bv_ids, run.result.tau_s)
+            for (ch, msg) in sample_messages(sample, &run.agent_ids, &dims, &bv_ids, run.result.target.tau_s())
                 .into_iter()
                 .zip([scene_ch, cmd_ch, pet_ch])
                 .map(|(m, ch)| (ch, m))

@@ -173,4 +173,46 @@ mod tests {
         assert!(text.contains("\"min_distance_m\":null"));
         assert_eq!(serde_json::from_str::<RunFile>(&text).unwrap().result.min_distance_m, f64::INFINITY);
     }
+
+    /// A run's result and its measurement setup keep the target as the two keys `style` and
+    /// `tau_s` where they always were: a file reads and writes back byte for byte, and a τ out of
+    /// range is refused naming `tau_s`.
+    #[test]
+    fn the_target_is_written_as_style_and_tau_s_and_checked_as_it_is_read() {
+        let result = concat!(
+            r#"{"scenario":"left_turn_basic","vut_model":"idm-normal","bv_controller":"reference","seed":1,"#,
+            r#""style":"rush","tau_s":2.0,"duration_s":12.5,"completed":true,"conflicts":[],"pet_min_s":null,"#,
+            r#""min_distance_m":null,"min_distance_t_s":0.0,"min_ttc_s":null,"collision":null,"zone_overlap":false}"#
+        );
+        let r: RunResult = serde_json::from_str(result).unwrap();
+        assert_eq!(
+            (r.target.tau_s(), r.target.style(), r.min_distance_m),
+            (2.0, v2t_model::Style::Rush, f64::INFINITY)
+        );
+        assert_eq!(serde_json::to_string(&r).unwrap(), result);
+        let newer = result.replace(r#""seed":1,"#, r#""seed":1,"future":[1],"#);
+        assert_eq!(serde_json::from_str::<RunResult>(&newer).unwrap(), r);
+        let setup = concat!(
+            r#"{"scenario":"s","vut_model":"m","bv_controller":"c","seed":7,"style":"yield","tau_s":3.5,"#,
+            r#""conflicts":[],"ttc_every":10}"#
+        );
+        let m: crate::measure::MeasureSetup = serde_json::from_str(setup).unwrap();
+        assert_eq!(m.target, v2t_model::Target::new(3.5, v2t_model::Style::Yield).unwrap());
+        assert_eq!(serde_json::to_string(&m).unwrap(), setup);
+        for bad in ["0.0", "30.5", "-1.0"] {
+            let tau = format!(r#""tau_s":{bad}"#);
+            let e = serde_json::from_str::<RunResult>(&result.replace(r#""tau_s":2.0"#, &tau)).unwrap_err().to_string();
+            assert!(e.contains("`tau_s`") && e.contains("[0.1, 30]"), "{e}");
+            let e = serde_json::from_str::<crate::measure::MeasureSetup>(&setup.replace(r#""tau_s":3.5"#, &tau));
+            let e = e.unwrap_err().to_string();
+            assert!(e.contains("`tau_s`") && e.contains("[0.1, 30]"), "{e}");
+        }
+        // A whole run file written by the runner reads back and writes the same text.
+        let text = serde_json::to_string_pretty(&RunFile::of(&outcome())).unwrap();
+        assert!(
+            text.contains("\"seed\": 1,\n    \"style\": \"rush\",\n    \"tau_s\": 2.0,\n    \"duration_s\""),
+            "{text}"
+        );
+        assert_eq!(serde_json::to_string_pretty(&serde_json::from_str::<RunFile>(&text).unwrap()).unwrap(), text);
+    }
 }

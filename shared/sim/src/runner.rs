@@ -7,11 +7,11 @@
 //! rate.
 
 use serde::{Deserialize, Serialize};
-use v2t_model::Style;
 use v2t_model::geometry::OrientedBox;
 use v2t_model::kinematics::State;
 use v2t_model::metrics::{ConflictKind, Passage, PetOutcome, predicted_pet_series};
 use v2t_model::path::ReferencePath;
+use v2t_model::{Style, Target, validate::ValidationError};
 
 use crate::bv::BvController;
 use crate::external::{ExternalVut, ExternalVutError, Segment};
@@ -60,8 +60,10 @@ pub struct CollisionEvent {
     pub agents: [String; 2],
 }
 
-/// What a run measured.
+/// What a run measured. Its file is [`RunResultFile`]'s layout: the target as the two keys `style`
+/// and `tau_s`, range-checked as the file is read.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "RunResultFile", into = "RunResultFile")]
 pub struct RunResult {
     /// Scenario name.
     pub scenario: String,
@@ -71,10 +73,8 @@ pub struct RunResult {
     pub bv_controller: String,
     /// Random seed.
     pub seed: u64,
-    /// Intended order.
-    pub style: Style,
-    /// Target PET τ, s.
-    pub tau_s: f64,
+    /// Intended order and target PET τ.
+    pub target: Target,
     /// Simulated time, s.
     pub duration_s: f64,
     /// Whether every vehicle reached the end of its route.
@@ -84,7 +84,6 @@ pub struct RunResult {
     /// Smallest measured PET over the conflicts, s.
     pub pet_min_s: Option<f64>,
     /// Smallest footprint distance between any two vehicles, m (infinite with fewer than two).
-    #[serde(deserialize_with = "crate::runfile::infinite_if_null")]
     pub min_distance_m: f64,
     /// When it occurred, s.
     pub min_distance_t_s: f64,
@@ -94,6 +93,73 @@ pub struct RunResult {
     pub collision: Option<CollisionEvent>,
     /// Whether two vehicles were ever in one conflict zone at the same time.
     pub zone_overlap: bool,
+}
+
+/// The file form of a [`RunResult`]: its fields in the same order, the target written as `style`
+/// and `tau_s` (s). Keys it does not know are ignored, as in the rest of a run file.
+#[derive(Debug, Serialize, Deserialize)]
+struct RunResultFile {
+    scenario: String,
+    vut_model: String,
+    bv_controller: String,
+    seed: u64,
+    style: Style,
+    tau_s: f64,
+    duration_s: f64,
+    completed: bool,
+    conflicts: Vec<ConflictResult>,
+    pet_min_s: Option<f64>,
+    #[serde(deserialize_with = "crate::runfile::infinite_if_null")]
+    min_distance_m: f64,
+    min_distance_t_s: f64,
+    min_ttc_s: Option<f64>,
+    collision: Option<CollisionEvent>,
+    zone_overlap: bool,
+}
+
+impl TryFrom<RunResultFile> for RunResult {
+    type Error = ValidationError;
+
+    fn try_from(f: RunResultFile) -> Result<Self, Self::Error> {
+        Ok(Self {
+            scenario: f.scenario,
+            vut_model: f.vut_model,
+            bv_controller: f.bv_controller,
+            seed: f.seed,
+            target: Target::from_keys(f.tau_s, f.style)?,
+            duration_s: f.duration_s,
+            completed: f.completed,
+            conflicts: f.conflicts,
+            pet_min_s: f.pet_min_s,
+            min_distance_m: f.min_distance_m,
+            min_distance_t_s: f.min_distance_t_s,
+            min_ttc_s: f.min_ttc_s,
+            collision: f.collision,
+            zone_overlap: f.zone_overlap,
+        })
+    }
+}
+
+impl From<RunResult> for RunResultFile {
+    fn from(r: RunResult) -> Self {
+        Self {
+            scenario: r.scenario,
+            vut_model: r.vut_model,
+            bv_controller: r.bv_controller,
+            seed: r.seed,
+            style: r.target.style(),
+            tau_s: r.target.tau_s(),
+            duration_s: r.duration_s,
+            completed: r.completed,
+            conflicts: r.conflicts,
+            pet_min_s: r.pet_min_s,
+            min_distance_m: r.min_distance_m,
+            min_distance_t_s: r.min_distance_t_s,
+            min_ttc_s: r.min_ttc_s,
+            collision: r.collision,
+            zone_overlap: r.zone_overlap,
+        }
+    }
 }
 
 /// One vehicle at one recorded instant.
@@ -580,8 +646,7 @@ impl<'s> Simulation<'s> {
             vut_model: vut_model.to_owned(),
             bv_controller: bv_controller.to_owned(),
             seed: self.seed,
-            style: scenario.target.style(),
-            tau_s: scenario.target.tau_s(),
+            target: scenario.target,
             conflicts: scenario
                 .conflicts
                 .iter()

@@ -1,9 +1,9 @@
 //! A scenario ready to run: routes built, vehicles resolved, conflict zones computed.
 
+use v2t_model::Target;
 use v2t_model::metrics::{ConflictOptions, ConflictZone, Dimensions, conflict_zones};
 use v2t_model::path::{PathError, ReferencePath};
 use v2t_model::vehicle::VehicleConfig;
-use v2t_model::{Target, TargetError};
 
 use crate::config::{ScenarioCard, SimSettings};
 use crate::vut::VutModel;
@@ -33,9 +33,6 @@ pub enum ScenarioError {
     /// The card names a VUT model that does not exist.
     #[error("vut.model: {0}")]
     UnknownModel(String),
-    /// τ or the style of the card is not a target.
-    #[error("tau_s: {0}")]
-    Target(#[from] TargetError),
     /// The number of vehicle configurations does not match the card.
     #[error("{expected} BV vehicle configurations expected, {got} given")]
     VehicleCount {
@@ -277,7 +274,7 @@ impl Scenario {
         Ok(Self {
             name: card.name.clone(),
             description: card.description.clone(),
-            target: Target::new(card.tau_s, card.style)?,
+            target: card.target,
             duration_s: card.duration_s,
             settings,
             vut,

@@ -582,10 +582,10 @@ pub fn key_to_hex(key: &[u8; 32]) -> String {
 mod tests {
     use super::*;
     use proptest::prelude::*;
-    use v2t_model::Style;
     use v2t_model::grounded::AgentRole;
     use v2t_model::kinematics::{Control, State, rollout};
     use v2t_model::prior::AgentTrajectory;
+    use v2t_model::{Style, Target};
 
     fn key() -> SigningKey {
         SigningKey::from_bytes(&[42; 32])
@@ -608,8 +608,7 @@ mod tests {
                 dt_s: 0.1,
                 agents: vec![AgentTrajectory { id: "bv1".into(), role: AgentRole::Bv, states, controls }],
                 conflicts: vec![],
-                tau_s: 2.0,
-                style: Style::Yield,
+                target: Target::new(2.0, Style::Yield).unwrap(),
             },
         }
     }
@@ -782,6 +781,21 @@ mod tests {
             let mut signed = frame.clone();
             signed.extend(key().sign(&frame).to_bytes());
             assert!(matches!(cmd(&mut rx(), &signed, 5_000), Err(LinkError::Decode(_))), "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_signed_prior_with_tau_out_of_range_does_not_decode() {
+        let mut frame = encode(FrameKind::Cloud, &msg(3, 5_000, CloudBody::Prior(prior()))).unwrap();
+        let two = 2.0f64.to_le_bytes();
+        let at = frame.windows(8).rposition(|w| w == two).unwrap();
+        assert_eq!(at + 8 + 1, frame.len(), "τ is the prior's last number, its style the last byte");
+        for bad in [f64::NAN, 0.0, 45.0] {
+            frame.splice(at..at + 8, bad.to_le_bytes());
+            let mut signed = frame.clone();
+            signed.extend(key().sign(&frame).to_bytes());
+            let e = rx().open(&signed, Arrival::Prior, 5_000).unwrap_err();
+            assert!(matches!(e.reason, LinkError::Decode(_)), "{bad}: {}", e.reason);
         }
     }
 

@@ -248,7 +248,12 @@ fn run_one(
         v2t_ground::ground(&inspection.map, &inspection.library, &sem).map_err(|e| fail("ground")(e.to_string()))?;
     let grounded = g.scenario;
     save("grounded.json", pretty(&grounded))?;
-    outln!("  grounded    on {} (τ {:.2} s, {:?})", grounded.fragment_id, grounded.tau_s, grounded.style)?;
+    outln!(
+        "  grounded    on {} (τ {:.2} s, {:?})",
+        grounded.fragment_id,
+        grounded.target.tau_s(),
+        grounded.target.style()
+    )?;
 
     // The prior.
     let gen_options =
@@ -327,7 +332,7 @@ fn run_one(
         name: sc.name.into(),
         pet_video_s: sc.pet_label_s,
         interaction: interaction.into(),
-        style: format!("{:?}", grounded.style).to_lowercase(),
+        style: format!("{:?}", grounded.target.style()).to_lowercase(),
         fragment: grounded.fragment_id.clone(),
         prior: prior_kind(&opts.weights, model),
         pet_min_track_s: pet,

@@ -33,7 +33,12 @@ pub fn report(outcome: &RunOutcome, world: World) -> String {
     let _ = writeln!(
         out,
         "scenario {}  |  VUT {}  |  BV {}  |  seed {}  |  style {} (target PET {:.2} s)  |  {place}",
-        r.scenario, r.vut_model, r.bv_controller, r.seed, r.style, r.tau_s
+        r.scenario,
+        r.vut_model,
+        r.bv_controller,
+        r.seed,
+        r.target.style(),
+        r.target.tau_s()
     );
     for c in &r.conflicts {
         let pet = match c.pet {

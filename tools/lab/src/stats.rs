@@ -306,8 +306,7 @@ mod tests {
             vut_model: "m".into(),
             bv_controller: "c".into(),
             seed: 1,
-            style: Style::Rush,
-            tau_s: 2.0,
+            target: v2t_model::Target::new(2.0, Style::Rush).unwrap(),
             duration_s: 10.0,
             completed: true,
             conflicts: vec![v2t_sim::runner::ConflictResult {

@@ -68,7 +68,7 @@ pub fn bearing_gap_deg(a: f64, b: f64) -> f64 {
 pub fn check_common(map: &Map, g: &Grounding, s: &ScenarioSemantics) {
     let sc = &g.scenario;
     assert_eq!(sc.validate(), Ok(()), "{sc:#?}");
-    assert_eq!(sc.tau_s, s.pet_label_s);
+    assert_eq!(sc.target.tau_s(), s.pet_label_s);
     let vut = sc.vut().unwrap();
     let vut_path = path_of(vut);
     for c in &sc.conflicts {

@@ -145,6 +145,34 @@ fn a_memory_refuses_another_vut_and_names_both() {
 }
 
 #[test]
+fn a_memory_file_keeps_style_and_tau_as_two_keys_and_refuses_a_tau_out_of_range() {
+    let mut mem = CampaignMemory::new("idm-normal", "builtin");
+    mem.case_mut("s", 0, rush(2.0)).record(rush(2.0), run(rush(2.0), 2.2));
+    let json = serde_json::to_string(&mem).unwrap();
+    let case = r#""cases":[{"scenario":"s","bv":0,"style":"rush","tau_s":2.0,"memory":{"runs":[{"aim_s":2.0,"#;
+    assert!(json.starts_with(&format!(r#"{{"format":{FORMAT},"vut":"idm-normal","world":"builtin",{case}"#)), "{json}");
+    let back: CampaignMemory = serde_json::from_str(&json).unwrap();
+    assert_eq!(back, mem);
+    assert_eq!(serde_json::to_string(&back).unwrap(), json);
+    let pretty = serde_json::to_string_pretty(&mem).unwrap();
+    assert_eq!(
+        serde_json::to_string_pretty(&serde_json::from_str::<CampaignMemory>(&pretty).unwrap()).unwrap(),
+        pretty
+    );
+    for bad in ["1e300", "0.0", "-2.0"] {
+        let text = json.replace(r#""tau_s":2.0"#, &format!(r#""tau_s":{bad}"#));
+        let e = serde_json::from_str::<CampaignMemory>(&text).unwrap_err().to_string();
+        assert!(e.contains("`cases[0].tau_s`") && e.contains("[0.1, 30]"), "{e}");
+    }
+    let e = serde_json::from_str::<CampaignMemory>(&json.replace(r#""rush""#, r#""fast""#)).unwrap_err();
+    assert!(e.to_string().contains("fast"), "{e}");
+    let e = serde_json::from_str::<CampaignMemory>(&json.replace(r#""bv":0,"#, r#""bv":0,"x":1,"#)).unwrap_err();
+    assert!(e.to_string().contains("unknown field `x`"), "{e}");
+    let e = serde_json::from_str::<CampaignMemory>(&json.replacen(r#""world""#, r#""x":1,"world""#, 1)).unwrap_err();
+    assert!(e.to_string().contains("unknown field `x`"), "{e}");
+}
+
+#[test]
 fn validation_names_the_field_and_the_bound() {
     let mut mem = CampaignMemory::new("idm-normal", "builtin");
     mem.case_mut("s", 0, rush(2.0)).record(rush(2.0), run(rush(2.0), 2.2));

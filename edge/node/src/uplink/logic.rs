@@ -241,7 +241,7 @@ mod tests {
             verdict(logic.on_frame(&frame(&key, 2, CloudBody::Prior(up.clone())), Arrival::Prior, 50_000, 50_000, 7));
         assert_eq!(o.verdict, "accepted", "{}", o.detail);
         let Some(Action::Prior(p)) = o.actions.first() else { panic!("{o:?}") };
-        assert_eq!((p.prior_id, p.header.stamp_ns, p.tau_s), (5, 7, up.prior.tau_s));
+        assert_eq!((p.prior_id, p.header.stamp_ns, p.tau_s), (5, 7, up.prior.target.tau_s()));
         assert!(o.event_json("bv1", 9).contains("\"verdict\":\"accepted\""));
 
         let o = verdict(logic.on_frame(&set(3), Arrival::Command, 50_000, 50_000, 8));

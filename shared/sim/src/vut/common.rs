@@ -115,9 +115,9 @@ pub(crate) fn lead_vehicle(scenario: &Scenario, own: &Perceived, bvs: &[Perceive
 /// Scenarios, observations and checks shared by the driver models' tests.
 #[cfg(test)]
 pub(crate) mod fixtures {
-    use v2t_model::Style;
     use v2t_model::kinematics::State;
     use v2t_model::path::{PathSpec, SegmentSpec};
+    use v2t_model::{Style, Target};
 
     use super::*;
     use crate::bv::{BvController, ReferenceFollower};
@@ -136,8 +136,7 @@ pub(crate) mod fixtures {
             description: "test".into(),
             sim: "sim.toml".into(),
             duration_s: 20.0,
-            tau_s: 2.0,
-            style: Style::Rush,
+            target: Target::new(2.0, Style::Rush).unwrap(),
             vut: VutCard {
                 vehicle: "vut.toml".into(),
                 model: "idm-normal".into(),

@@ -251,7 +251,8 @@ fn rundata(trace: &Trace, start: Option<f64>) -> String {
 
 fn facts(input: &RunInput<'_>) -> String {
     let r = &input.run.result;
-    let err = r.pet_min_s.map(|p| (p - r.tau_s).abs() / r.tau_s);
+    let tau = r.target.tau_s();
+    let err = r.pet_min_s.map(|p| (p - tau).abs() / tau);
     let order = r
         .conflicts
         .iter()
@@ -279,7 +280,7 @@ fn facts(input: &RunInput<'_>) -> String {
         vec!["VUT driver".into(), esc(&r.vut_model)],
         vec!["BV controller".into(), esc(&r.bv_controller)],
         vec!["seed".into(), r.seed.to_string()],
-        vec!["style, target τ".into(), format!("{}, {:.2} s", r.style, r.tau_s)],
+        vec!["style, target τ".into(), format!("{}, {:.2} s", r.target.style(), r.target.tau_s())],
         vec![
             "PET<sub>min</sub> achieved".into(),
             format!("{} s (error against τ {})", num(r.pet_min_s, 2), super::pct(err)),
@@ -487,7 +488,7 @@ fn plots(run: &RunFile, trace: &Trace, t_range: (f64, f64)) -> String {
     out.push_str(&speed.svg("speed"));
     out.push_str(&accel.svg("accel"));
     // Predicted PET: from the true states at constant velocity, and the regulator's own.
-    let tau = run.result.tau_s;
+    let tau = run.result.target.tau_s();
     let top = if tau.is_finite() { (3.0 * tau).max(tau + 3.0) } else { 10.0 };
     let clip = |v: Option<f64>| v.filter(|x| x.is_finite() && *x >= 0.0 && *x <= top).unwrap_or(f64::NAN);
     let mut pet = LinePlot::over_time("Predicted PET", "PET (s)", t_range);
