@@ -138,6 +138,24 @@ fn files_over_their_size_bound_are_refused_unread() {
     assert!(!out.exists());
 }
 
+/// A BV placed where the VUT starts is a collision at t = 0, not a test (it ran, reported the
+/// collision and exited 0).
+#[test]
+fn a_bv_that_starts_on_the_vut_is_refused() {
+    let (_dir, card) = broken_card(
+        "overlap",
+        |t| {
+            t.replacen(
+                "start_x_m = -1.75, start_y_m = 47.85, start_heading_deg = -90.0",
+                "start_x_m = 1.75, start_y_m = -70.51, start_heading_deg = 90.0",
+                1,
+            )
+        },
+        str::to_owned,
+    );
+    expect_input_error(&card, &["card.toml", "bvs[0].path", "`vut` and `bv1` overlap where they start"]);
+}
+
 #[test]
 fn negative_vehicle_dimension_names_the_vehicle_file() {
     let (_dir, card) = broken_card("negative", str::to_owned, |t| t.replace("width_m = 1.85", "width_m = -1.85"));

@@ -52,6 +52,12 @@ impl Validate for AnchorState {
     }
 }
 
+/// Shortest route of an agent, m: a route that does not run (one point repeated) is no route.
+pub const MIN_ROUTE_LENGTH_M: f64 = 1.0;
+/// Closest two agents may start, m (centre to centre): narrower than any car, so two closer
+/// vehicles overlap.
+pub const MIN_START_SEPARATION_M: f64 = 1.5;
+
 /// One agent of a grounded scenario.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -183,6 +189,15 @@ impl Validate for GroundedAgent {
             plausible::coordinates(&format!("route[{i}]"), p.x, p.y)?;
         }
         let length: f64 = self.route.windows(2).map(|w| w.first().zip(w.get(1)).map_or(0.0, |(p, q)| p.dist(*q))).sum();
+        if length < MIN_ROUTE_LENGTH_M {
+            return Err(ValidationError::new(
+                "route",
+                format!(
+                    "is {length:.3} m long over {} points: a route must run at least {MIN_ROUTE_LENGTH_M} m",
+                    self.route.len()
+                ),
+            ));
+        }
         if length > MAX_ROUTE_LENGTH_M {
             return Err(ValidationError::new(
                 "route",
@@ -226,6 +241,19 @@ impl Validate for GroundedScenario {
             if self.agents.iter().skip(i + 1).any(|b| b.id == a.id) {
                 return Err(ValidationError::new(format!("agents[{i}].id"), format!("`{}` is used twice", a.id)));
             }
+            let p = a.start.position;
+            if let Some(b) = self.agents.iter().skip(i + 1).find(|b| b.start.position.dist(p) < MIN_START_SEPARATION_M)
+            {
+                return Err(ValidationError::new(
+                    format!("agents[{i}].start.position"),
+                    format!(
+                        "`{}` starts {:.2} m from `{}`: two vehicles closer than {MIN_START_SEPARATION_M} m overlap",
+                        a.id,
+                        b.start.position.dist(p),
+                        b.id
+                    ),
+                ));
+            }
         }
         self.conflicts.validate().map_err(|e| e.within("conflicts"))?;
         for (i, c) in self.conflicts.iter().enumerate() {
@@ -268,7 +296,12 @@ mod tests {
         GroundedScenario {
             fragment_id: "f".into(),
             interaction_type: InteractionType::CutIn,
-            agents: vec![agent("vut", AgentRole::Vut), agent("bv1", AgentRole::Bv)],
+            agents: vec![agent("vut", AgentRole::Vut), {
+                // The next lane over, as in a cut-in.
+                let mut bv = agent("bv1", AgentRole::Bv);
+                bv.start.position.y = 3.5;
+                bv
+            }],
             conflicts: vec![GroundedConflict {
                 bv_id: "bv1".into(),
                 kind: ConflictKind::Merge,
@@ -303,6 +336,21 @@ mod tests {
         let mut far = scenario();
         far.conflicts[0].vut_interval.exit_s_m = 1e12;
         assert_eq!(far.validate().unwrap_err().field, "conflicts[0].vut_interval.exit_s_m");
+    }
+
+    /// Motion that is not motion: a route of one point repeated (it exported, and `generate`
+    /// exited 1 without naming the file), and a BV that starts on the VUT.
+    #[test]
+    fn a_route_that_does_not_run_and_agents_that_start_on_each_other_are_refused() {
+        let mut still = scenario();
+        still.agents[0].route = vec![Point2 { x: 5.0, y: 0.0 }; 300];
+        let e = still.validate().unwrap_err();
+        assert!(e.field == "agents[0].route" && e.problem.contains("at least 1 m"), "{e}");
+        let mut on_top = scenario();
+        on_top.agents[1].start.position = Point2 { x: 0.4, y: 0.3 };
+        let e = on_top.validate().unwrap_err();
+        assert_eq!(e.field, "agents[0].start.position");
+        assert!(e.problem.contains("`vut` starts 0.50 m from `bv1`") && e.problem.contains("1.5 m"), "{e}");
     }
 
     #[test]

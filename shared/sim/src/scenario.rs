@@ -1,6 +1,7 @@
 //! A scenario ready to run: routes built, vehicles resolved, conflict zones computed.
 
 use v2t_model::Target;
+use v2t_model::kinematics::State;
 use v2t_model::metrics::{ConflictOptions, ConflictZone, Dimensions, conflict_zones};
 use v2t_model::path::{PathError, ReferencePath};
 use v2t_model::vehicle::VehicleConfig;
@@ -21,6 +22,16 @@ pub enum ScenarioError {
         field: String,
         /// What went wrong.
         source: PathError,
+    },
+    /// Two vehicles overlap where they start.
+    #[error("{field}: `{a}` and `{b}` overlap where they start (their footprints intersect at t = 0)")]
+    StartOverlap {
+        /// The later of the two in the card (`bvs[0].path`).
+        field: String,
+        /// One vehicle.
+        a: String,
+        /// The other.
+        b: String,
     },
     /// A BV's path never meets the VUT's: there is no interaction to test.
     #[error("bvs[{index}].path: the BV `{id}` never comes into conflict with the VUT's path")]
@@ -270,6 +281,7 @@ impl Scenario {
                 timed_for_target: false,
             });
         }
+        start_apart(&vut, &bvs)?;
         let conflicts = first_conflicts(&vut, &bvs)?;
         Ok(Self {
             name: card.name.clone(),
@@ -309,6 +321,7 @@ impl Scenario {
             reference: paths.bv_reference,
             timed_for_target: true,
         }];
+        start_apart(&vut, &bvs)?;
         let conflicts = match paths.conflict {
             Some(zone) => vec![Conflict { bv_index: 0, zone }],
             None => first_conflicts(&vut, &bvs)?,
@@ -383,6 +396,28 @@ pub struct ScenarioPaths {
 }
 
 /// The first conflict of every BV with the VUT; a BV without one is an error.
+/// Every pair of vehicles apart at their starts (a BV placed on the VUT, or on another BV, is a
+/// collision at t = 0, not a test).
+fn start_apart(vut: &VutSetup, bvs: &[BvSetup]) -> Result<(), ScenarioError> {
+    let at_start = |a: &Agent| {
+        let p = a.route.point_at(0.0);
+        let state = State { px: p.x, py: p.y, theta_rad: a.route.heading_at(0.0), speed_mps: a.initial_speed_mps };
+        a.vehicle.footprint(&state)
+    };
+    let agents: Vec<&Agent> = std::iter::once(&vut.agent).chain(bvs.iter().map(|b| &b.agent)).collect();
+    for (j, b) in agents.iter().enumerate().skip(1) {
+        let fb = at_start(b);
+        if let Some(a) = agents.iter().take(j).find(|a| at_start(a).overlaps(&fb)) {
+            return Err(ScenarioError::StartOverlap {
+                field: format!("bvs[{}].path", j - 1),
+                a: a.id.clone(),
+                b: b.id.clone(),
+            });
+        }
+    }
+    Ok(())
+}
+
 fn first_conflicts(vut: &VutSetup, bvs: &[BvSetup]) -> Result<Vec<Conflict>, ScenarioError> {
     let mut conflicts = Vec::with_capacity(bvs.len());
     for (bv_index, bv) in bvs.iter().enumerate() {
