@@ -281,7 +281,7 @@ fn aim_moved_in_vain(valid: &[(f64, f64)], tau: f64) -> bool {
         && (p_last - p_first) * aim_move.signum() < REACH_FOLLOW * aim_move.abs()
 }
 
-/// Which test a [`CaseMemory`] belongs to. Its file is [`CaseEntryFile`]'s layout: the target as the
+/// Which test a [`CaseMemory`] belongs to. Its file is `CaseEntryFile`'s layout: the target as the
 /// two keys `style` and `tau_s`, range-checked as the file is read.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "CaseEntryFile", into = "CaseEntryFile")]
@@ -329,7 +329,7 @@ impl CaseEntry {
 }
 
 /// Everything one campaign learned about one VUT: the file the next run loads. It is read through
-/// [`CampaignMemoryFile`], so that a case whose target is out of range is refused naming it
+/// `CampaignMemoryFile`, so that a case whose target is out of range is refused naming it
 /// (`cases[3].tau_s`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "CampaignMemoryFile")]

@@ -92,7 +92,7 @@ pub struct GroundedConflict {
     pub bv_interval: OccupancyInterval,
 }
 
-/// A scenario grounded on a map fragment. Its file is [`GroundedScenarioFile`]'s layout: the target
+/// A scenario grounded on a map fragment. Its file is `GroundedScenarioFile`'s layout: the target
 /// as the two keys `tau_s` and `style`, range-checked as the file is read.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "GroundedScenarioFile", into = "GroundedScenarioFile")]

@@ -26,7 +26,7 @@ pub struct AgentTrajectory {
     pub controls: Vec<Control>,
 }
 
-/// The priors for one scenario. Its file is [`TrajectoryPriorFile`]'s layout: the target as the two
+/// The priors for one scenario. Its file is `TrajectoryPriorFile`'s layout: the target as the two
 /// keys `tau_s` and `style`, range-checked as the file is read.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "TrajectoryPriorFile", into = "TrajectoryPriorFile")]

@@ -59,7 +59,7 @@ impl Validate for SimSettings {
 }
 
 /// A scenario card: the geometry, vehicles and references of one test scenario. Its file is
-/// [`ScenarioCardFile`]'s layout: the target as the two keys `tau_s` and `style`, range-checked as
+/// `ScenarioCardFile`'s layout: the target as the two keys `tau_s` and `style`, range-checked as
 /// the file is read.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "ScenarioCardFile", into = "ScenarioCardFile")]

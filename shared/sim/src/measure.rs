@@ -47,7 +47,7 @@ pub struct ConflictSetup {
 }
 
 /// What a run is measured against, apart from its truth. A recording keeps it in the layout of
-/// [`MeasureSetupFile`]: the target as the two keys `style` and `tau_s`, range-checked as it is
+/// `MeasureSetupFile`: the target as the two keys `style` and `tau_s`, range-checked as it is
 /// read.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "MeasureSetupFile", into = "MeasureSetupFile")]

@@ -60,7 +60,7 @@ pub struct CollisionEvent {
     pub agents: [String; 2],
 }
 
-/// What a run measured. Its file is [`RunResultFile`]'s layout: the target as the two keys `style`
+/// What a run measured. Its file is `RunResultFile`'s layout: the target as the two keys `style`
 /// and `tau_s`, range-checked as the file is read.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "RunResultFile", into = "RunResultFile")]
