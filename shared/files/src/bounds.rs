@@ -35,6 +35,12 @@ pub const HUMAN_REFERENCE: SizeBound = SizeBound { what: "a human reference", ma
 pub const RUN: SizeBound = SizeBound { what: "a run file", max_bytes: LARGEST_BOUND_BYTES };
 /// A campaign's memory of one VUT (cases × runs, a few kB per case).
 pub const CAMPAIGN_MEMORY: SizeBound = SizeBound { what: "a campaign memory", max_bytes: 64 << 20 };
+/// Recorded driving to import (CommonRoad XML, CSV tracks) and training corpora (JSONL).
+pub const DRIVING_DATA: SizeBound = SizeBound { what: "recorded driving or a corpus", max_bytes: LARGEST_BOUND_BYTES };
+/// Denoiser weights (the shipped ones are 0.9 MB).
+pub const WEIGHTS: SizeBound = SizeBound { what: "a weights file", max_bytes: 64 << 20 };
+/// A VLM prompt, cassette exchange or recorded answer.
+pub const VLM_FILE: SizeBound = SizeBound { what: "a VLM prompt or cassette file", max_bytes: 16 << 20 };
 /// OpenDRIVE maps.
 pub const MAP: SizeBound = SizeBound { what: "an OpenDRIVE map", max_bytes: LARGEST_BOUND_BYTES };
 /// MCAP recordings.
@@ -77,6 +83,24 @@ pub fn read_text_within(path: &Path, bound: SizeBound) -> std::io::Result<Result
     })
 }
 
+/// [`read_text_within`] for readers whose errors carry a message: the I/O error's or the bound's.
+pub fn read_text_message(path: &Path, bound: SizeBound) -> Result<String, String> {
+    match read_text_within(path, bound) {
+        Ok(Ok(text)) => Ok(text),
+        Ok(Err(too_large)) => Err(too_large.to_string()),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// [`read_bytes_within`] for readers whose errors carry a message.
+pub fn read_bytes_message(path: &Path, bound: SizeBound) -> Result<Vec<u8>, String> {
+    match read_bytes_within(path, bound) {
+        Ok(Ok(bytes)) => Ok(bytes),
+        Ok(Err(too_large)) => Err(too_large.to_string()),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
@@ -84,7 +108,20 @@ mod tests {
 
     #[test]
     fn every_bound_is_at_most_the_largest() {
-        for b in [CONFIG, SEMANTICS, PRIOR, GROUNDED, HUMAN_REFERENCE, CAMPAIGN_MEMORY, RUN, MAP, RECORDING] {
+        for b in [
+            CONFIG,
+            SEMANTICS,
+            PRIOR,
+            GROUNDED,
+            HUMAN_REFERENCE,
+            CAMPAIGN_MEMORY,
+            DRIVING_DATA,
+            WEIGHTS,
+            VLM_FILE,
+            RUN,
+            MAP,
+            RECORDING,
+        ] {
             assert!(b.max_bytes <= LARGEST_BOUND_BYTES, "{b:?}");
         }
     }
