@@ -54,7 +54,19 @@ impl WorldArgs {
         if drivers.is_empty() {
             return Err(Usage(format!("no SUMO driver files (*.toml) in {DRIVERS_DIR}")).into());
         }
-        let world = SumoWorld::new(Path::new(shipped::MAP))?;
+        let map = Path::new(shipped::MAP);
+        if !map.is_file() {
+            // netconvert would say only that it cannot read it, and exit 1.
+            return Err(Usage(format!(
+                "{}: not found in {}: the SUMO world converts the shipped map, which is found from the \
+                 repository root; run there",
+                map.display(),
+                std::env::current_dir()
+                    .map_or_else(|_| "the working directory".to_owned(), |d| d.display().to_string())
+            ))
+            .into());
+        }
+        let world = SumoWorld::new(map)?;
         Ok(Some(Sumo { world, drivers }))
     }
 }

@@ -156,6 +156,23 @@ fn a_bv_that_starts_on_the_vut_is_refused() {
     expect_input_error(&card, &["card.toml", "bvs[0].path", "`vut` and `bv1` overlap where they start"]);
 }
 
+/// The SUMO world converts the shipped map, found from the repository root: run elsewhere, it
+/// is bad input naming the map and the folder (it was netconvert's "not accessible" and exit 1).
+#[test]
+fn the_sumo_world_outside_the_repository_names_the_missing_map() {
+    let dir = tempdir("elsewhere");
+    let card = repo().join("config/scenarios/left_turn_vut.toml");
+    let driver = repo().join("config/vut/sumo/krauss.toml");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_video2track"))
+        .args(["sim", card.to_str().unwrap(), "--world", "sumo", "--sumo-driver", driver.to_str().unwrap()])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("config/maps/proving_ground.xodr: not found in") && err.contains("repository root"), "{err}");
+}
+
 #[test]
 fn negative_vehicle_dimension_names_the_vehicle_file() {
     let (_dir, card) = broken_card("negative", str::to_owned, |t| t.replace("width_m = 1.85", "width_m = -1.85"));
