@@ -182,7 +182,7 @@ pub fn pet_label(video: &Path, pet_label_s: Option<f64>, labels: Option<&Path>) 
         return Ok(p);
     }
     let path = labels.map_or_else(|| default_labels_path(video), Path::to_owned);
-    let text = v2t_files::bounds::read_text_message(&path, v2t_files::bounds::CONFIG).map_err(|e| {
+    let text = v2t_files::bounds::read_text_within(&path, v2t_files::bounds::CONFIG).map_err(|e| {
         AbstractError::Usage(format!(
             "no PET label: give --pet-label SECONDS, or write `pet_label_s = …` into {} ({e})",
             path.display()

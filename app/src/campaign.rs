@@ -147,8 +147,7 @@ fn record(a: RecordArgs) -> anyhow::Result<()> {
 /// Reads a memory file: `None` when it does not exist; a malformed one is bad input naming the file.
 pub(crate) fn load(path: &Path) -> anyhow::Result<Option<CampaignMemory>> {
     let text = match v2t_files::bounds::read_text_within(path, v2t_files::bounds::CAMPAIGN_MEMORY) {
-        Ok(Ok(t)) => t,
-        Ok(Err(too_large)) => return Err(Usage(format!("{}: {too_large}", path.display())).into()),
+        Ok(t) => t,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
         Err(e) => return Err(Usage(format!("{}: {e}", path.display())).into()),
     };

@@ -253,7 +253,7 @@ fn read_recording(
             Ok((s.episode, s.lanes, format!("CommonRoad {version}")))
         }
         Some("csv") => {
-            let text = v2t_files::bounds::read_text_message(file, v2t_files::bounds::DRIVING_DATA)
+            let text = v2t_files::bounds::read_text_within(file, v2t_files::bounds::DRIVING_DATA)
                 .map_err(|e| Usage(format!("{}: {e}", file.display())))?;
             let stem = file.file_stem().map_or_else(|| "csv".to_owned(), |s| s.to_string_lossy().into_owned());
             let options = csv::CsvOptions { frame_rate_hz: Some(csv_frame_rate_hz) };

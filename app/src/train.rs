@@ -213,7 +213,7 @@ fn load_corpora(args: &CorpusSource, map: &v2t_map::Map) -> anyhow::Result<Corpo
     let mut out = Corpora { synthetic: Vec::new(), recorded: Vec::new(), heldout: Vec::new(), source: String::new() };
     let mut parts = Vec::new();
     for path in &args.data {
-        let text = v2t_files::bounds::read_text_message(path, v2t_files::bounds::DRIVING_DATA)
+        let text = v2t_files::bounds::read_text_within(path, v2t_files::bounds::DRIVING_DATA)
             .map_err(|e| Usage(format!("{}: {e}", path.display())))?;
         if recorded::format_of(&text).as_deref() == Some(recorded::FORMAT) {
             let c = recorded::from_jsonl(&text).map_err(|e| Usage(format!("{}: {e}", path.display())))?;
@@ -319,7 +319,7 @@ fn run_training(args: &TrainArgs) -> anyhow::Result<TrainOutcome> {
     let mut source = corpora.source.clone();
     let (mut trainer, normalization) = match &args.init {
         Some(path) => {
-            let bytes = v2t_files::bounds::read_bytes_message(path, v2t_files::bounds::WEIGHTS)
+            let bytes = v2t_files::bounds::read_bytes_within(path, v2t_files::bounds::WEIGHTS)
                 .map_err(|e| Usage(format!("--init {}: {e}", path.display())))?;
             let (t, n) = Trainer::from_weights(&bytes, args.options)
                 .map_err(|e| Usage(format!("--init {}: {e}", path.display())))?;

@@ -103,8 +103,8 @@ pub fn parse<H: DeserializeOwned, R: DeserializeOwned>(
 
 /// The text of a file.
 pub fn read_text(path: &std::path::Path) -> Result<String, JsonlError> {
-    v2t_files::bounds::read_text_message(path, v2t_files::bounds::DRIVING_DATA)
-        .map_err(|message| JsonlError::Io { path: path.display().to_string(), message })
+    v2t_files::bounds::read_text_within(path, v2t_files::bounds::DRIVING_DATA)
+        .map_err(|e| JsonlError::Io { path: path.display().to_string(), message: e.to_string() })
 }
 
 /// Writes `text` to `<path>.partial`, then renames it to `path`.

@@ -269,8 +269,8 @@ pub fn from_bytes_with_variables(bytes: &[u8]) -> Result<(Model, VarMap), Weight
 
 /// A model from a weights file.
 pub fn load(path: &std::path::Path) -> Result<Model, WeightsError> {
-    let bytes = v2t_files::bounds::read_bytes_message(path, v2t_files::bounds::WEIGHTS)
-        .map_err(|message| WeightsError::Io { path: path.display().to_string(), message })?;
+    let bytes = v2t_files::bounds::read_bytes_within(path, v2t_files::bounds::WEIGHTS)
+        .map_err(|e| WeightsError::Io { path: path.display().to_string(), message: e.to_string() })?;
     from_bytes(&bytes).map_err(|e| WeightsError::File { path: path.display().to_string(), source: Box::new(e) })
 }
 

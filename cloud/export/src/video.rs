@@ -424,16 +424,8 @@ impl View {
 
 /// Loads a run, and optionally its card and a map, into a scene.
 pub fn load_scene(run: &Path, card: Option<&Path>, map: Option<&Path>) -> Result<Scene, RenderError> {
-    let text = match v2t_files::bounds::read_text_within(run, v2t_files::bounds::RUN) {
-        Ok(Ok(text)) => text,
-        Ok(Err(too_large)) => {
-            return Err(RenderError::Read {
-                path: run.to_owned(),
-                error: std::io::Error::new(std::io::ErrorKind::FileTooLarge, too_large),
-            });
-        }
-        Err(error) => return Err(RenderError::Read { path: run.to_owned(), error }),
-    };
+    let text = v2t_files::bounds::read_text_within(run, v2t_files::bounds::RUN)
+        .map_err(|error| RenderError::Read { path: run.to_owned(), error })?;
     let mut scene = Scene::from_run_json(&text, run)?;
     if let Some(card) = card {
         let scenario = v2t_sim::files::load_scenario(card)?;

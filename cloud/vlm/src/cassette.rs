@@ -228,7 +228,7 @@ fn write_json<T: Serialize>(dir: &Path, name: &str, value: &T) -> Result<(), Vlm
 }
 
 fn read_json<T: for<'de> Deserialize<'de>>(dir: &Path, name: &str) -> Result<T, VlmError> {
-    let text = v2t_files::bounds::read_text_message(&dir.join(name), v2t_files::bounds::VLM_FILE)
+    let text = v2t_files::bounds::read_text_within(&dir.join(name), v2t_files::bounds::VLM_FILE)
         .map_err(|e| cassette_error(dir, format!("read {name}: {e}")))?;
     serde_json::from_str(&text).map_err(|e| cassette_error(dir, format!("{name}: {e}")))
 }

@@ -23,14 +23,14 @@ pub fn check_config_file(path: &Path) -> Result<(), VlmError> {
         let replayed = abstract_video(video, m.pet_label_s, &VlmConfig::default(), &Mode::Replay(dir.to_owned()))?;
         let text = semantics_text(&replayed.semantics)
             .map_err(|e| VlmError::Cassette { dir: dir.to_owned(), problem: e.to_string() })?;
-        let recorded = v2t_files::bounds::read_text_message(&dir.join(SEMANTICS_FILE), v2t_files::bounds::SEMANTICS)
+        let recorded = v2t_files::bounds::read_text_within(&dir.join(SEMANTICS_FILE), v2t_files::bounds::SEMANTICS)
             .unwrap_or_default();
         if text != recorded {
             return problem(format!("the replay does not reproduce {SEMANTICS_FILE}"));
         }
         Ok(())
     } else if name == SEMANTICS_FILE {
-        let text = v2t_files::bounds::read_text_message(path, v2t_files::bounds::SEMANTICS)
+        let text = v2t_files::bounds::read_text_within(path, v2t_files::bounds::SEMANTICS)
             .map_err(|e| VlmError::Cassette { dir: dir.to_owned(), problem: format!("{name}: {e}") })?;
         v2t_model::semantics::parse_semantics_json(&text)
             .map(drop)

@@ -60,14 +60,8 @@ impl Prompt {
 
     /// Reads and parses a prompt file.
     pub fn load(path: &Path) -> Result<Self, PromptError> {
-        let text = match v2t_files::bounds::read_text_within(path, v2t_files::bounds::VLM_FILE) {
-            Ok(Ok(text)) => text,
-            Ok(Err(too_large)) => {
-                let source = std::io::Error::new(std::io::ErrorKind::FileTooLarge, too_large);
-                return Err(PromptError::Read { path: path.into(), source });
-            }
-            Err(source) => return Err(PromptError::Read { path: path.into(), source }),
-        };
+        let text = v2t_files::bounds::read_text_within(path, v2t_files::bounds::VLM_FILE)
+            .map_err(|source| PromptError::Read { path: path.into(), source })?;
         Self::parse(&text)
     }
 

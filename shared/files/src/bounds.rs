@@ -58,53 +58,43 @@ pub struct TooLarge {
     pub size: String,
 }
 
-/// Reads at most `bound` bytes of `path`: the file's bytes, or why not (`Ok(Err(..))`: too large).
-pub fn read_bytes_within(path: &Path, bound: SizeBound) -> std::io::Result<Result<Vec<u8>, TooLarge>> {
+/// Reads at most `bound` bytes of `path`. A file over its bound is the I/O error of kind
+/// [`std::io::ErrorKind::FileTooLarge`] holding a [`TooLarge`], so every reader keeps its one
+/// error path for "cannot read".
+pub fn read_bytes_within(path: &Path, bound: SizeBound) -> std::io::Result<Vec<u8>> {
     let file = std::fs::File::open(path)?;
-    let too_large = |size: String| TooLarge { what: bound.what, max_bytes: bound.max_bytes, size };
+    let too_large = |size: String| {
+        std::io::Error::new(
+            std::io::ErrorKind::FileTooLarge,
+            TooLarge { what: bound.what, max_bytes: bound.max_bytes, size },
+        )
+    };
     let on_disk = file.metadata()?.len();
     if on_disk > bound.max_bytes {
-        return Ok(Err(too_large(format!("{on_disk} bytes"))));
+        return Err(too_large(format!("{on_disk} bytes")));
     }
     let mut bytes = Vec::with_capacity(usize::try_from(on_disk).unwrap_or(0));
     file.take(bound.max_bytes.saturating_add(1)).read_to_end(&mut bytes)?;
     if bytes.len() as u64 > bound.max_bytes {
-        return Ok(Err(too_large(format!("more than {} bytes", bound.max_bytes))));
+        return Err(too_large(format!("more than {} bytes", bound.max_bytes)));
     }
-    Ok(Ok(bytes))
+    Ok(bytes)
 }
 
-/// Reads at most `bound` bytes of `path` as UTF-8 text.
-pub fn read_text_within(path: &Path, bound: SizeBound) -> std::io::Result<Result<String, TooLarge>> {
-    Ok(match read_bytes_within(path, bound)? {
-        Ok(bytes) => Ok(String::from_utf8(bytes)
-            .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e.utf8_error()))?),
-        Err(e) => Err(e),
-    })
-}
-
-/// [`read_text_within`] for readers whose errors carry a message: the I/O error's or the bound's.
-pub fn read_text_message(path: &Path, bound: SizeBound) -> Result<String, String> {
-    match read_text_within(path, bound) {
-        Ok(Ok(text)) => Ok(text),
-        Ok(Err(too_large)) => Err(too_large.to_string()),
-        Err(e) => Err(e.to_string()),
-    }
-}
-
-/// [`read_bytes_within`] for readers whose errors carry a message.
-pub fn read_bytes_message(path: &Path, bound: SizeBound) -> Result<Vec<u8>, String> {
-    match read_bytes_within(path, bound) {
-        Ok(Ok(bytes)) => Ok(bytes),
-        Ok(Err(too_large)) => Err(too_large.to_string()),
-        Err(e) => Err(e.to_string()),
-    }
+/// Reads at most `bound` bytes of `path` as UTF-8 text (see [`read_bytes_within`]).
+pub fn read_text_within(path: &Path, bound: SizeBound) -> std::io::Result<String> {
+    String::from_utf8(read_bytes_within(path, bound)?)
+        .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e.utf8_error()))
 }
 
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
+
+    fn too_large(e: &std::io::Error) -> &TooLarge {
+        e.get_ref().and_then(|inner| inner.downcast_ref::<TooLarge>()).unwrap()
+    }
 
     #[test]
     fn every_bound_is_at_most_the_largest() {
@@ -132,24 +122,25 @@ mod tests {
         let path = dir.path().join("big.toml");
         // Sparse: a terabyte on paper, nothing on disk; reading it would never end.
         std::fs::File::create(&path).unwrap().set_len(1 << 40).unwrap();
-        let e = read_text_within(&path, CONFIG).unwrap().unwrap_err();
-        assert_eq!(e.size, format!("{} bytes", 1u64 << 40));
+        let e = read_text_within(&path, CONFIG).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::FileTooLarge);
+        assert_eq!(too_large(&e).size, format!("{} bytes", 1u64 << 40));
         assert!(e.to_string().contains("4194304 bytes allowed for a TOML file"), "{e}");
         let small = dir.path().join("small.toml");
         std::fs::write(&small, "a = 1\n").unwrap();
-        assert_eq!(read_text_within(&small, CONFIG).unwrap().unwrap(), "a = 1\n");
+        assert_eq!(read_text_within(&small, CONFIG).unwrap(), "a = 1\n");
         let exact = dir.path().join("exact");
         std::fs::write(&exact, vec![b'x'; 1 << 20]).unwrap();
-        assert!(read_text_within(&exact, SEMANTICS).unwrap().is_ok(), "the bound itself is allowed");
+        assert!(read_text_within(&exact, SEMANTICS).is_ok(), "the bound itself is allowed");
         std::fs::write(&exact, vec![b'x'; (1 << 20) + 1]).unwrap();
-        assert!(read_text_within(&exact, SEMANTICS).unwrap().is_err());
+        assert!(read_text_within(&exact, SEMANTICS).is_err());
     }
 
     #[cfg(unix)]
     #[test]
     fn a_pipe_is_read_only_up_to_its_bound() {
         // /dev/zero says its size is 0 and never ends: reading stops one byte past the bound.
-        let e = read_bytes_within(Path::new("/dev/zero"), SEMANTICS).unwrap().unwrap_err();
-        assert_eq!(e.size, "more than 1048576 bytes");
+        let e = read_bytes_within(Path::new("/dev/zero"), SEMANTICS).unwrap_err();
+        assert_eq!(too_large(&e).size, "more than 1048576 bytes");
     }
 }

@@ -118,14 +118,6 @@ pub enum InputError {
         /// Why.
         source: std::io::Error,
     },
-    /// The file is larger than its kind allows; it was not parsed.
-    #[error("{path}: {source}")]
-    TooLarge {
-        /// The file.
-        path: PathBuf,
-        /// Its size and the bound.
-        source: bounds::TooLarge,
-    },
     /// A TOML file did not parse or validate.
     #[error(transparent)]
     Config(#[from] ConfigError),
@@ -149,11 +141,7 @@ pub fn parse_toml<T: DeserializeOwned + Validate>(text: &str, origin: &str) -> R
 
 /// Reads the text of `path`, refused unread when it is larger than `bound` allows.
 pub fn read_text_within(path: &Path, bound: bounds::SizeBound) -> Result<String, InputError> {
-    match bounds::read_text_within(path, bound) {
-        Ok(Ok(text)) => Ok(text),
-        Ok(Err(source)) => Err(InputError::TooLarge { path: path.to_owned(), source }),
-        Err(source) => Err(InputError::Read { path: path.to_owned(), source }),
-    }
+    bounds::read_text_within(path, bound).map_err(|source| InputError::Read { path: path.to_owned(), source })
 }
 
 /// Reads the text of a JSON document at `path` of any kind this crate reads (at most

@@ -11,14 +11,6 @@ pub enum MapError {
         /// Why.
         source: std::io::Error,
     },
-    /// The file is larger than a map may be; it was not read.
-    #[error("{path}: {source}")]
-    TooLarge {
-        /// The file.
-        path: String,
-        /// Its size and the bound.
-        source: v2t_files::bounds::TooLarge,
-    },
     /// Not well-formed XML, or not OpenDRIVE.
     #[error("not OpenDRIVE XML: {0}")]
     Xml(String),

@@ -35,11 +35,8 @@ pub fn inspect(path: &Path, annotations: Option<&Path>) -> Result<Inspection, Ma
     let notes_path = annotations.map(Path::to_path_buf).or_else(|| beside.exists().then_some(beside));
     let mut applied = None;
     if let Some(p) = notes_path {
-        let text = match v2t_files::bounds::read_text_within(&p, v2t_files::bounds::CONFIG) {
-            Ok(Ok(text)) => text,
-            Ok(Err(source)) => return Err(MapError::TooLarge { path: p.display().to_string(), source }),
-            Err(source) => return Err(MapError::Io { path: p.display().to_string(), source }),
-        };
+        let text = v2t_files::bounds::read_text_within(&p, v2t_files::bounds::CONFIG)
+            .map_err(|source| MapError::Io { path: p.display().to_string(), source })?;
         library.annotate(&Annotations::parse(&text, &p.display().to_string())?)?;
         applied = Some(p.display().to_string());
     }

@@ -128,19 +128,10 @@ impl Map {
 
     /// Reads and parses an `.xodr` file; every error names the file.
     pub fn load(path: &Path) -> Result<Self, MapError> {
-        let xml = read_map_text(path)?;
+        let xml = v2t_files::bounds::read_text_within(path, v2t_files::bounds::MAP)
+            .map_err(|source| MapError::Io { path: path.display().to_string(), source })?;
         let stem = path.file_stem().map_or_else(|| "map".to_owned(), |s| s.to_string_lossy().into_owned());
         Self::parse(&xml, &stem)
             .map_err(|error| MapError::File { path: path.display().to_string(), error: Box::new(error) })
-    }
-}
-
-/// The text of the map file at `path`, refused unread when it is larger than
-/// [`v2t_files::bounds::MAP`] allows.
-pub(crate) fn read_map_text(path: &Path) -> Result<String, MapError> {
-    match v2t_files::bounds::read_text_within(path, v2t_files::bounds::MAP) {
-        Ok(Ok(text)) => Ok(text),
-        Ok(Err(source)) => Err(MapError::TooLarge { path: path.display().to_string(), source }),
-        Err(source) => Err(MapError::Io { path: path.display().to_string(), source }),
     }
 }

@@ -261,8 +261,7 @@ fn sample_messages(
 /// Reads a recording and measures it again.
 pub fn replay(path: &Path) -> Result<Replay, RecordingError> {
     let bytes = v2t_files::bounds::read_bytes_within(path, v2t_files::bounds::RECORDING)
-        .map_err(|source| RecordingError::Io { path: path.to_owned(), source })?
-        .map_err(|e| RecordingError::Mcap { path: path.to_owned(), message: e.to_string() })?;
+        .map_err(|source| RecordingError::Io { path: path.to_owned(), source })?;
     // The layout first: the reader allocates what a length prefix claims.
     layout::check(&bytes).map_err(|message| RecordingError::Mcap { path: path.to_owned(), message })?;
     let mc = |e: mcap::McapError| RecordingError::Mcap { path: path.to_owned(), message: e.to_string() };

@@ -376,8 +376,8 @@ pub fn parse(xml: &str, name: &str) -> Result<Episode, CommonRoadError> {
 
 /// Reads and parses a CommonRoad file (tracks and lanelets); `name` defaults to the file stem.
 pub fn parse_scenario_file(path: &std::path::Path) -> Result<Scenario, CommonRoadError> {
-    let text = v2t_files::bounds::read_text_message(path, v2t_files::bounds::DRIVING_DATA)
-        .map_err(|message| CommonRoadError::Io { path: path.display().to_string(), message })?;
+    let text = v2t_files::bounds::read_text_within(path, v2t_files::bounds::DRIVING_DATA)
+        .map_err(|e| CommonRoadError::Io { path: path.display().to_string(), message: e.to_string() })?;
     let stem = path.file_stem().map_or_else(|| "commonroad".to_owned(), |s| s.to_string_lossy().into_owned());
     parse_scenario(&text, &stem)
 }

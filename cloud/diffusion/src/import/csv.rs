@@ -426,8 +426,8 @@ pub fn parse(text: &str, name: &str, options: &CsvOptions) -> Result<CsvImport, 
 
 /// Reads and parses a CSV file; the episode is named after the file stem.
 pub fn parse_file(path: &std::path::Path, options: &CsvOptions) -> Result<CsvImport, CsvError> {
-    let text = v2t_files::bounds::read_text_message(path, v2t_files::bounds::DRIVING_DATA)
-        .map_err(|message| CsvError::Io { path: path.display().to_string(), message })?;
+    let text = v2t_files::bounds::read_text_within(path, v2t_files::bounds::DRIVING_DATA)
+        .map_err(|e| CsvError::Io { path: path.display().to_string(), message: e.to_string() })?;
     let stem = path.file_stem().map_or_else(|| "csv".to_owned(), |s| s.to_string_lossy().into_owned());
     parse(&text, &stem, options)
 }
