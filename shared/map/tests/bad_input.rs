@@ -173,6 +173,18 @@ proptest! {
 /// Sizes taken from the file are bounded before anything is sampled: a road of 1e9 m (a 176 GB
 /// allocation once), a coordinate of 1e308, a lane 1e5 m wide: the road is left out with a warning
 /// naming the field and the bound, the other road still loads.
+/// The good pair with `from` replaced by `to` in its second road: that road is left out, and its
+/// warning says `needle`.
+fn second_road_left_out(from: &str, to: &str, needle: &str) {
+    let mut roads = good_pair();
+    roads[1] = roads[1].replace(from, to);
+    assert_ne!(roads[1], good_pair()[1], "{from}");
+    let map = Map::parse(&doc(&roads), "t").unwrap();
+    assert_eq!(map.document.roads.len(), 1, "{to}");
+    let w = map.warnings.iter().find(|w| w.context.starts_with("road 2")).unwrap().to_string();
+    assert!(w.contains(needle), "{to}: {w}");
+}
+
 #[test]
 fn absurd_lengths_coordinates_and_widths_leave_out_their_road_with_the_bound() {
     for (from, to, needle) in [
@@ -181,13 +193,7 @@ fn absurd_lengths_coordinates_and_widths_leave_out_their_road_with_the_bound() {
         (r#"x="50" y="0""#, r#"x="50" y="1e308""#, "beyond ±1e8"),
         (r#"length="50">"#, r#"length="2e5">"#, "100000] m"),
     ] {
-        let mut roads = good_pair();
-        roads[1] = roads[1].replace(from, to);
-        assert_ne!(roads[1], good_pair()[1], "{from}");
-        let map = Map::parse(&doc(&roads), "t").unwrap();
-        assert_eq!(map.document.roads.len(), 1, "{to}");
-        let w = map.warnings.iter().find(|w| w.context.starts_with("road 2")).unwrap().to_string();
-        assert!(w.contains(needle), "{to}: {w}");
+        second_road_left_out(from, to, needle);
     }
     let mut roads = good_pair();
     roads[1] = road("2", 50.0, "", "<line/>", "1e5");
@@ -208,13 +214,7 @@ fn subnormal_and_sub_millimetre_lengths_leave_their_road_out_by_name() {
         (r#"length="50">"#, r#"length="1e-4">"#, "[0.001, 100000] m"),
         (r#"<road id="2" length="50""#, r#"<road id="2" length="1e-5""#, "within [0.001, 100000] m"),
     ] {
-        let mut roads = good_pair();
-        roads[1] = roads[1].replace(from, to);
-        assert_ne!(roads[1], good_pair()[1], "{from}");
-        let map = Map::parse(&doc(&roads), "t").unwrap();
-        assert_eq!(map.document.roads.len(), 1, "{to}");
-        let w = map.warnings.iter().find(|w| w.context.starts_with("road 2")).unwrap().to_string();
-        assert!(w.contains(needle), "{to}: {w}");
+        second_road_left_out(from, to, needle);
     }
     // A geometry of length exactly 0 stays allowed (some exporters write one), as before.
     let mut roads = good_pair();

@@ -399,15 +399,17 @@ pub struct ScenarioPaths {
 /// Every pair of vehicles apart at their starts (a BV placed on the VUT, or on another BV, is a
 /// collision at t = 0, not a test).
 fn start_apart(vut: &VutSetup, bvs: &[BvSetup]) -> Result<(), ScenarioError> {
-    let at_start = |a: &Agent| {
-        let p = a.route.point_at(0.0);
-        let state = State { px: p.x, py: p.y, theta_rad: a.route.heading_at(0.0), speed_mps: a.initial_speed_mps };
-        a.vehicle.footprint(&state)
-    };
     let agents: Vec<&Agent> = std::iter::once(&vut.agent).chain(bvs.iter().map(|b| &b.agent)).collect();
-    for (j, b) in agents.iter().enumerate().skip(1) {
-        let fb = at_start(b);
-        if let Some(a) = agents.iter().take(j).find(|a| at_start(a).overlaps(&fb)) {
+    let footprints: Vec<_> = agents
+        .iter()
+        .map(|a| {
+            let p = a.route.point_at(0.0);
+            let theta_rad = a.route.heading_at(0.0);
+            a.vehicle.footprint(&State { px: p.x, py: p.y, theta_rad, speed_mps: a.initial_speed_mps })
+        })
+        .collect();
+    for (j, (b, fb)) in agents.iter().zip(&footprints).enumerate().skip(1) {
+        if let Some((a, _)) = agents.iter().zip(&footprints).take(j).find(|(_, fa)| fa.overlaps(fb)) {
             return Err(ScenarioError::StartOverlap {
                 field: format!("bvs[{}].path", j - 1),
                 a: a.id.clone(),
