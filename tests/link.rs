@@ -105,11 +105,12 @@ fn priors_and_commands_cross_the_broker(kind: BrokerKind) {
     let arm = cloud.frame("bv1", CloudBody::Command(CloudCommand::Arm));
     counted(&cloud, arm, "wrong topic");
     refused(&cloud, good, "replay");
-    // Driven off the road over 3 s (a jump would be refused as no motion at all, before the area).
+    // Steered off the road, as motion: the states rolled out of the steered controls (a jump, or
+    // states that move unlike their speeds, would be refused as no motion at all, before the area).
     let mut off = left_turn_upload(43);
-    for (k, x) in off.prior.agents[1].states.iter_mut().enumerate().skip(50) {
-        x.px += 60.0 * ((k - 50) as f64 / 30.0).min(1.0);
-    }
+    let bv = &mut off.prior.agents[1];
+    bv.controls[60..70].iter_mut().for_each(|c| c.yaw_rate_radps -= 0.3);
+    bv.states = v2t_model::kinematics::rollout(bv.states[0], &bv.controls, off.prior.dt_s);
     let off = cloud.frame("bv1", CloudBody::Prior(off));
     refused(&cloud, off, "drivable area");
     counted(&cloud, b"hello".to_vec(), "malformed");

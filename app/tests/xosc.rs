@@ -130,11 +130,15 @@ fn read(text: &str) -> Xosc {
 
 /// Distance from `p` to the polyline `route`, m.
 /// The route with the straight lead-in the constant-speed prior puts before an agent that is due
-/// at its start anchor after the first one (`TrajectoryPrior::along_routes_at_start_speed`).
-fn with_lead_in(agent: &v2t_model::grounded::GroundedAgent) -> Vec<Point2> {
+/// at its start anchor after the first one, and the straight lead-out it drives on past the
+/// route's end (`TrajectoryPrior::along_routes_at_start_speed`).
+fn with_lead_in_and_out(agent: &v2t_model::grounded::GroundedAgent) -> Vec<Point2> {
     let back = Point2::from_heading(agent.start.heading_rad).scale(-500.0);
     let mut r = vec![agent.route[0].add(back)];
     r.extend_from_slice(&agent.route);
+    let [.., before, last] = agent.route.as_slice() else { unreachable!("a route of one point") };
+    let along = last.sub(*before);
+    r.push(last.add(along.scale(500.0 / along.norm())));
     r
 }
 
@@ -199,11 +203,11 @@ fn a_trajectory_prior_exports_its_bv_trajectories_and_the_vut_route() {
     let dir_scratch = tempdir("prior");
     let dir = dir_scratch.path();
     let (_, g) = grounded(dir, "left_turn");
-    // Two BVs (the second a copy of the first, shifted): one story and one trajectory each.
+    // Two BVs (the second a copy of the first, 8 m further): one story and one trajectory each.
     let mut prior = TrajectoryPrior::along_routes_at_start_speed(&g, 12.0).unwrap();
     let mut bv2 = prior.agents.iter().find(|a| a.role == AgentRole::Bv).unwrap().clone();
     bv2.id = "bv2".into();
-    bv2.states.iter_mut().for_each(|st| st.px += 0.5);
+    bv2.states.iter_mut().for_each(|st| st.px += 8.0);
     prior.agents.push(bv2);
     let input = dir.join("prior.json");
     std::fs::write(&input, serde_json::to_string_pretty(&prior).unwrap()).unwrap();
@@ -258,7 +262,10 @@ fn grounded_scenarios_export_constant_speed_along_their_routes() {
             let agent = g.agents.iter().find(|a| &a.id == id).unwrap();
             assert_eq!(agent.role, AgentRole::Bv);
             for v in vertices {
-                assert!(off_route(Point2 { x: v.x, y: v.y }, &with_lead_in(agent)) < 0.01, "{which} {id}: {v:?}");
+                assert!(
+                    off_route(Point2 { x: v.x, y: v.y }, &with_lead_in_and_out(agent)) < 0.01,
+                    "{which} {id}: {v:?}"
+                );
             }
             // Constant speed: the distance between vertices is the speed times the time between them.
             for w in vertices.windows(2) {
@@ -268,12 +275,12 @@ fn grounded_scenarios_export_constant_speed_along_their_routes() {
         }
         let vut = g.vut().unwrap();
         for w in &x.waypoints {
-            assert!(off_route(Point2 { x: w.x, y: w.y }, &with_lead_in(vut)) < 0.01, "{which}: {w:?}");
+            assert!(off_route(Point2 { x: w.x, y: w.y }, &with_lead_in_and_out(vut)) < 0.01, "{which}: {w:?}");
         }
         let last = x.waypoints[x.waypoints.len() - 1];
         assert!(Point2 { x: last.x, y: last.y }.dist(vut.route[vut.route.len() - 1]) < 0.01);
         let (_, start, speed) = x.init.iter().find(|(id, _, _)| id == &vut.id).unwrap();
-        assert!(off_route(Point2 { x: start.x, y: start.y }, &with_lead_in(vut)) < 0.01);
+        assert!(off_route(Point2 { x: start.x, y: start.y }, &with_lead_in_and_out(vut)) < 0.01);
         assert!((speed - vut.start.speed_mps).abs() < 1e-6);
         assert!(x.description.contains("grounded scenario") && x.description.contains(&g.fragment_id));
         map_resolves(&out, &x.map);
@@ -389,5 +396,58 @@ fn bad_input_is_an_input_error_with_a_message() {
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
         assert!(err.contains(expect), "{err}");
+    }
+}
+
+/// Motion that is not motion: a prior that reverses, one that stands while its speed says
+/// 12.5 m/s, one that drives against its heading, two agents that start on each other, and a run
+/// whose trace stands while its speed says it drives: each refused with exit 2, naming the file
+/// and the field.
+#[test]
+fn motion_that_is_not_motion_is_refused_naming_the_field() {
+    let dir_scratch = tempdir("motion");
+    let dir = dir_scratch.path();
+    let (_, g) = grounded(dir, "left_turn");
+    let prior = TrajectoryPrior::along_routes_at_start_speed(&g, 5.0).unwrap();
+    let edit = |f: &dyn Fn(&mut TrajectoryPrior)| {
+        let mut p = prior.clone();
+        f(&mut p);
+        serde_json::to_string(&p).unwrap()
+    };
+    let reversing = edit(&|p| p.agents[1].states.iter_mut().for_each(|x| x.speed_mps = -x.speed_mps));
+    let standing = edit(&|p| {
+        let x0 = p.agents[1].states[0];
+        p.agents[1].states.iter_mut().for_each(|x| *x = v2t_model::kinematics::State { speed_mps: 12.5, ..x0 });
+    });
+    let backwards = edit(&|p| p.agents[1].states.iter_mut().for_each(|x| x.theta_rad += std::f64::consts::PI));
+    let on_each_other = edit(&|p| {
+        let mut copy = p.agents[1].clone();
+        copy.id = "bv2".into();
+        p.agents.push(copy);
+    });
+    // A run of the shipped left turn, its VUT standing while its speed says it drives.
+    let run = dir.join("run.json");
+    ok(&["sim", "config/scenarios/left_turn_basic.toml", "--json", s(&run)]);
+    let mut value: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&run).unwrap()).unwrap();
+    let still = value["trace"][0]["agents"][0]["state"].clone();
+    for sample in value["trace"].as_array_mut().unwrap() {
+        sample["agents"][0]["state"] = still.clone();
+    }
+    let standing_run = serde_json::to_string(&value).unwrap();
+    for (name, text, field) in [
+        ("reversing.json", reversing, "agents[1].states[0].speed_mps"),
+        ("standing.json", standing, "agents[1].states[1]"),
+        ("backwards.json", backwards, "agents[1].states[1]"),
+        ("on_each_other.json", on_each_other, "agents[1].states[0]"),
+        ("standing_run.json", standing_run, "trace[1].agents[0].state"),
+    ] {
+        let input = dir.join(name);
+        std::fs::write(&input, text).unwrap();
+        let out = dir.join("bad.xosc");
+        let o = video2track(&["export", "xosc", s(&input), "-o", s(&out)]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{name}: {err}");
+        assert!(err.contains(name) && err.contains(&format!("`{field}`")), "{name}: {err}");
+        assert!(!out.exists(), "{name}: nothing written");
     }
 }

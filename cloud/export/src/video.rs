@@ -21,7 +21,7 @@ use std::process::{Command, Stdio};
 
 use v2t_model::geometry::Point2;
 use v2t_model::kinematics::State;
-use v2t_model::validate::plausible;
+use v2t_model::validate::Validate as _;
 use v2t_sim::files::CardError;
 use v2t_sim::runfile::RunFile;
 use v2t_sim::scenario::Scenario;
@@ -202,17 +202,7 @@ impl Scene {
     pub fn from_run_json(text: &str, path: &Path) -> Result<Self, RenderError> {
         let run: RunFile =
             serde_json::from_str(text).map_err(|error| RenderError::Parse { path: path.to_owned(), error })?;
-        let invalid = |problem: String| RenderError::Invalid { path: path.to_owned(), problem };
-        if run.trace.is_empty() {
-            return Err(invalid("the trace is empty".into()));
-        }
-        if run.agent_ids.is_empty() || run.agent_ids.len() > plausible::MAX_AGENTS {
-            return Err(invalid(format!(
-                "agent_ids names {} agents, 1 to {} are accepted",
-                run.agent_ids.len(),
-                plausible::MAX_AGENTS
-            )));
-        }
+        run.validate().map_err(|e| RenderError::Invalid { path: path.to_owned(), problem: e.to_string() })?;
         let mut vehicles: Vec<Vehicle> = run
             .agent_ids
             .iter()
@@ -227,29 +217,11 @@ impl Scene {
             })
             .collect();
         let mut times = Vec::with_capacity(run.trace.len());
-        for (k, sample) in run.trace.iter().enumerate() {
-            let t = sample.t_s;
-            if !t.is_finite() || times.last().is_some_and(|last| t <= *last) {
-                return Err(invalid(format!("trace[{k}].t_s = {t}: times must be finite and increasing")));
-            }
-            if sample.agents.len() != vehicles.len() {
-                return Err(invalid(format!(
-                    "trace[{k}] has {} agents, agent_ids names {}",
-                    sample.agents.len(),
-                    vehicles.len()
-                )));
-            }
-            for (i, (v, a)) in vehicles.iter_mut().zip(&sample.agents).enumerate() {
-                if !a.state.is_finite() {
-                    return Err(invalid(format!("trace[{k}].agents[{i}].state is not finite: {:?}", a.state)));
-                }
+        for sample in &run.trace {
+            for (v, a) in vehicles.iter_mut().zip(&sample.agents) {
                 v.poses.push(a.state);
             }
-            times.push(t);
-        }
-        for v in &vehicles {
-            let samples = times.iter().zip(&v.poses).map(|(t, p)| (*t, p.px, p.py));
-            plausible::motion(&format!("trace (vehicle `{}`)", v.id), samples).map_err(|e| invalid(e.to_string()))?;
+            times.push(sample.t_s);
         }
         Ok(Self { name: run.result.scenario, times, vehicles, lanes: Vec::new() })
     }

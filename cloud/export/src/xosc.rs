@@ -37,7 +37,7 @@ use v2t_model::geometry::Point2;
 use v2t_model::grounded::{AgentRole, GroundedScenario};
 use v2t_model::kinematics::State;
 use v2t_model::prior::TrajectoryPrior;
-use v2t_model::validate::ValidationError;
+use v2t_model::validate::{Validate as _, ValidationError};
 use v2t_model::vehicle::VehicleConfig;
 use v2t_sim::runfile::RunFile;
 
@@ -197,9 +197,7 @@ fn from_prior(p: &TrajectoryPrior, kind: SourceKind, grounded: Option<&GroundedS
 
 fn from_run(run: RunFile) -> Result<ExportScenario, XoscError> {
     let (tau_s, style) = (run.result.target.tau_s(), run.result.target.style());
-    if run.agent_ids.is_empty() {
-        return Err(invalid("agent_ids", "no agents"));
-    }
+    run.validate()?;
     if run.trace.len() < 2 {
         return Err(invalid("trace", format!("needs at least 2 samples, got {}", run.trace.len())));
     }
@@ -217,19 +215,7 @@ fn from_run(run: RunFile) -> Result<ExportScenario, XoscError> {
             route: Vec::new(),
         })
         .collect();
-    let mut last = f64::NEG_INFINITY;
-    for (k, sample) in run.trace.iter().enumerate() {
-        if !sample.t_s.is_finite() || sample.t_s <= last {
-            return Err(invalid(
-                format!("trace[{k}].t_s"),
-                format!("{}: times must be finite and increasing", sample.t_s),
-            ));
-        }
-        last = sample.t_s;
-        if sample.agents.len() != agents.len() {
-            let problem = format!("has {} agents, agent_ids names {}", sample.agents.len(), agents.len());
-            return Err(invalid(format!("trace[{k}]"), problem));
-        }
+    for sample in &run.trace {
         for (a, s) in agents.iter_mut().zip(&sample.agents) {
             a.times_s.push(sample.t_s - t0);
             a.states.push(s.state);
@@ -275,7 +261,7 @@ fn check(s: &ExportScenario) -> Result<(), XoscError> {
             return Err(invalid(format!("agents[{i}].route[{k}]"), "must be finite"));
         }
         let samples = a.times_s.iter().zip(&a.states).map(|(t, x)| (*t, x.px, x.py));
-        v2t_model::validate::plausible::motion(&format!("agents[{i}].states"), samples)?;
+        v2t_model::validate::plausible::motion(|k| format!("agents[{i}].states[{k}]"), samples)?;
         for (k, p) in a.route.iter().enumerate() {
             v2t_model::validate::plausible::coordinates(&format!("agents[{i}].route[{k}]"), p.x, p.y)?;
         }

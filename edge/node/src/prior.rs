@@ -412,11 +412,13 @@ mod tests {
         let mut u = up.clone();
         u.prior.agents[1].states[40].py = f64::NAN;
         assert!(refused(&u, &checks, 2_000).contains("invalid"));
+        // Faster than the BV drives, as motion.
         let mut u = up.clone();
-        for x in &mut u.prior.agents[1].states {
-            x.speed_mps = checks.limits.max_speed_mps + 1.0;
-        }
-        assert!(refused(&u, &checks, 2_000).contains("speed"));
+        let bv = &mut u.prior.agents[1];
+        bv.states[0].speed_mps = checks.limits.max_speed_mps + 1.0;
+        bv.states = v2t_model::kinematics::rollout(bv.states[0], &bv.controls, u.prior.dt_s);
+        let e = refused(&u, &checks, 2_000);
+        assert!(e.contains("speed") && !e.contains("invalid"), "{e}");
         let mut u = up.clone();
         u.prior.agents[1].controls[30].accel_mps2 = -(checks.limits.max_decel_mps2 + 1.0);
         assert!(refused(&u, &checks, 2_000).contains("acceleration"));
@@ -433,12 +435,17 @@ mod tests {
             x.px += 40.0;
         }
         assert!(refused(&u, &checks, 2_000).contains("from the state before it"));
-        // The same offset driven over 2 s leaves the track.
+        // Steered off the road from t = 6 s, as motion (states rolled out of the controls), so that
+        // only the area refuses it; the same rollout unsteered stays on the road.
         let mut u = up.clone();
-        for (k, x) in u.prior.agents[1].states.iter_mut().enumerate().skip(60) {
-            x.px += 40.0 * ((k - 60) as f64 / 20.0).min(1.0);
-        }
-        assert!(refused(&u, &checks, 2_000).contains("leaves the drivable area at t = 6."));
+        let bv = &mut u.prior.agents[1];
+        bv.states = v2t_model::kinematics::rollout(bv.states[0], &bv.controls, u.prior.dt_s);
+        from_upload(&u, 2_000, &checks, 5).unwrap();
+        let bv = &mut u.prior.agents[1];
+        bv.controls[60..70].iter_mut().for_each(|c| c.yaw_rate_radps -= 0.3);
+        bv.states = v2t_model::kinematics::rollout(bv.states[0], &bv.controls, u.prior.dt_s);
+        let e = refused(&u, &checks, 2_000);
+        assert!(e.contains("leaves the drivable area at t = 12.8 s"), "{e}");
         let mut u = up.clone();
         for x in &mut u.prior.agents[0].states {
             x.px += 500.0;

@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::grounded::{AgentRole, GroundedConflict, GroundedScenario};
+use crate::grounded::{AgentRole, GroundedConflict, GroundedScenario, MIN_START_SEPARATION_M};
 use crate::kinematics::{Control, State, step};
 use crate::path::ReferencePath;
 use crate::validate::plausible::{
@@ -96,12 +96,14 @@ impl TrajectoryPrior {
     }
 
     /// The predefined reference of the TroubleMaker-like baseline and the stand-in where no
-    /// diffusion prior exists: every agent of `scenario` drives its route at its start speed (the
-    /// route's end holds it), sampled at 10 Hz over `horizon_s`; controls are the yaw rates of the
-    /// path (acceleration 0), so states and controls agree to the path's discretization. The
-    /// grounded timing is kept: an agent due at its start anchor `t0` later than the earliest one
-    /// starts `v · t0` before it, on a straight lead-in along its start heading, so that every
-    /// agent keeps moving and the planned PET holds.
+    /// diffusion prior exists: every agent of `scenario` drives its route at its start speed,
+    /// sampled at 10 Hz over `horizon_s`; controls are the yaw rates of the path (acceleration 0),
+    /// so states and controls agree to the path's discretization. The grounded timing is kept: an
+    /// agent due at its start anchor `t0` later than the earliest one starts `v · t0` before it, on
+    /// a straight lead-in along its start heading, so that every agent keeps moving and the planned
+    /// PET holds. An agent that reaches its route's end before `horizon_s` drives on, straight
+    /// along the route's last heading, at its speed (a state that stood at the end while its speed
+    /// said it drives would not be motion).
     pub fn along_routes_at_start_speed(scenario: &GroundedScenario, horizon_s: f64) -> Result<Self, ValidationError> {
         let dt = 0.1;
         if !(horizon_s >= dt && horizon_s <= 600.0) {
@@ -122,9 +124,18 @@ impl TrajectoryPrior {
                     route.insert(0, first.add(back));
                 }
             }
+            let v = a.start.speed_mps;
+            if let [.., before, last] = route.as_slice() {
+                let lead_out_m = v * horizon_s + 1.0;
+                let along = last.sub(*before);
+                let norm = along.norm();
+                if norm > 0.0 {
+                    let end = last.add(along.scale(lead_out_m / norm));
+                    route.push(end);
+                }
+            }
             let path = ReferencePath::from_points(&route)
                 .map_err(|e| ValidationError::new(format!("{}.route", a.id), e.to_string()))?;
-            let v = a.start.speed_mps;
             let states: Vec<State> = (0..=n)
                 .map(|k| {
                     let s = (v * k as f64 * dt).min(path.length());
@@ -230,7 +241,7 @@ impl Validate for AgentTrajectory {
         for (i, s) in self.states.iter().enumerate() {
             let field = format!("states[{i}]");
             plausible::coordinates(&field, s.px, s.py)?;
-            in_range(&format!("{field}.speed_mps"), s.speed_mps, -MAX_SPEED_MPS, MAX_SPEED_MPS)?;
+            in_range(&format!("{field}.speed_mps"), s.speed_mps, 0.0, MAX_SPEED_MPS)?;
         }
         for (i, u) in self.controls.iter().enumerate() {
             in_range(&format!("controls[{i}].accel_mps2"), u.accel_mps2, -MAX_ACCEL_MPS2, MAX_ACCEL_MPS2)?;
@@ -284,6 +295,25 @@ impl Validate for TrajectoryPrior {
                         "lies {d:.1} m from the state before it, {:.1} m is the most a vehicle drives in dt_s = {} s",
                         MAX_SPEED_MPS * self.dt_s + plausible::STEP_SLACK_M,
                         self.dt_s
+                    ),
+                ));
+            }
+            let samples = a.states.iter().enumerate().map(|(k, x)| (k as f64 * self.dt_s, *x));
+            plausible::kinematics(|k| format!("agents[{i}].states[{k}]"), samples)?;
+            if self.agents.iter().skip(i + 1).any(|b| b.id == a.id) {
+                return Err(ValidationError::new(format!("agents[{i}].id"), format!("`{}` is used twice", a.id)));
+            }
+            let start = a.states.first().map(State::position).unwrap_or_default();
+            let near = |b: &&AgentTrajectory| {
+                b.states.first().is_some_and(|x| x.position().dist(start) < MIN_START_SEPARATION_M)
+            };
+            if let Some(b) = self.agents.iter().skip(i + 1).find(near) {
+                let apart = b.states.first().map_or(0.0, |x| x.position().dist(start));
+                return Err(ValidationError::new(
+                    format!("agents[{i}].states[0]"),
+                    format!(
+                        "`{}` starts {apart:.2} m from `{}`: two vehicles closer than {MIN_START_SEPARATION_M} m overlap",
+                        a.id, b.id
                     ),
                 ));
             }
@@ -368,6 +398,42 @@ mod tests {
         let mut many = prior();
         many.agents = vec![many.agents[0].clone(); MAX_AGENTS + 1];
         assert_eq!(many.validate().unwrap_err().field, "agents");
+    }
+
+    #[test]
+    fn motion_that_is_not_motion_is_refused() {
+        // Negative speeds: a car reversing down its route.
+        let mut back = prior();
+        let controls = vec![Control { accel_mps2: 0.0, yaw_rate_radps: 0.0 }; 40];
+        back.agents[0].states = rollout(State { px: 0.0, py: 0.0, theta_rad: 0.0, speed_mps: -3.0 }, &controls, 0.1);
+        back.agents[0].controls = controls;
+        let e = back.validate().unwrap_err();
+        assert!(e.field == "agents[0].states[0].speed_mps" && e.problem.contains("[0, 100]"), "{e}");
+        // Every state identical while the speed says 12.5 m/s.
+        let mut still = prior();
+        let x = State { px: 10.0, py: 5.0, theta_rad: 0.3, speed_mps: 12.5 };
+        still.agents[0].states.iter_mut().for_each(|s| *s = x);
+        still.agents[0].controls.iter_mut().for_each(|u| *u = Control::default());
+        let e = still.validate().unwrap_err();
+        assert!(e.field == "agents[0].states[1]" && e.problem.contains("say 1.25 to 1.25 m"), "{e}");
+        // Driving against its own heading.
+        let mut against = prior();
+        against.agents[0].states.iter_mut().for_each(|s| s.theta_rad += std::f64::consts::PI);
+        let e = against.validate().unwrap_err();
+        assert!(e.field == "agents[0].states[1]" && e.problem.contains("180° away from its heading"), "{e}");
+        // Two agents that start on each other, and one id twice.
+        let mut two = prior();
+        let mut vut = two.agents[0].clone();
+        vut.id = "vut".into();
+        vut.role = AgentRole::Vut;
+        vut.states.iter_mut().for_each(|s| s.py += 1.0);
+        two.agents.push(vut);
+        let e = two.validate().unwrap_err();
+        assert!(e.field == "agents[0].states[0]" && e.problem.contains("`bv1` starts 1.00 m from `vut`"), "{e}");
+        two.agents[1].states.iter_mut().for_each(|s| s.py += 3.0);
+        two.validate().unwrap();
+        two.agents[1].id = "bv1".into();
+        assert_eq!(two.validate().unwrap_err().field, "agents[0].id");
     }
 
     #[test]

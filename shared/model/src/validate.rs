@@ -133,20 +133,21 @@ pub mod plausible {
 
     /// One vehicle's samples `(t_s, x, y)` in time order, as a run trace or an export holds them:
     /// every coordinate within bounds, no step faster than [`MAX_SPEED_MPS`] ([`teleported`]), at
-    /// most [`MAX_SCENARIO_TIME_S`] from the first to the last. The error names `field[k]`.
+    /// most [`MAX_SCENARIO_TIME_S`] from the first to the last. The error names `field(k)`, the
+    /// field of sample `k` (`|k| format!("agents[0].states[{k}]")`).
     pub fn motion(
-        field: &str,
+        field: impl Fn(usize) -> String,
         samples: impl IntoIterator<Item = (f64, f64, f64)>,
     ) -> Result<(), super::ValidationError> {
         let mut first: Option<f64> = None;
         let mut last: Option<(f64, f64, f64)> = None;
         for (k, (t, x, y)) in samples.into_iter().enumerate() {
-            coordinates(&format!("{field}[{k}]"), x, y)?;
+            coordinates(&field(k), x, y)?;
             if let Some((t0, x0, y0)) = last {
                 let jump = (x - x0).hypot(y - y0);
                 if teleported(jump, t - t0) {
                     return Err(super::ValidationError::new(
-                        format!("{field}[{k}]"),
+                        field(k),
                         format!(
                             "lies {jump:.1} m from the sample {:.3} s before: faster than {MAX_SPEED_MPS} m/s",
                             t - t0
@@ -157,7 +158,7 @@ pub mod plausible {
             let t0 = *first.get_or_insert(t);
             if t - t0 > MAX_SCENARIO_TIME_S {
                 return Err(super::ValidationError::new(
-                    format!("{field}[{k}]"),
+                    field(k),
                     format!(
                         "lies {:.0} s after the first sample, at most {MAX_SCENARIO_TIME_S} s are accepted",
                         t - t0
@@ -174,6 +175,86 @@ pub mod plausible {
     pub fn teleported(distance_m: f64, dt_s: f64) -> bool {
         distance_m.is_nan() || distance_m > MAX_SPEED_MPS * dt_s.max(0.0) + STEP_SLACK_M
     }
+
+    /// Absolute slack of [`kinematics`] on the distance between two samples: positioning noise,
+    /// a reference point that swings with the heading, rounding, m.
+    pub const MOTION_SLACK_M: f64 = 0.25;
+    /// Relative slack of [`kinematics`] on the distance the speeds allow between two samples.
+    pub const MOTION_SLACK_FRACTION: f64 = 0.1;
+    /// Largest angle of [`kinematics`] between a vehicle's heading and the direction it moved, rad
+    /// (45°; half the heading change between the samples is added: a chord of a bend).
+    pub const HEADING_SLACK_RAD: f64 = std::f64::consts::FRAC_PI_4;
+    /// Shortest move whose direction [`kinematics`] compares with the heading, m: below it the
+    /// direction is noise.
+    pub const MIN_HEADING_STEP_M: f64 = 0.5;
+
+    /// One vehicle's states `(t_s, state)` in increasing time, as a prior or a run trace holds
+    /// them, checked for being motion at all: every speed ≥ 0 (a test vehicle does not reverse);
+    /// between two samples the vehicle moved as far as its two speeds say (between the smaller and
+    /// the larger times the interval, within [`MOTION_SLACK_FRACTION`] and [`MOTION_SLACK_M`]);
+    /// and where it moved at least [`MIN_HEADING_STEP_M`], in the direction it heads (within
+    /// [`HEADING_SLACK_RAD`]). A car standing still while its speed says 12.5 m/s, one driving
+    /// while its speed says 0, and one driving backwards along its heading all fail. The error
+    /// names `field(k)`, the field of the later sample of the step, as [`motion`]'s does.
+    pub fn kinematics(
+        field: impl Fn(usize) -> String,
+        samples: impl IntoIterator<Item = (f64, crate::kinematics::State)>,
+    ) -> Result<(), super::ValidationError> {
+        let mut last: Option<(f64, crate::kinematics::State)> = None;
+        for (k, (t, x)) in samples.into_iter().enumerate() {
+            if !(x.speed_mps >= 0.0) {
+                return Err(super::ValidationError::new(
+                    format!("{}.speed_mps", field(k)),
+                    format!("must be ≥ 0 (a test vehicle does not reverse), got {}", super::shown(x.speed_mps)),
+                ));
+            }
+            if let Some((t0, x0)) = last {
+                let dt = t - t0;
+                let moved = x.position().dist(x0.position());
+                let (slow, fast) = (x0.speed_mps.min(x.speed_mps), x0.speed_mps.max(x.speed_mps));
+                let least = slow * dt * (1.0 - MOTION_SLACK_FRACTION) - MOTION_SLACK_M;
+                let most = fast * dt * (1.0 + MOTION_SLACK_FRACTION) + MOTION_SLACK_M;
+                if !(moved >= least && moved <= most) {
+                    return Err(super::ValidationError::new(
+                        field(k),
+                        format!(
+                            "lies {moved:.2} m from the state {dt:.3} s before, while the speeds {:.2} and {:.2} m/s \
+                             say {:.2} to {:.2} m (slack {MOTION_SLACK_M} m and {:.0} %)",
+                            x0.speed_mps,
+                            x.speed_mps,
+                            slow * dt,
+                            fast * dt,
+                            MOTION_SLACK_FRACTION * 100.0
+                        ),
+                    ));
+                }
+                if moved >= MIN_HEADING_STEP_M {
+                    let turn = wrap(x.theta_rad - x0.theta_rad);
+                    let heading = x0.theta_rad + 0.5 * turn;
+                    let off = wrap((x.py - x0.py).atan2(x.px - x0.px) - heading).abs();
+                    let allowed = HEADING_SLACK_RAD + 0.5 * turn.abs();
+                    if !(off <= allowed) {
+                        return Err(super::ValidationError::new(
+                            field(k),
+                            format!(
+                                "moved {:.0}° away from its heading since the state {dt:.3} s before, at most {:.0}° \
+                                 is accepted",
+                                off.to_degrees(),
+                                allowed.to_degrees()
+                            ),
+                        ));
+                    }
+                }
+            }
+            last = Some((t, x));
+        }
+        Ok(())
+    }
+
+    /// `a` wrapped to [-π, π), rad.
+    fn wrap(a: f64) -> f64 {
+        (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
+    }
 }
 
 #[cfg(test)]
@@ -187,6 +268,36 @@ mod tests {
         assert!(non_negative("x", f64::NAN).is_err());
         assert!(in_range("x", f64::NAN, -1.0, 1.0).is_err());
         assert!(all_finite("x", &[0.0, f64::INFINITY]).is_err());
+    }
+
+    fn states(xs: &[(f64, f64, f64, f64)]) -> Vec<(f64, crate::kinematics::State)> {
+        xs.iter()
+            .enumerate()
+            .map(|(k, &(px, py, theta_rad, speed_mps))| {
+                (k as f64 * 0.1, crate::kinematics::State { px, py, theta_rad, speed_mps })
+            })
+            .collect()
+    }
+
+    #[test]
+    fn motion_that_is_not_motion_is_named() {
+        let kin = |xs: &[(f64, f64, f64, f64)]| plausible::kinematics(|k| format!("states[{k}]"), states(xs));
+        // Euler steps at 12.5 m/s east, a stop, a bend: motion.
+        assert!(kin(&[(0.0, 0.0, 0.0, 12.5), (1.25, 0.0, 0.0, 12.5), (2.5, 0.0, 0.0, 12.0)]).is_ok());
+        assert!(kin(&[(0.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), (0.01, 0.0, 0.0, 0.2)]).is_ok());
+        assert!(kin(&[(0.0, 0.0, 0.0, 10.0), (0.995, 0.1, 0.2, 10.0)]).is_ok());
+        // Standing still while the speed says 12.5 m/s.
+        let e = kin(&[(5.0, 5.0, 0.0, 12.5), (5.0, 5.0, 0.0, 12.5)]).unwrap_err();
+        assert_eq!(e.field, "states[1]");
+        assert!(e.problem.contains("1.25 to 1.25 m"), "{e}");
+        // Driving while the speed says 0.
+        assert_eq!(kin(&[(0.0, 0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0)]).unwrap_err().field, "states[1]");
+        // Against its own heading, and reversing.
+        let e = kin(&[(0.0, 0.0, 0.0, 10.0), (-1.0, 0.0, 0.0, 10.0)]).unwrap_err();
+        assert!(e.problem.contains("180°"), "{e}");
+        let e = kin(&[(0.0, 0.0, 0.0, 1.0), (0.0, 0.0, 0.0, -1.0)]).unwrap_err();
+        assert_eq!(e.field, "states[1].speed_mps");
+        assert!(kin(&[(0.0, 0.0, 0.0, f64::NAN)]).is_err());
     }
 
     #[test]

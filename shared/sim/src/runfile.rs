@@ -10,6 +10,7 @@
 //! the type does not know are ignored: a newer writer's additions do not make a file unreadable.
 
 use serde::{Deserialize, Deserializer, Serialize};
+use v2t_model::validate::{Validate, ValidationError, plausible, shown};
 
 use crate::realism::RunRealism;
 use crate::runner::{RunLayout, RunOutcome, RunResult, TraceSample};
@@ -57,6 +58,52 @@ impl RunFile {
             ecu: None,
             gate: None,
         }
+    }
+}
+
+impl Validate for RunFile {
+    /// What every reader of a run relies on: 1 to [`plausible::MAX_AGENTS`] agents, a trace of at
+    /// least one sample whose times are finite and increasing, every sample holding every agent
+    /// with a finite state, and each vehicle's motion plausible ([`plausible::motion`]) and
+    /// kinematically consistent ([`plausible::kinematics`]: speeds ≥ 0, positions that move as the
+    /// speeds say, headings along the motion). The error names `trace[k]…`.
+    fn validate(&self) -> Result<(), ValidationError> {
+        let n = self.agent_ids.len();
+        if n == 0 || n > plausible::MAX_AGENTS {
+            return Err(ValidationError::new(
+                "agent_ids",
+                format!("names {n} agents, 1 to {} are accepted", plausible::MAX_AGENTS),
+            ));
+        }
+        if self.trace.is_empty() {
+            return Err(ValidationError::new("trace", "is empty"));
+        }
+        let mut last = f64::NEG_INFINITY;
+        for (k, sample) in self.trace.iter().enumerate() {
+            if !(sample.t_s.is_finite() && sample.t_s > last) {
+                return Err(ValidationError::new(
+                    format!("trace[{k}].t_s"),
+                    format!("{}: times must be finite and increasing", shown(sample.t_s)),
+                ));
+            }
+            last = sample.t_s;
+            if sample.agents.len() != n {
+                return Err(ValidationError::new(
+                    format!("trace[{k}].agents"),
+                    format!("holds {} agents, agent_ids names {n}", sample.agents.len()),
+                ));
+            }
+            if let Some(i) = sample.agents.iter().position(|a| !a.state.is_finite()) {
+                return Err(ValidationError::new(format!("trace[{k}].agents[{i}].state"), "must be finite"));
+            }
+        }
+        for i in 0..n {
+            let states = || self.trace.iter().filter_map(move |s| s.agents.get(i).map(|a| (s.t_s, a.state)));
+            let field = |k: usize| format!("trace[{k}].agents[{i}].state");
+            plausible::motion(field, states().map(|(t, x)| (t, x.px, x.py)))?;
+            plausible::kinematics(field, states())?;
+        }
+        Ok(())
     }
 }
 
@@ -127,6 +174,7 @@ mod tests {
     use crate::scenario::Scenario;
     use crate::vut::VutModel;
     use v2t_files::parse_toml;
+    use v2t_model::kinematics::State;
 
     fn outcome() -> RunOutcome {
         let card = parse_toml(include_str!("../../../config/scenarios/left_turn_basic.toml"), "card").unwrap();
@@ -136,6 +184,54 @@ mod tests {
         let scenario = Scenario::from_card(&card, settings, vut, vec![bv]).unwrap();
         let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(ReferenceFollower::default())];
         run(&scenario, &mut bvs, VutModel::IdmNormal.driver().as_mut(), 1).unwrap()
+    }
+
+    /// Every shipped card against every builtin VUT model gives a run that is motion; a trace that
+    /// is not (reversing, standing while its speed says it drives, driving against its heading,
+    /// time running back, a vehicle missing) is refused naming the sample.
+    #[test]
+    fn a_run_is_motion_and_a_broken_trace_is_named() {
+        let settings: crate::config::SimSettings =
+            parse_toml(include_str!("../../../config/sim/default.toml"), "sim").unwrap();
+        let vut: v2t_model::vehicle::VehicleConfig =
+            parse_toml(include_str!("../../../config/vehicles/vut_sedan.toml"), "vut").unwrap();
+        let bv: v2t_model::vehicle::VehicleConfig =
+            parse_toml(include_str!("../../../config/vehicles/bv_sedan.toml"), "bv").unwrap();
+        let cards = [
+            include_str!("../../../config/scenarios/cut_in_basic.toml"),
+            include_str!("../../../config/scenarios/left_turn_basic.toml"),
+            include_str!("../../../config/scenarios/left_turn_vut.toml"),
+        ];
+        for card in cards {
+            let card = parse_toml(card, "card").unwrap();
+            let scenario = Scenario::from_card(&card, settings.clone(), vut.clone(), vec![bv.clone()]).unwrap();
+            for model in VutModel::ALL {
+                let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(ReferenceFollower::default())];
+                let run = run(&scenario, &mut bvs, model.driver().as_mut(), 3).unwrap();
+                RunFile::of(&run).validate().unwrap_or_else(|e| panic!("{} against {model:?}: {e}", scenario.name));
+            }
+        }
+        let good = RunFile::of(&outcome());
+        let broken = |edit: &dyn Fn(&mut RunFile)| {
+            let mut f = good.clone();
+            edit(&mut f);
+            f.validate().unwrap_err()
+        };
+        let e = broken(&|f| f.trace[40].agents[1].state.speed_mps = -2.0);
+        assert_eq!(e.field, "trace[40].agents[1].state.speed_mps");
+        let e = broken(&|f| {
+            let still = f.trace[10].agents[0].state;
+            f.trace.iter_mut().for_each(|s| s.agents[0].state = State { speed_mps: 12.5, ..still });
+        });
+        assert!(e.field == "trace[1].agents[0].state" && e.problem.contains("speeds 12.50 and 12.50"), "{e}");
+        let e = broken(&|f| f.trace.iter_mut().for_each(|s| s.agents[1].state.theta_rad += std::f64::consts::PI));
+        assert!(e.field.starts_with("trace[") && e.problem.contains("away from its heading"), "{e}");
+        let e = broken(&|f| f.trace[5].t_s = f.trace[4].t_s);
+        assert_eq!(e.field, "trace[5].t_s");
+        let e = broken(&|f| drop(f.trace[7].agents.pop()));
+        assert_eq!(e.field, "trace[7].agents");
+        let e = broken(&|f| f.trace[3].agents[0].state.px = f64::NAN);
+        assert_eq!(e.field, "trace[3].agents[0].state");
     }
 
     /// What a writer writes, a reader reads back as it was; a file without the parts only some

@@ -12,6 +12,7 @@ use v2t_game::regulator::RegulatorParams;
 use v2t_lab::steer::steer_case;
 use v2t_lab::sumo::{SumoDriver, SumoWorld};
 use v2t_lab::vut::Vut;
+use v2t_model::validate::Validate as _;
 use v2t_model::{Style, Target};
 use v2t_sim::bv::{BvController, ReferenceFollower};
 use v2t_sim::runner::FirstThrough;
@@ -94,6 +95,10 @@ fn turn_against(world: &SumoWorld, driver: &SumoDriver, speed_mps: f64, gap_m: f
     let out = world.run(driver, &sc, &mut bvs, 1).unwrap();
     let r = &out.result;
     assert!(r.collision.is_none() && !r.zone_overlap, "{}: BV {speed_mps} m/s {gap_m} m: {r:?}", driver.name);
+    // What SUMO drove is motion: speeds ≥ 0, positions that move as the speeds say, headings along it.
+    v2t_sim::runfile::RunFile::of(&out)
+        .validate()
+        .unwrap_or_else(|e| panic!("{}: BV {speed_mps} m/s {gap_m} m: the run is not motion: {e}", driver.name));
     let c = &r.conflicts[0];
     let entry = c.vut_passage.as_ref().map_or(f64::INFINITY, |p| p.enter_t_s);
     let slowest =
