@@ -31,7 +31,7 @@
 
 use std::fmt::Write as _;
 
-use v2t_files::{DocumentError, PriorDocument, prior_document};
+use v2t_files::{DocumentError, DocumentKeys, PriorDocument, prior_document};
 use v2t_model::Style;
 use v2t_model::geometry::Point2;
 use v2t_model::grounded::{AgentRole, GroundedScenario};
@@ -116,9 +116,6 @@ impl ExportScenario {
 /// An input that cannot be exported.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum XoscError {
-    /// Not JSON.
-    #[error("not JSON: {0}")]
-    NotJson(String),
     /// A prior or grounded scenario that does not parse or validate.
     #[error(transparent)]
     Document(#[from] DocumentError),
@@ -156,17 +153,16 @@ pub struct XoscOptions<'a> {
 /// `fragment_id` and `agents`) or a run (has `trace`). The error says what is wrong, without the
 /// file's name.
 pub fn parse_input(text: &str) -> Result<ExportScenario, XoscError> {
-    let value: serde_json::Value = serde_json::from_str(text).map_err(|e| XoscError::NotJson(e.to_string()))?;
-    let is_run = value.get("trace").is_some();
-    let scenario = match prior_document(value.clone()) {
+    let keys = DocumentKeys::of(text)?;
+    let scenario = match prior_document(text, keys) {
         Some(doc) => match doc? {
             PriorDocument::Prior(p) => from_prior(&p, SourceKind::Prior, None),
             PriorDocument::Grounded { stand_in, grounded } => {
                 from_prior(&stand_in, SourceKind::Grounded, Some(&grounded))
             }
         },
-        None if is_run => {
-            let run: RunFile = serde_json::from_value(value).map_err(|e| XoscError::NotARun(e.to_string()))?;
+        None if keys.trace => {
+            let run: RunFile = serde_json::from_str(text).map_err(|e| XoscError::NotARun(e.to_string()))?;
             from_run(run)?
         }
         None => return Err(XoscError::Unknown),

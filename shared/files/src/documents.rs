@@ -39,10 +39,51 @@ pub enum DocumentError {
     Unknown(&'static str),
 }
 
-fn typed<T: DeserializeOwned + Validate>(value: serde_json::Value, what: &'static str) -> Result<T, DocumentError> {
-    let v: T = serde_json::from_value(value).map_err(|e| DocumentError::Shape { what, message: e.to_string() })?;
+fn typed<T: DeserializeOwned + Validate>(text: &str, what: &'static str) -> Result<T, DocumentError> {
+    let v: T = serde_json::from_str(text).map_err(|e| DocumentError::Shape { what, message: e.to_string() })?;
     v.validate()?;
     Ok(v)
+}
+
+/// Which of the keys that tell the JSON documents apart a document has at its top level, read
+/// without building the document: every value is skipped ([`serde::de::IgnoredAny`]), so telling a
+/// 200 MB run from a prior costs no memory, where a `serde_json::Value` of it took 15 times the
+/// text.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct DocumentKeys {
+    /// `dt_s`: a trajectory prior.
+    pub dt_s: bool,
+    /// `agents`: a grounded scenario or a prior.
+    pub agents: bool,
+    /// `fragment_id`: a grounded scenario or a prior.
+    pub fragment_id: bool,
+    /// `trace`: a run.
+    pub trace: bool,
+}
+
+impl DocumentKeys {
+    /// The keys of `text` (none when it is JSON but not an object); the error when it is not JSON.
+    pub fn of(text: &str) -> Result<Self, DocumentError> {
+        let not_json = |e: serde_json::Error| DocumentError::NotJson(e.to_string());
+        if !text.trim_start().starts_with('{') {
+            serde_json::from_str::<serde::de::IgnoredAny>(text).map_err(not_json)?;
+            return Ok(Self::default());
+        }
+        #[derive(serde::Deserialize)]
+        struct Probe {
+            dt_s: Option<serde::de::IgnoredAny>,
+            agents: Option<serde::de::IgnoredAny>,
+            fragment_id: Option<serde::de::IgnoredAny>,
+            trace: Option<serde::de::IgnoredAny>,
+        }
+        let p: Probe = serde_json::from_str(text).map_err(not_json)?;
+        Ok(Self {
+            dt_s: p.dt_s.is_some(),
+            agents: p.agents.is_some(),
+            fragment_id: p.fragment_id.is_some(),
+            trace: p.trace.is_some(),
+        })
+    }
 }
 
 fn document<T: DeserializeOwned + Validate>(
@@ -130,13 +171,14 @@ impl PriorDocument {
     }
 }
 
-/// A parsed JSON value as a priors document: a trajectory prior (it has `dt_s`) or a grounded
-/// scenario (it has `fragment_id` and `agents`); `None` when it is neither.
-pub fn prior_document(value: serde_json::Value) -> Option<Result<PriorDocument, DocumentError>> {
-    if value.get("dt_s").is_some() {
-        Some(typed(value, "a trajectory prior").map(PriorDocument::Prior))
-    } else if value.get("agents").is_some() && value.get("fragment_id").is_some() {
-        Some(typed::<GroundedScenario>(value, "a grounded scenario").and_then(|grounded| {
+/// A JSON text with these keys ([`DocumentKeys::of`]) as a priors document: a trajectory prior (it
+/// has `dt_s`) or a grounded scenario (it has `fragment_id` and `agents`); `None` when it is
+/// neither.
+pub fn prior_document(text: &str, keys: DocumentKeys) -> Option<Result<PriorDocument, DocumentError>> {
+    if keys.dt_s {
+        Some(typed(text, "a trajectory prior").map(PriorDocument::Prior))
+    } else if keys.agents && keys.fragment_id {
+        Some(typed::<GroundedScenario>(text, "a grounded scenario").and_then(|grounded| {
             let stand_in = TrajectoryPrior::stand_in(&grounded)?;
             Ok(PriorDocument::Grounded { stand_in, grounded })
         }))
@@ -148,9 +190,8 @@ pub fn prior_document(value: serde_json::Value) -> Option<Result<PriorDocument, 
 /// Reads a file that is either a trajectory prior or a grounded scenario ([`prior_document`]).
 pub fn read_prior_or_grounded(path: &Path) -> Result<PriorDocument, InputError> {
     let bad = |source: DocumentError| InputError::Document { path: path.to_owned(), source };
-    let value: serde_json::Value =
-        serde_json::from_str(&read_text(path)?).map_err(|e| bad(DocumentError::NotJson(e.to_string())))?;
-    match prior_document(value) {
+    let text = read_text(path)?;
+    match prior_document(&text, DocumentKeys::of(&text).map_err(bad)?) {
         Some(doc) => doc.map_err(bad),
         None => Err(bad(DocumentError::Unknown(
             "a trajectory prior (`dt_s`) nor a grounded scenario (`fragment_id`, `agents`)",
@@ -165,6 +206,20 @@ mod tests {
 
     fn root() -> std::path::PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+    }
+
+    /// The keys that tell the documents apart are read without the values, nested keys are not
+    /// top-level ones, JSON that is not an object has none, and a text that is not JSON is an
+    /// error.
+    #[test]
+    fn the_keys_of_a_document_are_read_without_its_values() {
+        let keys =
+            DocumentKeys::of(r#"{"fragment_id": "x", "agents": [{"dt_s": 1, "trace": []}], "other": {"a": [1, 2]}}"#);
+        assert_eq!(keys.unwrap(), DocumentKeys { agents: true, fragment_id: true, ..DocumentKeys::default() });
+        assert_eq!(DocumentKeys::of(r#"{"trace": [], "result": null}"#).unwrap().trace, true);
+        assert_eq!(DocumentKeys::of(" [1, 2]").unwrap(), DocumentKeys::default());
+        assert!(matches!(DocumentKeys::of("[1, 2"), Err(DocumentError::NotJson(_))));
+        assert!(matches!(DocumentKeys::of(r#"{"dt_s": NaN}"#), Err(DocumentError::NotJson(_))));
     }
 
     #[test]

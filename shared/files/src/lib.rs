@@ -49,8 +49,8 @@ use serde::de::DeserializeOwned;
 use v2t_model::validate::{Validate, ValidationError};
 
 pub use documents::{
-    DocumentError, PriorDocument, human_reference_or_shipped, prior_document, read_grounded, read_human_reference,
-    read_prior, read_prior_or_grounded, read_semantics,
+    DocumentError, DocumentKeys, PriorDocument, human_reference_or_shipped, prior_document, read_grounded,
+    read_human_reference, read_prior, read_prior_or_grounded, read_semantics,
 };
 
 /// Where the shipped files live, relative to the repository root: the defaults of the commands.
