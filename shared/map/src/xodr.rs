@@ -298,6 +298,10 @@ fn line_of(node: Node<'_, '_>) -> u32 {
 pub const MAX_MAGNITUDE: f64 = 1.0e8;
 /// Longest road, and longest geometry of a road, m.
 pub const MAX_ROAD_LENGTH_M: f64 = 100_000.0;
+/// Largest gap between the end of one plan-view geometry and the start of the next, m: real maps
+/// join within a centimetre (smaller gaps than this are warned about from 1 cm); a road whose
+/// geometries lie metres or kilometres apart is broken, and its lanes would span the gap.
+pub const MAX_PLAN_VIEW_GAP_M: f64 = 1.0;
 /// Widest lane at the start of a `<width>` record, m.
 pub const MAX_LANE_WIDTH_M: f64 = 100.0;
 
@@ -519,6 +523,16 @@ fn road(node: Node<'_, '_>, warnings: &mut Vec<MapWarning>) -> Result<Road, MapE
         ));
     }
     plan_view.sort_by(|a, b| a.s.total_cmp(&b.s));
+    if let Some((gap, s)) = crate::geometry::ReferenceLine::new(&plan_view).worst_gap()
+        && !(gap <= MAX_PLAN_VIEW_GAP_M)
+    {
+        return Err(MapError::Invalid {
+            context: ctx,
+            message: format!(
+                "its plan view jumps {gap:.3} m at s = {s:.2}: geometries that do not join within {MAX_PLAN_VIEW_GAP_M} m are no road"
+            ),
+        });
+    }
     let lanes =
         child(node, "lanes").ok_or_else(|| MapError::Invalid { context: ctx.clone(), message: "no <lanes>".into() })?;
     let mut lane_offsets = Vec::new();

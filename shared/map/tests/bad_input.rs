@@ -320,6 +320,35 @@ fn a_lane_growing_past_its_bound_leaves_its_road_out() {
     let _ = TopologyLibrary::build(&map);
 }
 
+/// A road whose geometries do not join (found by the mutation harness: one geometry's `x` scaled
+/// by 10⁶ put it 38,000 km from the next, and the drivable area's grid over that lane hung the
+/// upload check) is left out, named with the jump and the bound; a centimetre's gap still loads,
+/// with a warning.
+#[test]
+fn a_road_whose_geometries_do_not_join_is_left_out() {
+    let two = |x2: &str| {
+        road("3", 200.0, "", "<line/>", "3.5").replace(
+            r#"<planView><geometry s="0" x="200" y="0" hdg="0" length="50"><line/></geometry></planView>"#,
+            &format!(
+                r#"<planView><geometry s="0" x="200" y="0" hdg="0" length="25"><line/></geometry><geometry s="25" x="{x2}" y="0" hdg="0" length="25"><line/></geometry></planView>"#
+            ),
+        )
+    };
+    let mut roads = good_pair();
+    roads.push(two("-38357989.2"));
+    let map = Map::parse(&doc(&roads), "t").unwrap();
+    let w = map.warnings.iter().find(|w| w.context == "road 3").unwrap().to_string();
+    assert!(w.contains("left out") && w.contains("jumps 38358214.200 m at s = 25.00") && w.contains("1 m"), "{w}");
+    assert!(map.graph.lanes.iter().all(|l| l.key.road != "3"));
+    let _ = v2t_map::drivable::DrivableArea::from_map(&map);
+    let mut roads = good_pair();
+    roads.push(two("225.05"));
+    let map = Map::parse(&doc(&roads), "t").unwrap();
+    let w = map.warnings.iter().find(|w| w.context == "road 3").unwrap().to_string();
+    assert!(w.contains("jumps 0.050 m") && !w.contains("left out"), "{w}");
+    assert!(map.graph.lanes.iter().any(|l| l.key.road == "3"));
+}
+
 /// A grounded scenario must lie on the map it is generated for: the first point outside the
 /// lanes' extent plus the margin is named.
 #[test]

@@ -325,8 +325,18 @@ impl Context {
         Ok(out)
     }
 
-    /// Reads `bytes` (written at `path`) as `kind`, and runs what consumes it.
+    /// Reads `bytes` (written at `path`) as `kind`, and runs what consumes it. A file kind is read
+    /// first within the size bound its reader applies ([`size_bound`]), as the tools read it: the
+    /// checks below that take the text never see more than a user's file could hand them.
     pub fn check(&self, kind: &Kind, path: &Path, bytes: &[u8]) -> Result<(), String> {
+        let within;
+        let bytes = match size_bound(kind) {
+            Some(bound) => {
+                within = v2t_files::bounds::read_bytes_within(path, bound).map_err(|e| e.to_string())?;
+                within.as_slice()
+            }
+            None => bytes,
+        };
         let text = || String::from_utf8_lossy(bytes).into_owned();
         let s = |e: &dyn std::fmt::Display| e.to_string();
         match kind.name {
@@ -447,6 +457,26 @@ impl Context {
         let _ = v2t_export::xosc::to_xosc(&scenario, &opts);
         Ok(())
     }
+}
+
+/// The size bound the reader of a file kind applies before parsing (`v2t_files::bounds`); `None`
+/// for what is not a file: a VLM's reply (bounded by the HTTP client at 32 MiB, above the largest
+/// mutant), CAN frames (fixed 13 bytes each) and link frames (the link's own 1 MiB bound, checked
+/// by the reader itself).
+pub fn size_bound(kind: &Kind) -> Option<v2t_files::bounds::SizeBound> {
+    use v2t_files::bounds;
+    Some(match kind.name {
+        "opendrive" => bounds::MAP,
+        "annotations" | "card" | "settings" | "sumo-driver" | "edge-config" => bounds::CONFIG,
+        "semantics" => bounds::SEMANTICS,
+        "human-reference" => bounds::HUMAN_REFERENCE,
+        "grounded" => bounds::GROUNDED,
+        "prior" => bounds::PRIOR,
+        "run" => bounds::RUN,
+        "campaign" => bounds::CAMPAIGN_MEMORY,
+        "mcap" => bounds::RECORDING,
+        _ => return None,
+    })
 }
 
 /// A settings file of any of the shipped kinds: each type is tried (the mutant may have become
