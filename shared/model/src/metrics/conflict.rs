@@ -64,9 +64,19 @@ impl Default for ConflictOptions {
 
 /// A piece of shared area: the clipped polygon and the segment of `b` it came from.
 struct Piece {
+    /// The segment of `a` (the VUT's path) whose corridor the piece lies in.
+    a_segment: usize,
+    /// The segment of `b` (the BV's path) whose corridor the piece lies in.
     b_segment: usize,
     polygon: Vec<Point2>,
 }
+
+/// How far beyond its corridor segment's ends a piece's vertex is projected on a path, m: the piece
+/// lies in that segment's corridor, so its foot point is on the segment or a neighbour.
+/// Projecting near the segment (not over the whole path) keeps the zone of a path that passes the
+/// same place many times (a hostile card that circles 900 times) linear, not quadratic, in its
+/// length; for a path that does not overlap itself the foot point is the same.
+const PIECE_WINDOW_M: f64 = 20.0;
 
 /// Corridor quadrilateral of `path` between arc lengths `s0 < s1` with half-width `hw`.
 fn corridor_quad(path: &ReferencePath, s0: f64, s1: f64, hw: f64) -> [Point2; 4] {
@@ -125,13 +135,13 @@ fn shared_pieces(
         }
         let qb = corridor_quad(b, s0, s1.min(b_end_s), b_hw);
         let (blo, bhi) = bounding_box(&qb);
-        for (qa, (alo, ahi)) in &a_quads {
+        for (i, (qa, (alo, ahi))) in a_quads.iter().enumerate() {
             if alo.x > bhi.x || blo.x > ahi.x || alo.y > bhi.y || blo.y > ahi.y {
                 continue;
             }
             let poly = clip_convex(qa, &qb);
             if poly.len() >= 3 && signed_area(&poly).abs() > 1e-9 {
-                pieces.push(Piece { b_segment: j, polygon: poly });
+                pieces.push(Piece { a_segment: i, b_segment: j, polygon: poly });
             }
         }
     }
@@ -162,14 +172,25 @@ fn merge_point(a: &ReferencePath, b: &ReferencePath, s_from: f64, s_to: f64, opt
     (0..=m).all(|k| joined(s_join + (end - s_join) * k as f64 / m as f64)).then_some(s_join)
 }
 
-/// Extent of the pieces along a path: `(min s, max s)` of their vertices.
-fn extent(path: &ReferencePath, pieces: &[Piece]) -> Option<(f64, f64)> {
+/// Where on a path to look for the foot points of a piece in the corridor of its segment `k`
+/// (vertex arc lengths `s`): `(hint, window)` for [`ReferencePath::project_near`].
+fn near_segment(s: &[f64], k: usize) -> (f64, f64) {
+    let (s0, s1) = (s.get(k).copied().unwrap_or(0.0), s.get(k + 1).copied().unwrap_or(0.0));
+    (0.5 * (s0 + s1), 0.5 * (s1 - s0).abs() + PIECE_WINDOW_M)
+}
+
+/// Extent of the pieces along a path: `(min s, max s)` of their vertices, each projected near the
+/// segment it lies in (`near` of the piece, [`near_segment`]).
+fn extent(path: &ReferencePath, pieces: &[Piece], near: impl Fn(&Piece) -> (f64, f64)) -> Option<(f64, f64)> {
     let mut lo = f64::INFINITY;
     let mut hi = f64::NEG_INFINITY;
-    for p in pieces.iter().flat_map(|p| p.polygon.iter()) {
-        let f = path.project(*p)?;
-        lo = lo.min(f.s_m);
-        hi = hi.max(f.s_m);
+    for piece in pieces {
+        let (hint, window) = near(piece);
+        for p in &piece.polygon {
+            let f = path.project_near(*p, hint, window)?;
+            lo = lo.min(f.s_m);
+            hi = hi.max(f.s_m);
+        }
     }
     (lo <= hi).then_some((lo, hi))
 }
@@ -185,15 +206,20 @@ fn merge_zone(
     b_dims: Dimensions,
     run: &[Piece],
 ) -> Option<ConflictZone> {
-    let mut best: Option<(f64, Point2)> = None;
-    for p in run.iter().flat_map(|p| p.polygon.iter()) {
-        let s_b = b.project(*p)?.s_m;
-        if best.is_none_or(|(s, _)| s_b < s) {
-            best = Some((s_b, *p));
+    let (sa, sb) = (vertex_s(a), vertex_s(b));
+    let mut best: Option<(f64, Point2, usize)> = None;
+    for piece in run {
+        let (hint, window) = near_segment(&sb, piece.b_segment);
+        for p in &piece.polygon {
+            let s_b = b.project_near(*p, hint, window)?.s_m;
+            if best.is_none_or(|(s, _, _)| s_b < s) {
+                best = Some((s_b, *p, piece.a_segment));
+            }
         }
     }
-    let (s_b, point) = best?;
-    let s_a = a.project(point)?.s_m;
+    let (s_b, point, a_segment) = best?;
+    let (hint, window) = near_segment(&sa, a_segment);
+    let s_a = a.project_near(point, hint, window)?.s_m;
     Some(ConflictZone {
         kind: ConflictKind::Merge,
         vut: OccupancyInterval { enter_s_m: s_a - 0.5 * a_dims.length_m, exit_s_m: s_a + 0.5 * a_dims.length_m },
@@ -231,7 +257,7 @@ pub fn conflict_zones(
     let (a, a_dims, b, b_dims) = (vut, vut_dims, bv, bv_dims);
     let (a_hw, b_hw) = (0.5 * a_dims.width_m, 0.5 * b_dims.width_m);
     let n_b = b.points().len().saturating_sub(1);
-    let sb = vertex_s(b);
+    let (sa, sb) = (vertex_s(a), vertex_s(b));
     let all = shared_pieces(a, a_hw, b, b_hw, 0..n_b, f64::INFINITY);
     let mut zones = Vec::new();
     for run in components(all) {
@@ -244,7 +270,9 @@ pub fn conflict_zones(
             }
             continue;
         }
-        let (Some((a_lo, a_hi)), Some((b_lo, b_hi))) = (extent(a, &run), extent(b, &run)) else {
+        let (Some((a_lo, a_hi)), Some((b_lo, b_hi))) =
+            (extent(a, &run, |p| near_segment(&sa, p.a_segment)), extent(b, &run, |p| near_segment(&sb, p.b_segment)))
+        else {
             continue;
         };
         let n_vertices = run.iter().map(|p| p.polygon.len()).sum::<usize>().max(1);
