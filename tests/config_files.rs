@@ -155,11 +155,13 @@ fn every_configuration_file_loads_and_validates() {
                 let readme = std::fs::read_to_string(path.with_file_name("README.md")).unwrap();
                 assert!(readme.contains(&format!("`{name}.toml`")), "{rel}: its README does not list it");
             }
-            // SUMO's drivers of the VUT: each validates, and the README's table lists it.
+            // SUMO's drivers of the VUT (the held-out ones in `heldout/`): each validates, and the
+            // README's table lists it by its path below `config/vut/sumo/`.
             "vut" if rel.ends_with(".toml") => {
                 let driver = v2t_lab::sumo::SumoDriver::load(path).unwrap_or_else(|e| panic!("{e}"));
-                let readme = std::fs::read_to_string(path.with_file_name("README.md")).unwrap();
-                let file = path.file_name().unwrap().to_string_lossy();
+                let dir = path.ancestors().find(|a| a.ends_with("vut/sumo")).unwrap();
+                let readme = std::fs::read_to_string(dir.join("README.md")).unwrap();
+                let file = path.strip_prefix(dir).unwrap().to_string_lossy();
                 assert!(readme.contains(&format!("`{file}`")), "{rel}: config/vut/sumo/README.md does not list it");
                 assert!(driver.name.starts_with("sumo-"), "{rel}");
             }

@@ -609,6 +609,15 @@ mod tests {
         let drivers = SumoDriver::load_dir(&root.join("config/vut/sumo")).unwrap();
         let names: Vec<&str> = drivers.iter().map(|d| d.name.as_str()).collect();
         assert_eq!(names, ["sumo-eidm", "sumo-idm", "sumo-impatient", "sumo-krauss"]);
+        // The held-out drivers are apart: not in the default sweep, each of a family the shipped ones
+        // are not, none sharing a shipped driver's name.
+        let heldout = SumoDriver::load_dir(&root.join("config/vut/sumo/heldout")).unwrap();
+        let held: Vec<&str> = heldout.iter().map(|d| d.name.as_str()).collect();
+        assert_eq!(held, ["sumo-acc", "sumo-kraussps-bold", "sumo-w99", "sumo-wiedemann"]);
+        let family = |d: &SumoDriver| format!("{:?}", d.vtype.get("carFollowModel"));
+        for d in &heldout {
+            assert!(drivers.iter().all(|s| family(s) != family(d)), "{}: {}", d.name, family(d));
+        }
         let bad = |text: &str| v2t_files::parse_toml::<SumoDriver>(text, "driver.toml").unwrap_err().to_string();
         let head = "name = \"sumo-x\"\ndescription = \"x\"\n[vtype]\n";
         assert!(bad(&format!("{head}length = 4.0\n")).contains("vtype.length"));
