@@ -524,7 +524,7 @@ fn road(node: Node<'_, '_>, warnings: &mut Vec<MapWarning>) -> Result<Road, MapE
     }
     plan_view.sort_by(|a, b| a.s.total_cmp(&b.s));
     if let Some((gap, s)) = crate::geometry::ReferenceLine::new(&plan_view).worst_gap()
-        && !(gap <= MAX_PLAN_VIEW_GAP_M)
+        && (gap.is_nan() || gap > MAX_PLAN_VIEW_GAP_M)
     {
         return Err(MapError::Invalid {
             context: ctx,

@@ -202,7 +202,7 @@ pub mod plausible {
     ) -> Result<(), super::ValidationError> {
         let mut last: Option<(f64, crate::kinematics::State)> = None;
         for (k, (t, x)) in samples.into_iter().enumerate() {
-            if !(x.speed_mps >= 0.0) {
+            if x.speed_mps.is_nan() || x.speed_mps < 0.0 {
                 return Err(super::ValidationError::new(
                     format!("{}.speed_mps", field(k)),
                     format!("must be ≥ 0 (a test vehicle does not reverse), got {}", super::shown(x.speed_mps)),
@@ -233,7 +233,7 @@ pub mod plausible {
                     let heading = x0.theta_rad + 0.5 * turn;
                     let off = wrap((x.py - x0.py).atan2(x.px - x0.px) - heading).abs();
                     let allowed = HEADING_SLACK_RAD + 0.5 * turn.abs();
-                    if !(off <= allowed) {
+                    if off.is_nan() || off > allowed {
                         return Err(super::ValidationError::new(
                             field(k),
                             format!(
