@@ -56,6 +56,21 @@ fn recorded_runs_replay_to_the_same_metrics_and_altered_ones_do_not() {
     let o = video2track(&["replay", shifted.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stdout));
 
+    // A recorded truth that is not motion (the VUT standing while its speed says it drives) is
+    // refused, exit 2, naming the message and the vehicle, as a run file's trace would be.
+    let mut still =
+        v2t_lab::sim::run_reference(&scenario, &v2t_lab::vut::Vut::Builtin(scenario.vut.default_model), 1).unwrap();
+    let first = still.truth.agents[0].states[0];
+    for x in &mut still.truth.agents[0].states {
+        *x = v2t_model::kinematics::State { speed_mps: 8.0, ..first };
+    }
+    let standing = dir.join("standing.mcap");
+    v2t_sim::recording::write(&still, &standing).unwrap();
+    let o = video2track(&["replay", standing.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("/truth #") && err.contains("(vehicle `vut`)") && err.contains("moved 0.00 m"), "{err}");
+
     // One byte of a message changed inside a chunk: the chunk's CRC no longer matches, and the
     // replay refuses the file (exit 2) naming the chunk, instead of measuring what the byte became.
     let good = dir.join("good.mcap");

@@ -436,10 +436,10 @@ fn motion_that_is_not_motion_is_refused_naming_the_field() {
     let standing_run = serde_json::to_string(&value).unwrap();
     for (name, text, field) in [
         ("reversing.json", reversing, "agents[1].states[0].speed_mps"),
-        ("standing.json", standing, "agents[1].states[1]"),
-        ("backwards.json", backwards, "agents[1].states[1]"),
+        ("standing.json", standing, "agents[1].states[10]"),
+        ("backwards.json", backwards, "agents[1].states[10]"),
         ("on_each_other.json", on_each_other, "agents[1].states[0]"),
-        ("standing_run.json", standing_run, "trace[1].agents[0].state"),
+        ("standing_run.json", standing_run, "trace[10].agents[0].state"),
     ] {
         let input = dir.join(name);
         std::fs::write(&input, text).unwrap();

@@ -415,12 +415,12 @@ mod tests {
         still.agents[0].states.iter_mut().for_each(|s| *s = x);
         still.agents[0].controls.iter_mut().for_each(|u| *u = Control::default());
         let e = still.validate().unwrap_err();
-        assert!(e.field == "agents[0].states[1]" && e.problem.contains("say 1.25 to 1.25 m"), "{e}");
+        assert!(e.field == "agents[0].states[10]" && e.problem.contains("say 12.50 to 12.50 m"), "{e}");
         // Driving against its own heading.
         let mut against = prior();
         against.agents[0].states.iter_mut().for_each(|s| s.theta_rad += std::f64::consts::PI);
         let e = against.validate().unwrap_err();
-        assert!(e.field == "agents[0].states[1]" && e.problem.contains("180° away from its heading"), "{e}");
+        assert!(e.field == "agents[0].states[10]" && e.problem.contains("away from its heading"), "{e}");
         // Two agents that start on each other, and one id twice.
         let mut two = prior();
         let mut vut = two.agents[0].clone();

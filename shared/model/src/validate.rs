@@ -176,77 +176,99 @@ pub mod plausible {
         distance_m.is_nan() || distance_m > MAX_SPEED_MPS * dt_s.max(0.0) + STEP_SLACK_M
     }
 
-    /// Absolute slack of [`kinematics`] on the distance between two samples: positioning noise,
-    /// a reference point that swings with the heading, rounding, m.
+    /// Absolute slack of [`kinematics`] on the distance moved over a window: positioning noise, a
+    /// reference point that swings with the heading, rounding, m.
     pub const MOTION_SLACK_M: f64 = 0.25;
-    /// Relative slack of [`kinematics`] on the distance the speeds allow between two samples.
+    /// Relative slack of [`kinematics`] on the distance the speeds allow over a window.
     pub const MOTION_SLACK_FRACTION: f64 = 0.1;
-    /// Largest angle of [`kinematics`] between a vehicle's heading and the direction it moved, rad
-    /// (45°; half the heading change between the samples is added: a chord of a bend).
+    /// Largest angle of [`kinematics`] between a vehicle's heading and the direction it moved over a
+    /// window, rad (45°; half the heading change within the window is added: a chord of a bend).
     pub const HEADING_SLACK_RAD: f64 = std::f64::consts::FRAC_PI_4;
     /// Shortest move whose direction [`kinematics`] compares with the heading, m: below it the
     /// direction is noise.
     pub const MIN_HEADING_STEP_M: f64 = 0.5;
+    /// The span [`kinematics`] checks at once, s: long enough that a trace sampled at 100 Hz still
+    /// shows a car standing at 8 m/s (8 m, far beyond the slack), short enough to name the place.
+    pub const MOTION_WINDOW_S: f64 = 1.0;
 
-    /// One vehicle's states `(t_s, state)` in increasing time, as a prior or a run trace holds
-    /// them, checked for being motion at all: every speed ≥ 0 (a test vehicle does not reverse);
-    /// between two samples the vehicle moved as far as its two speeds say (between the smaller and
-    /// the larger times the interval, within [`MOTION_SLACK_FRACTION`] and [`MOTION_SLACK_M`]);
-    /// and where it moved at least [`MIN_HEADING_STEP_M`], in the direction it heads (within
-    /// [`HEADING_SLACK_RAD`]). A car standing still while its speed says 12.5 m/s, one driving
-    /// while its speed says 0, and one driving backwards along its heading all fail. The error
-    /// names `field(k)`, the field of the later sample of the step, as [`motion`]'s does.
+    /// One vehicle's states `(t_s, state)` in increasing time, as a prior, a run trace or a
+    /// recording holds them, checked for being motion at all: every speed ≥ 0 (a test vehicle does
+    /// not reverse); over each window of [`MOTION_WINDOW_S`] (or one longer step) the vehicle moved
+    /// as far as its speeds say (the path it took, between the smaller and the larger speed of each
+    /// step times the step, within [`MOTION_SLACK_FRACTION`] and [`MOTION_SLACK_M`]); and where the
+    /// window's start and end lie at least [`MIN_HEADING_STEP_M`] apart, in the direction it heads
+    /// (within [`HEADING_SLACK_RAD`]). A car standing still while its speed says 12.5 m/s, one driving
+    /// while its speed says 0, and one driving backwards along its heading all fail. The error names
+    /// `field(k)`, the field of the sample that ends the window, as [`motion`]'s does.
     pub fn kinematics(
         field: impl Fn(usize) -> String,
         samples: impl IntoIterator<Item = (f64, crate::kinematics::State)>,
     ) -> Result<(), super::ValidationError> {
+        struct Window {
+            t0: f64,
+            x0: crate::kinematics::State,
+            moved: f64,
+            slow: f64,
+            fast: f64,
+            turn: f64,
+        }
         let mut last: Option<(f64, crate::kinematics::State)> = None;
-        for (k, (t, x)) in samples.into_iter().enumerate() {
+        let mut window: Option<Window> = None;
+        let mut samples = samples.into_iter().enumerate().peekable();
+        while let Some((k, (t, x))) = samples.next() {
             if x.speed_mps.is_nan() || x.speed_mps < 0.0 {
                 return Err(super::ValidationError::new(
                     format!("{}.speed_mps", field(k)),
                     format!("must be ≥ 0 (a test vehicle does not reverse), got {}", super::shown(x.speed_mps)),
                 ));
             }
-            if let Some((t0, x0)) = last {
-                let dt = t - t0;
-                let moved = x.position().dist(x0.position());
-                let (slow, fast) = (x0.speed_mps.min(x.speed_mps), x0.speed_mps.max(x.speed_mps));
-                let least = slow * dt * (1.0 - MOTION_SLACK_FRACTION) - MOTION_SLACK_M;
-                let most = fast * dt * (1.0 + MOTION_SLACK_FRACTION) + MOTION_SLACK_M;
-                if !(moved >= least && moved <= most) {
+            let Some((t_prev, x_prev)) = last.replace((t, x)) else {
+                window = Some(Window { t0: t, x0: x, moved: 0.0, slow: 0.0, fast: 0.0, turn: 0.0 });
+                continue;
+            };
+            let Some(w) = window.as_mut() else { continue };
+            let dt = t - t_prev;
+            w.moved += x.position().dist(x_prev.position());
+            w.slow += x_prev.speed_mps.min(x.speed_mps) * dt;
+            w.fast += x_prev.speed_mps.max(x.speed_mps) * dt;
+            w.turn += wrap(x.theta_rad - x_prev.theta_rad).abs();
+            if t - w.t0 < MOTION_WINDOW_S && samples.peek().is_some() {
+                continue;
+            }
+            let span = t - w.t0;
+            let least = w.slow * (1.0 - MOTION_SLACK_FRACTION) - MOTION_SLACK_M;
+            let most = w.fast * (1.0 + MOTION_SLACK_FRACTION) + MOTION_SLACK_M;
+            if !(w.moved >= least && w.moved <= most) {
+                return Err(super::ValidationError::new(
+                    field(k),
+                    format!(
+                        "moved {:.2} m in the {span:.3} s before it, while its speeds say {:.2} to {:.2} m \
+                         (slack {MOTION_SLACK_M} m and {:.0} %)",
+                        w.moved,
+                        w.slow,
+                        w.fast,
+                        MOTION_SLACK_FRACTION * 100.0
+                    ),
+                ));
+            }
+            let chord = x.position().sub(w.x0.position());
+            if chord.norm() >= MIN_HEADING_STEP_M {
+                let heading = w.x0.theta_rad + 0.5 * wrap(x.theta_rad - w.x0.theta_rad);
+                let off = wrap(chord.y.atan2(chord.x) - heading).abs();
+                let allowed = HEADING_SLACK_RAD + 0.5 * w.turn;
+                if off.is_nan() || off > allowed {
                     return Err(super::ValidationError::new(
                         field(k),
                         format!(
-                            "lies {moved:.2} m from the state {dt:.3} s before, while the speeds {:.2} and {:.2} m/s \
-                             say {:.2} to {:.2} m (slack {MOTION_SLACK_M} m and {:.0} %)",
-                            x0.speed_mps,
-                            x.speed_mps,
-                            slow * dt,
-                            fast * dt,
-                            MOTION_SLACK_FRACTION * 100.0
+                            "moved {:.0}° away from its heading in the {span:.3} s before it, at most {:.0}° is \
+                             accepted",
+                            off.to_degrees(),
+                            allowed.to_degrees()
                         ),
                     ));
                 }
-                if moved >= MIN_HEADING_STEP_M {
-                    let turn = wrap(x.theta_rad - x0.theta_rad);
-                    let heading = x0.theta_rad + 0.5 * turn;
-                    let off = wrap((x.py - x0.py).atan2(x.px - x0.px) - heading).abs();
-                    let allowed = HEADING_SLACK_RAD + 0.5 * turn.abs();
-                    if off.is_nan() || off > allowed {
-                        return Err(super::ValidationError::new(
-                            field(k),
-                            format!(
-                                "moved {:.0}° away from its heading since the state {dt:.3} s before, at most {:.0}° \
-                                 is accepted",
-                                off.to_degrees(),
-                                allowed.to_degrees()
-                            ),
-                        ));
-                    }
-                }
             }
-            last = Some((t, x));
+            window = Some(Window { t0: t, x0: x, moved: 0.0, slow: 0.0, fast: 0.0, turn: 0.0 });
         }
         Ok(())
     }
@@ -289,7 +311,7 @@ mod tests {
         // Standing still while the speed says 12.5 m/s.
         let e = kin(&[(5.0, 5.0, 0.0, 12.5), (5.0, 5.0, 0.0, 12.5)]).unwrap_err();
         assert_eq!(e.field, "states[1]");
-        assert!(e.problem.contains("1.25 to 1.25 m"), "{e}");
+        assert!(e.problem.contains("say 1.25 to 1.25 m"), "{e}");
         // Driving while the speed says 0.
         assert_eq!(kin(&[(0.0, 0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0)]).unwrap_err().field, "states[1]");
         // Against its own heading, and reversing.
@@ -298,6 +320,27 @@ mod tests {
         let e = kin(&[(0.0, 0.0, 0.0, 1.0), (0.0, 0.0, 0.0, -1.0)]).unwrap_err();
         assert_eq!(e.field, "states[1].speed_mps");
         assert!(kin(&[(0.0, 0.0, 0.0, f64::NAN)]).is_err());
+    }
+
+    /// Sampled finely (100 Hz), a car standing at 8 m/s moves less than the slack at every step;
+    /// over the window it is 8 m short, and the window's end is named.
+    #[test]
+    fn a_finely_sampled_car_standing_at_speed_is_caught_over_the_window() {
+        let still: Vec<(f64, crate::kinematics::State)> = (0..300)
+            .map(|k| (k as f64 * 0.01, crate::kinematics::State { px: 3.0, py: 4.0, theta_rad: 0.5, speed_mps: 8.0 }))
+            .collect();
+        let e = plausible::kinematics(|k| format!("trace[{k}]"), still).unwrap_err();
+        assert_eq!(e.field, "trace[100]");
+        assert!(
+            e.problem.contains("moved 0.00 m in the 1.000 s before it") && e.problem.contains("8.00 to 8.00 m"),
+            "{e}"
+        );
+        // Driving along at 8 m/s, sampled the same way: motion.
+        let driving = (0..300).map(|k| {
+            let t = k as f64 * 0.01;
+            (t, crate::kinematics::State { px: 8.0 * t, py: 0.0, theta_rad: 0.0, speed_mps: 8.0 })
+        });
+        plausible::kinematics(|k| format!("trace[{k}]"), driving).unwrap();
     }
 
     #[test]

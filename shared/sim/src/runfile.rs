@@ -223,7 +223,7 @@ mod tests {
             let still = f.trace[10].agents[0].state;
             f.trace.iter_mut().for_each(|s| s.agents[0].state = State { speed_mps: 12.5, ..still });
         });
-        assert!(e.field == "trace[1].agents[0].state" && e.problem.contains("speeds 12.50 and 12.50"), "{e}");
+        assert!(e.field == "trace[10].agents[0].state" && e.problem.contains("say 12.50 to 12.50 m"), "{e}");
         let e = broken(&|f| f.trace.iter_mut().for_each(|s| s.agents[1].state.theta_rad += std::f64::consts::PI));
         assert!(e.field.starts_with("trace[") && e.problem.contains("away from its heading"), "{e}");
         let e = broken(&|f| f.trace[5].t_s = f.trace[4].t_s);
