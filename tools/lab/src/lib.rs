@@ -43,6 +43,7 @@ pub mod demo;
 pub mod ecu;
 pub mod latency;
 pub mod methods;
+pub mod miss;
 pub mod netdelay;
 pub mod progress;
 pub mod reach;

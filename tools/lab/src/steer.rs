@@ -13,6 +13,7 @@ use v2t_sim::bv::BvController;
 use v2t_sim::scenario::Scenario;
 
 use crate::controllers::RegulatedBv;
+use crate::miss::Misses;
 use crate::reach::{Reach, reach};
 use crate::stats::{RunStats, SingleRuns, Tally};
 use crate::vut::{Vut, World};
@@ -45,6 +46,8 @@ pub struct SteerCase {
     pub error_rel: Option<f64>,
     /// Every run scored on its own against τ.
     pub single: Option<SingleRuns>,
+    /// The runs that missed τ by more than 10 % (or gave no PET), by reason ([`crate::miss`]).
+    pub misses: Misses,
     /// Whether some BV lands within ±10 % of τ in the asked order against this VUT: an open-loop
     /// profile of [`crate::reach`]'s grid did, or these regulated runs did on average (safely, in
     /// the asked order: they are a BV too). `None` when the grid was not run.
@@ -120,6 +123,7 @@ pub fn steer_case(
     seeds: std::ops::RangeInclusive<u64>,
 ) -> SteerCase {
     let mut tally = Tally::default();
+    let mut misses = Misses::default();
     let mut sc = scenario.clone();
     sc.target = target;
     for seed in seeds {
@@ -134,7 +138,10 @@ pub fn steer_case(
             continue;
         };
         match vut.run(&sc, &mut bvs, seed) {
-            Ok(out) => tally.add(&out.result),
+            Ok(out) => {
+                tally.add(&out.result);
+                misses.add(&sc, &out, target);
+            }
             Err(_) => tally.add_failed(),
         }
     }
@@ -147,6 +154,7 @@ pub fn steer_case(
         tau_s: target.tau_s(),
         error_rel: stats.error_rel(target.tau_s()),
         single: stats.single_runs(target.tau_s()),
+        misses,
         stats,
         reachable: None,
     }
@@ -285,6 +293,20 @@ pub fn steer_markdown(r: &SteerReport) -> String {
     }
     if let Some(worst) = r.per_vut.iter().map(|v| v.reachable.map_or(v.all.0, |x| x.1)).reduce(f64::max) {
         out.push_str(&format!("worst VUT's mean error (reachable cases when measured): {:.1} %\n", 100.0 * worst));
+    }
+    let missed: Vec<&SteerCase> = r.cases.iter().filter(|c| c.misses.runs > 0).collect();
+    if !missed.is_empty() {
+        out.push_str("\nWhy single runs missed τ by more than 10 % (each missed run counted once, by the first reason that holds: no PET; the VUT stood ≥ 1 s before the zone; the VUT slowed below half its start speed; the BV at its acceleration limits ≥ 1 s; else the regulator):\n\n| scenario | style | VUT | τ (s) | missed runs |\n|---|---|---|---|---|\n");
+        for c in missed {
+            out.push_str(&format!(
+                "| {} | {} | {} | {:.1} | {} |\n",
+                c.scenario,
+                c.style,
+                c.vut,
+                c.tau_s,
+                c.misses.line()
+            ));
+        }
     }
     if !r.reach.is_empty() {
         out.push_str("\nWhat open-loop BVs reached (a grid of ");
