@@ -6,14 +6,16 @@
 //! 2. **VUT waited**: the VUT stood ([`STANDING_MPS`]) for at least [`WAITED_S`] before it entered
 //!    the zone: it gave way, or waited for a gap;
 //! 3. **VUT slowed**: its lowest speed before the zone was under [`SLOWED_FRACTION`] of its speed at
-//!    the start, without standing: it braked for the BV;
+//!    the start, without standing: it braked for the BV (a VUT that slows for its own turn stays
+//!    above it);
 //! 4. **BV at its limits**: the BV's delivered acceleration was within [`AT_LIMIT_FRACTION`] of its
 //!    vehicle's largest acceleration or deceleration for at least [`LIMITED_S`] before it entered
 //!    the zone: it pressed as hard as it can and still missed;
 //! 5. **regulator**: none of these: the VUT kept going, the BV had room to act, and the regulator
 //!    still planned the wrong key time.
 //!
-//! Thresholds are round physical values chosen before any figure, not fitted to the runs.
+//! Thresholds are round physical values chosen before any figure, and checked on known answers (a VUT
+//! turning alone), not fitted to the runs they score.
 
 use serde::Serialize;
 use v2t_model::Target;
@@ -24,9 +26,12 @@ use v2t_sim::scenario::Scenario;
 pub const STANDING_MPS: f64 = 0.5;
 /// Standing this long before the zone is waiting, s.
 pub const WAITED_S: f64 = 1.0;
-/// A VUT whose lowest speed before the zone is below this share of its start speed slowed for the BV
-/// (a left turn alone takes it to about three quarters).
-pub const SLOWED_FRACTION: f64 = 0.5;
+/// A VUT whose lowest speed before the zone is below this share of its start speed slowed for the BV.
+/// Set on the known answer, not on the runs it scores: turning left alone, with the oncoming BV
+/// parked, SUMO's shipped drivers slow to 40 % (EIDM), 48 % (IDM) and 78 % (Krauss) of their start
+/// speed for the turn itself, so half (the first choice) blamed the BV for the turn; a test holds
+/// it (`tools/lab/tests/sumo.rs`).
+pub const SLOWED_FRACTION: f64 = 0.25;
 /// An acceleration within this share of the vehicle's limit is at the limit.
 pub const AT_LIMIT_FRACTION: f64 = 0.05;
 /// At its limit this long before the zone, the BV was limited, s.

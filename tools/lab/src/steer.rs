@@ -296,7 +296,7 @@ pub fn steer_markdown(r: &SteerReport) -> String {
     }
     let missed: Vec<&SteerCase> = r.cases.iter().filter(|c| c.misses.runs > 0).collect();
     if !missed.is_empty() {
-        out.push_str("\nWhy single runs missed τ by more than 10 % (each missed run counted once, by the first reason that holds: no PET; the VUT stood ≥ 1 s before the zone; the VUT slowed below half its start speed; the BV at its acceleration limits ≥ 1 s; else the regulator):\n\n| scenario | style | VUT | τ (s) | missed runs |\n|---|---|---|---|---|\n");
+        out.push_str("\nWhy single runs missed τ by more than 10 % (each missed run counted once, by the first reason that holds: no PET; the VUT stood ≥ 1 s before the zone; the VUT slowed below a quarter of its start speed; the BV at its acceleration limits ≥ 1 s; else the regulator):\n\n| scenario | style | VUT | τ (s) | missed runs |\n|---|---|---|---|---|\n");
         for c in missed {
             out.push_str(&format!(
                 "| {} | {} | {} | {:.1} | {} |\n",

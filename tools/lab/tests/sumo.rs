@@ -9,6 +9,7 @@
 use std::path::{Path, PathBuf};
 
 use v2t_game::regulator::RegulatorParams;
+use v2t_lab::miss::Miss;
 use v2t_lab::steer::steer_case;
 use v2t_lab::sumo::{SumoDriver, SumoWorld};
 use v2t_lab::vut::Vut;
@@ -69,8 +70,14 @@ fn the_regulated_bv_steers_sumos_vut_in_every_scenario() {
 
 /// What SUMO's left-turning VUT did against an oncoming BV that holds `speed_mps` and is `gap_m`
 /// before the crossing when the VUT reaches the junction (after about 8.8 s): the slowest it went
-/// before it entered the conflict zone, and who went through first.
-fn turn_against(world: &SumoWorld, driver: &SumoDriver, speed_mps: f64, gap_m: f64) -> (f64, Option<FirstThrough>) {
+/// before it entered the conflict zone, who went through first, and what a miss of a far target
+/// (τ 30 s) is put down to ([`v2t_lab::miss`]).
+fn turn_against(
+    world: &SumoWorld,
+    driver: &SumoDriver,
+    speed_mps: f64,
+    gap_m: f64,
+) -> (f64, Option<FirstThrough>, Option<Miss>) {
     // The card with its BV moved and re-timed, built as `load_scenario` builds it (the conflict
     // zone is found on the new route).
     let path = root().join("config/scenarios/left_turn_vut.toml");
@@ -103,7 +110,8 @@ fn turn_against(world: &SumoWorld, driver: &SumoDriver, speed_mps: f64, gap_m: f
     let entry = c.vut_passage.as_ref().map_or(f64::INFINITY, |p| p.enter_t_s);
     let slowest =
         out.trace.iter().filter(|s| s.t_s < entry).map(|s| s.agents[0].state.speed_mps).fold(f64::INFINITY, f64::min);
-    (slowest, c.first)
+    let why = v2t_lab::miss::classify(&sc, &out, Target::new(30.0, Style::Rush).unwrap());
+    (slowest, c.first, why)
 }
 
 /// SUMO's VUT must read the imposed BV as a driver reads a car it sees. Known answers: a parked car
@@ -117,15 +125,19 @@ fn sumos_turning_vut_reads_the_imposed_oncoming_bv_as_a_driver_would() {
     for name in ["krauss", "idm", "eidm", "impatient"] {
         let d = driver(name);
         // The turn itself takes the VUT from 8 m/s to about 6 m/s: it did not stop if it stayed above 3.
-        let (slowest, first) = turn_against(&world, &d, 0.0, 50.0);
+        let (slowest, first, _) = turn_against(&world, &d, 0.0, 50.0);
         assert!(slowest > 3.0, "{name}: the VUT slowed to {slowest:.2} m/s for a parked BV 50 m away");
         assert_eq!(first, Some(FirstThrough::Vut), "{name}: parked BV");
-        let (slowest, first) = turn_against(&world, &d, 10.0, 150.0);
+        let (slowest, first, why) = turn_against(&world, &d, 10.0, 150.0);
+        // Its slowing for the turn alone is not put down to the far BV.
+        assert_eq!(why, Some(Miss::Regulator), "{name}: BV 150 m away, slowest {slowest:.2} m/s");
         assert!(slowest > 3.0, "{name}: the VUT slowed to {slowest:.2} m/s for a BV 150 m away");
         assert_eq!(first, Some(FirstThrough::Vut), "{name}: BV 150 m away ({slowest:.2} m/s)");
-        let (slowest, first) = turn_against(&world, &d, 10.0, 15.0);
+        let (slowest, first, why) = turn_against(&world, &d, 10.0, 15.0);
         assert!(slowest < 1.0, "{name}: the VUT did not wait for a BV 15 m away (slowest {slowest:.2} m/s)");
         assert_eq!(first, Some(FirstThrough::Bv), "{name}: BV 15 m away");
+        // Waiting for the near BV is put down to the VUT.
+        assert!(matches!(why, Some(Miss::VutWaited | Miss::VutSlowed)), "{name}: BV 15 m away: {why:?}");
     }
 }
 
