@@ -105,18 +105,9 @@ fn vertex_s(path: &ReferencePath) -> Vec<f64> {
     s
 }
 
-/// Shared area between `a`'s corridor and `b`'s corridor restricted to `b`'s arc lengths in
-/// `[0, b_end_s]`, as polygon pieces tagged with `b`'s segment.
-fn shared_pieces(
-    a: &ReferencePath,
-    a_hw: f64,
-    b: &ReferencePath,
-    b_hw: f64,
-    b_segments: std::ops::Range<usize>,
-    b_end_s: f64,
-) -> Vec<Piece> {
-    let sa = vertex_s(a);
-    let sb = vertex_s(b);
+/// Shared area between `a`'s corridor and `b`'s corridor (vertex arc lengths `sa`, `sb`, half
+/// widths `a_hw`, `b_hw`), as polygon pieces tagged with the segments they lie in.
+fn shared_pieces(a: &ReferencePath, sa: &[f64], a_hw: f64, b: &ReferencePath, sb: &[f64], b_hw: f64) -> Vec<Piece> {
     let a_quads: Vec<([Point2; 4], (Point2, Point2))> = sa
         .windows(2)
         .filter_map(|w| match w {
@@ -128,12 +119,9 @@ fn shared_pieces(
         })
         .collect();
     let mut pieces = Vec::new();
-    for j in b_segments {
-        let (Some(&s0), Some(&s1)) = (sb.get(j), sb.get(j + 1)) else { continue };
-        if s0 >= b_end_s {
-            break;
-        }
-        let qb = corridor_quad(b, s0, s1.min(b_end_s), b_hw);
+    for (j, w) in sb.windows(2).enumerate() {
+        let [s0, s1] = w else { continue };
+        let qb = corridor_quad(b, *s0, *s1, b_hw);
         let (blo, bhi) = bounding_box(&qb);
         for (i, (qa, (alo, ahi))) in a_quads.iter().enumerate() {
             if alo.x > bhi.x || blo.x > ahi.x || alo.y > bhi.y || blo.y > ahi.y {
@@ -200,16 +188,13 @@ fn extent(path: &ReferencePath, pieces: &[Piece], near: impl Fn(&Piece) -> (f64,
 /// point's arc length on its own path, so PET is the time from the rear of the first vehicle
 /// passing the point to the front of the second reaching it (the usual cut-in PET).
 fn merge_zone(
-    a: &ReferencePath,
-    a_dims: Dimensions,
-    b: &ReferencePath,
-    b_dims: Dimensions,
+    (a, sa, a_dims): (&ReferencePath, &[f64], Dimensions),
+    (b, sb, b_dims): (&ReferencePath, &[f64], Dimensions),
     run: &[Piece],
 ) -> Option<ConflictZone> {
-    let (sa, sb) = (vertex_s(a), vertex_s(b));
     let mut best: Option<(f64, Point2, usize)> = None;
     for piece in run {
-        let (hint, window) = near_segment(&sb, piece.b_segment);
+        let (hint, window) = near_segment(sb, piece.b_segment);
         for p in &piece.polygon {
             let s_b = b.project_near(*p, hint, window)?.s_m;
             if best.is_none_or(|(s, _, _)| s_b < s) {
@@ -218,7 +203,7 @@ fn merge_zone(
         }
     }
     let (s_b, point, a_segment) = best?;
-    let (hint, window) = near_segment(&sa, a_segment);
+    let (hint, window) = near_segment(sa, a_segment);
     let s_a = a.project_near(point, hint, window)?.s_m;
     Some(ConflictZone {
         kind: ConflictKind::Merge,
@@ -256,16 +241,15 @@ pub fn conflict_zones(
 ) -> Vec<ConflictZone> {
     let (a, a_dims, b, b_dims) = (vut, vut_dims, bv, bv_dims);
     let (a_hw, b_hw) = (0.5 * a_dims.width_m, 0.5 * b_dims.width_m);
-    let n_b = b.points().len().saturating_sub(1);
     let (sa, sb) = (vertex_s(a), vertex_s(b));
-    let all = shared_pieces(a, a_hw, b, b_hw, 0..n_b, f64::INFINITY);
+    let all = shared_pieces(a, &sa, a_hw, b, &sb, b_hw);
     let mut zones = Vec::new();
     for run in components(all) {
         let (Some(first), Some(last)) = (run.first(), run.last()) else { continue };
         let s_from = sb.get(first.b_segment).copied().unwrap_or(0.0);
         let s_to = sb.get(last.b_segment + 1).copied().unwrap_or_else(|| b.length());
         if merge_point(a, b, s_from, s_to, options).is_some() {
-            if let Some(zone) = merge_zone(a, a_dims, b, b_dims, &run) {
+            if let Some(zone) = merge_zone((a, &sa, a_dims), (b, &sb, b_dims), &run) {
                 zones.push(zone);
             }
             continue;
