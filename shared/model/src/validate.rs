@@ -273,6 +273,32 @@ pub mod plausible {
         Ok(())
     }
 
+    /// One vehicle's recorded track `(t_s, state)`, as a run trace or a recording holds it: times
+    /// finite and increasing, every state finite, [`motion`] and [`kinematics`]. The error names
+    /// `field(k)`.
+    pub fn track<I>(field: impl Fn(usize) -> String, samples: I) -> Result<(), super::ValidationError>
+    where
+        I: IntoIterator<Item = (f64, crate::kinematics::State)>,
+        I::IntoIter: Clone,
+    {
+        let samples = samples.into_iter();
+        let mut last = f64::NEG_INFINITY;
+        for (k, (t, x)) in samples.clone().enumerate() {
+            if !(t.is_finite() && t > last) {
+                return Err(super::ValidationError::new(
+                    field(k),
+                    format!("time {} s: times must be finite and increasing", super::shown(t)),
+                ));
+            }
+            if !x.is_finite() {
+                return Err(super::ValidationError::new(field(k), "must be finite"));
+            }
+            last = t;
+        }
+        motion(&field, samples.clone().map(|(t, x)| (t, x.px, x.py)))?;
+        kinematics(&field, samples)
+    }
+
     /// `a` wrapped to [-π, π), rad.
     fn wrap(a: f64) -> f64 {
         (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI

@@ -93,15 +93,10 @@ impl Validate for RunFile {
                     format!("holds {} agents, agent_ids names {n}", sample.agents.len()),
                 ));
             }
-            if let Some(i) = sample.agents.iter().position(|a| !a.state.is_finite()) {
-                return Err(ValidationError::new(format!("trace[{k}].agents[{i}].state"), "must be finite"));
-            }
         }
         for i in 0..n {
-            let states = || self.trace.iter().filter_map(move |s| s.agents.get(i).map(|a| (s.t_s, a.state)));
-            let field = |k: usize| format!("trace[{k}].agents[{i}].state");
-            plausible::motion(field, states().map(|(t, x)| (t, x.px, x.py)))?;
-            plausible::kinematics(field, states())?;
+            let states = self.trace.iter().filter_map(move |s| s.agents.get(i).map(|a| (s.t_s, a.state)));
+            plausible::track(|k| format!("trace[{k}].agents[{i}].state"), states)?;
         }
         Ok(())
     }
