@@ -218,12 +218,18 @@ pub fn number_spans(text: &[u8]) -> Vec<(usize, usize)> {
     spans
 }
 
-fn swap_number(rng: &mut Rng, out: &mut Vec<u8>) {
+/// Replaces one number of the text with one of `numbers`; whether the text had a number.
+fn replace_number(rng: &mut Rng, out: &mut Vec<u8>, numbers: &[&str]) -> bool {
     let spans = number_spans(out);
-    let (Some(&(a, b)), Some(n)) = (rng.pick(&spans), rng.pick(EXTREME_NUMBERS)) else {
-        return special_byte(rng, out);
-    };
+    let (Some(&(a, b)), Some(n)) = (rng.pick(&spans), rng.pick(numbers)) else { return false };
     out.splice(a..b, n.bytes());
+    true
+}
+
+fn swap_number(rng: &mut Rng, out: &mut Vec<u8>) {
+    if !replace_number(rng, out, EXTREME_NUMBERS) {
+        special_byte(rng, out);
+    }
 }
 
 fn insert_number(rng: &mut Rng, out: &mut Vec<u8>) {
@@ -233,11 +239,9 @@ fn insert_number(rng: &mut Rng, out: &mut Vec<u8>) {
 }
 
 fn subnormal_number(rng: &mut Rng, out: &mut Vec<u8>) {
-    let spans = number_spans(out);
-    let (Some(&(a, b)), Some(n)) = (rng.pick(&spans), rng.pick(SUBNORMAL_NUMBERS)) else {
-        return insert_number(rng, out);
-    };
-    out.splice(a..b, n.bytes());
+    if !replace_number(rng, out, SUBNORMAL_NUMBERS) {
+        insert_number(rng, out);
+    }
 }
 
 /// Swaps two numbers of the text: fields that hold each other's values (a length where a speed

@@ -325,18 +325,15 @@ impl Context {
         Ok(out)
     }
 
-    /// Reads `bytes` (written at `path`) as `kind`, and runs what consumes it. A file kind is read
-    /// first within the size bound its reader applies ([`size_bound`]), as the tools read it: the
+    /// Reads `bytes` (written at `path`) as `kind`, and runs what consumes it. A file kind over the
+    /// size bound its reader applies ([`size_bound`]) is refused first, as the tools refuse it: the
     /// checks below that take the text never see more than a user's file could hand them.
     pub fn check(&self, kind: &Kind, path: &Path, bytes: &[u8]) -> Result<(), String> {
-        let within;
-        let bytes = match size_bound(kind) {
-            Some(bound) => {
-                within = v2t_files::bounds::read_bytes_within(path, bound).map_err(|e| e.to_string())?;
-                within.as_slice()
-            }
-            None => bytes,
-        };
+        if let Some(bound) = size_bound(kind)
+            && bytes.len() as u64 > bound.max_bytes
+        {
+            return Err(format!("{} bytes, more than the {} allowed for {}", bytes.len(), bound.max_bytes, bound.what));
+        }
         let text = || String::from_utf8_lossy(bytes).into_owned();
         let s = |e: &dyn std::fmt::Display| e.to_string();
         match kind.name {
