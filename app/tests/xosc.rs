@@ -371,15 +371,8 @@ fn bad_input_is_an_input_error_with_a_message() {
         ),
     ];
     for (name, text, expect) in cases {
-        let input = dir.join(name);
-        std::fs::write(&input, text).unwrap();
-        let out = dir.join("bad.xosc");
-        let o = video2track(&["export", "xosc", s(&input), "-o", s(&out)]);
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(2), "{name}: {err}");
-        assert!(err.contains(name) && err.contains(expect), "{name}: {err}");
-        assert!(!err.contains("panicked"), "{err}");
-        assert!(!out.exists(), "{name}: nothing written");
+        let err = refused_export(dir, name, &text);
+        assert!(err.contains(expect), "{name}: {err}");
     }
     // A missing input, a missing map and a bad vehicle file are input errors too.
     let good = dir.join("left_turn.json");
@@ -441,13 +434,21 @@ fn motion_that_is_not_motion_is_refused_naming_the_field() {
         ("on_each_other.json", on_each_other, "agents[1].states[0]"),
         ("standing_run.json", standing_run, "trace[10].agents[0].state"),
     ] {
-        let input = dir.join(name);
-        std::fs::write(&input, text).unwrap();
-        let out = dir.join("bad.xosc");
-        let o = video2track(&["export", "xosc", s(&input), "-o", s(&out)]);
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(2), "{name}: {err}");
-        assert!(err.contains(name) && err.contains(&format!("`{field}`")), "{name}: {err}");
-        assert!(!out.exists(), "{name}: nothing written");
+        let err = refused_export(dir, name, &text);
+        assert!(err.contains(&format!("`{field}`")), "{name}: {err}");
     }
+}
+
+/// `export xosc` of `text`, written to `dir/name`: exit 2, an error naming the file and no panic,
+/// nothing written; returns the error.
+fn refused_export(dir: &Path, name: &str, text: &str) -> String {
+    let input = dir.join(name);
+    std::fs::write(&input, text).unwrap();
+    let out = dir.join("bad.xosc");
+    let o = video2track(&["export", "xosc", s(&input), "-o", s(&out)]);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(2), "{name}: {err}");
+    assert!(err.contains(name) && !err.contains("panicked"), "{name}: {err}");
+    assert!(!out.exists(), "{name}: nothing written");
+    err
 }
