@@ -30,6 +30,7 @@ pub mod error;
 pub mod geometry;
 pub mod graph;
 pub mod inspect;
+pub mod junction;
 pub mod library;
 pub mod svg;
 pub mod xodr;
