@@ -71,7 +71,9 @@ proptest! {
         let st = q.solve(&input(0.0, v0, Some(t), station));
         prop_assert!(matches!(st, QpStatus::Solved | QpStatus::AlmostSolved), "{:?}", st);
         let (stat, primal, comp) = q.kkt_residuals();
-        prop_assert!(stat < 1e-4 && primal < 1e-5 && comp < 1e-4, "KKT {stat} {primal} {comp}");
+        // Primal feasibility relative to the distances in play (a missed event of 60 m leaves
+        // residuals of 1e-5 m in the rows it spans).
+        prop_assert!(stat < 1e-4 && primal < 1e-5 * (1.0 + station) && comp < 1e-4, "KKT {stat} {primal} {comp}");
         // The order constraint holds up to the reported slack.
         let s_t = {
             let k = (t / 0.1).floor() as usize;
