@@ -432,6 +432,11 @@ struct SumoVut {
     bv_half_lengths_m: Vec<f64>,
     /// The BVs' SUMO ids, in scenario order.
     bv_ids: Vec<String>,
+    /// Each BV's route end and heading there, in scenario order.
+    bv_route_ends: Vec<(f64, f64, f64)>,
+    /// Which BVs have driven past their route's end and are no longer imposed (SUMO drives them
+    /// off the end of their route, where they leave its network).
+    bv_released: Vec<bool>,
     healthy: bool,
     scenario: String,
 }
@@ -524,6 +529,16 @@ impl SumoVut {
             vut_half_length_m: half,
             bv_half_lengths_m: scenario.bvs.iter().map(|b| 0.5 * b.agent.vehicle.geometry.length_m).collect(),
             bv_ids: (1..=scenario.bvs.len()).map(|i| format!("bv{i}")).collect(),
+            bv_route_ends: scenario
+                .bvs
+                .iter()
+                .map(|b| {
+                    let route = &b.agent.route;
+                    let end = route.point_at(route.length());
+                    (end.x, end.y, route.heading_at(route.length()))
+                })
+                .collect(),
+            bv_released: vec![false; scenario.bvs.len()],
             healthy: true,
             scenario: scenario.name.clone(),
         })
@@ -537,8 +552,16 @@ impl SumoVut {
         // the VUT waits for it. Capping the BV's speed at its true speed each step makes SUMO
         // predict what a driver who sees the BV predicts: it goes on at the speed it has
         // (`tests/sumo.rs` holds the known answers: parked, far and near).
+        // A BV that has driven past its route's end (a rushing BV keeps going on its lead-out)
+        // is past every interaction and soon off SUMO's network, which ends with the map: it is
+        // no longer imposed, and SUMO drives its copy off the end of its route.
+        for ((st, end), released) in bvs.iter().zip(&self.bv_route_ends).zip(self.bv_released.iter_mut()) {
+            let (ex, ey, heading) = *end;
+            *released |= (st.px - ex) * heading.cos() + (st.py - ey) * heading.sin() > 0.0;
+        }
         let mut requests = Vec::with_capacity(2 * bvs.len());
-        for ((st, half), id) in bvs.iter().zip(&self.bv_half_lengths_m).zip(&self.bv_ids) {
+        let imposed = bvs.iter().zip(&self.bv_half_lengths_m).zip(&self.bv_ids).zip(&self.bv_released);
+        for (((st, half), id), _) in imposed.filter(|(_, released)| !**released) {
             requests.push(Request::SetMaxSpeed { vehicle: id, mps: st.speed_mps.max(MIN_BELIEVED_SPEED_MPS) });
             // keepRoute 1: onto the nearest lane of the BV's own route, so SUMO's drivers see it on
             // its route (a junction's conflicts, a lane's leader) wherever our plant has put it.

@@ -252,6 +252,11 @@ impl Sumo {
     /// Sends `requests` in one message and reads their replies into `replies` (cleared), in
     /// order: one round trip for the lot. The first refused command is the error.
     pub fn batch(&mut self, requests: &[Request<'_>], replies: &mut Vec<Reply>) -> Result<(), SumoError> {
+        // Nothing to send, nothing to wait for: SUMO answers no empty message.
+        if requests.is_empty() {
+            replies.clear();
+            return Ok(());
+        }
         wire::begin(&mut self.send);
         for req in requests {
             wire::encode(&mut self.send, req);
