@@ -256,3 +256,34 @@ fn every_shipped_card_drives_on_the_proving_grounds_lanes() {
         }
     }
 }
+
+/// Every shipped card's BV whose conflict lies in a junction of the proving ground says where its
+/// path enters that junction (`junction_entry_m`, where a BV that gives way stops before), and
+/// says it as the map does, within 5 cm; a BV whose conflict is in no junction says nothing.
+#[test]
+fn every_shipped_cards_junction_entry_is_the_maps() {
+    let root = repo_root();
+    let map = v2t_map::Map::load(&root.join("config/maps/proving_ground.xodr")).unwrap();
+    let mut declared = 0;
+    for card in v2t_files::shipped::CARDS {
+        let sc = load_scenario(&root.join(card)).unwrap();
+        for c in &sc.conflicts {
+            let bv = &sc.bvs[c.bv_index];
+            let mid = 0.5 * (c.zone.bv.enter_s_m + c.zone.bv.exit_s_m);
+            let on_map = map.junction_entry(&bv.agent.route, mid);
+            match (bv.junction_entry_m, on_map) {
+                (Some(card_m), Some(map_m)) => {
+                    assert!(
+                        (card_m - map_m).abs() <= 0.05,
+                        "{card}: {} says {card_m} m, the map {map_m:.3} m",
+                        bv.agent.id
+                    );
+                    declared += 1;
+                }
+                (None, None) => {}
+                (card_m, map_m) => panic!("{card}: {}: the card says {card_m:?}, the map {map_m:?}", bv.agent.id),
+            }
+        }
+    }
+    assert_eq!(declared, 2, "both left turns' BVs cross in junction 100");
+}

@@ -27,7 +27,7 @@ fn the_regulated_bv_lands_on_the_target_pet() {
         (&cut, Style::Rush, 4.0, VutModel::Reactive),
         (&cut, Style::Yield, 2.0, VutModel::Sampling),
         (&vut_left, Style::Rush, 4.0, VutModel::IdmNormal),
-        (&vut_left, Style::Yield, 2.0, VutModel::Reactive),
+        (&vut_left, Style::Yield, 4.0, VutModel::Reactive),
     ];
     for (scenario, style, tau, model) in cases {
         let c = steer_case(
@@ -86,4 +86,36 @@ fn a_campaign_learns_the_vuts_reaction_and_reports_a_target_out_of_its_reach() {
     assert!(runs.iter().all(|r| !r.collision && r.order_ok && !r.zone_overlap));
     assert!(memory.case(&left.name, 0, target).is_none(), "the cautious driver's memory knows nothing of this test");
     assert!(memory.check_vut("reactive", "builtin").is_err());
+}
+
+/// A BV that gives way at a junction waits where a driver who gives way waits: its front before the
+/// junction's edge on its lane (the card's `junction_entry_m`, held to the map by
+/// `tests/config_files.rs`) until the VUT is in the zone, and it stands well clear of the VUT's swept
+/// path. The left turn with the VUT turning, yield τ 4 s, against every builtin VUT model: the BV's
+/// front has not passed the junction's edge when the VUT enters its zone, and the VUT goes first.
+#[test]
+fn a_yielding_bv_waits_before_the_junction_until_the_vut_is_in_the_zone() {
+    let sc = load_scenario(&repo_root().join("config/scenarios/left_turn_vut.toml")).unwrap();
+    let settings: RegulatorParams = load_toml(&repo_root().join("config/regulator/default.toml")).unwrap();
+    let edge = sc.bvs[0].junction_entry_m.unwrap();
+    let half = 0.5 * sc.bvs[0].agent.vehicle.geometry.length_m;
+    let mut scenario = sc.clone();
+    scenario.target = v2t_model::Target::new(4.0, Style::Yield).unwrap();
+    for model in VutModel::ALL {
+        let run = v2t_lab::campaign::regulated_run(&settings, &scenario, &v2t_lab::vut::Vut::Builtin(model), 1, None)
+            .unwrap();
+        let r = &run.outcome.result;
+        let c = &r.conflicts[0];
+        let vut_in = c.vut_passage.as_ref().expect("the VUT went through").enter_t_s;
+        assert_eq!(c.first, Some(v2t_sim::runner::FirstThrough::Vut), "{model}");
+        let front_then = run
+            .outcome
+            .trace
+            .iter()
+            .filter(|t| t.t_s <= vut_in)
+            .map(|t| t.agents[1].s_m + half)
+            .fold(f64::NEG_INFINITY, f64::max);
+        assert!(front_then <= edge, "{model}: the BV's front at {front_then:.2} m, the junction's edge at {edge} m");
+        assert!(r.pet_min_s.is_some_and(|p| (p - 4.0).abs() <= 0.4), "{model}: PET {:?}", r.pet_min_s);
+    }
 }

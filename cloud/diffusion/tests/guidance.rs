@@ -429,6 +429,7 @@ fn context_from_a_grounded_scenario() {
         point: Point2::new(50.0, 0.0),
         vut_interval: OccupancyInterval { enter_s_m: 48.0, exit_s_m: 52.0 },
         bv_interval: OccupancyInterval { enter_s_m: 48.0, exit_s_m: 52.0 },
+        bv_junction_entry: None,
     };
     let scenario = GroundedScenario {
         fragment_id: "f".into(),

@@ -168,6 +168,12 @@ pub(crate) fn ground_on(
             return Err(misfit!("a route starts inside the conflict zone {} of {}", a.id, bv.id));
         }
         let t0 = bv_start_s(style(bv), tau_s, (vi, v_vut), (bi, v));
+        // Where the BV's route enters the junction its zone lies in: a BV that gives way stops
+        // before it (none for a zone outside every junction, or a route that starts inside).
+        let bv_junction_entry = map
+            .junction_entry(&route.path, 0.5 * (bi.enter_s_m + bi.exit_s_m))
+            .filter(|s| *s > 0.0)
+            .map(|s| route.path.point_at(s));
         starts.push((bv, route, t0, vi, bi));
         grounded_conflicts.push(GroundedConflict {
             bv_id: bv.id.clone(),
@@ -176,6 +182,7 @@ pub(crate) fn ground_on(
             point: a.position,
             vut_interval: vi,
             bv_interval: bi,
+            bv_junction_entry,
         });
     }
     // Shift so that nobody starts before 0.

@@ -17,5 +17,6 @@ pub fn left_turn_start(target: Target) -> RegulatorInput {
         zone_kind: ConflictKind::Crossing,
         target,
         reference_speed_mps: 10.0,
+        stop_line_s_m: None,
     }
 }

@@ -26,6 +26,7 @@
 //!     zone_kind: ConflictKind::Crossing,
 //!     target: Target::new(2.0, Style::Rush).unwrap(),
 //!     reference_speed_mps: 10.0,
+//!     stop_line_s_m: None,
 //! });
 //! assert_eq!(decision.status, RegulatorStatus::Regulating);
 //! // Out of the zone at 4 s, two seconds before the VUT comes in at 6 s.

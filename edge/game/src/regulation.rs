@@ -41,6 +41,9 @@ pub struct Context {
     pub zone_vut: OccupancyInterval,
     /// Crossing or merge.
     pub zone_kind: ConflictKind,
+    /// Where the BV stands when it gives way, from the map (see
+    /// [`RegulatorInput::stop_line_s_m`]); `None` without one.
+    pub stop_line_s_m: Option<f64>,
     /// Target PET and who passes first.
     pub target: Target,
     /// The prior's timing along the BV's path, as received (the realism term's reference).
@@ -58,6 +61,9 @@ pub struct Zone {
     pub vut: OccupancyInterval,
     /// Crossing or merge.
     pub kind: ConflictKind,
+    /// Where the BV stands when it gives way, from the map (see
+    /// [`RegulatorInput::stop_line_s_m`]); `None` without one.
+    pub stop_line_s_m: Option<f64>,
 }
 
 impl Context {
@@ -78,7 +84,17 @@ impl Context {
                 profile.push((q.s_m, q.v_mps.max(0.0)));
             }
         }
-        Self { bv_path, vut_path, zone_bv: zone.bv, zone_vut: zone.vut, zone_kind: zone.kind, target, timing, profile }
+        Self {
+            bv_path,
+            vut_path,
+            zone_bv: zone.bv,
+            zone_vut: zone.vut,
+            zone_kind: zone.kind,
+            stop_line_s_m: zone.stop_line_s_m,
+            target,
+            timing,
+            profile,
+        }
     }
 
     /// The prior's timing along the BV's path.
@@ -266,6 +282,7 @@ impl Regulation {
             zone_kind: ctx.zone_kind,
             target: ctx.target,
             reference_speed_mps: ctx.reference_speed_at(bv_s),
+            stop_line_s_m: ctx.stop_line_s_m,
         };
         let lat = CURVE_LAT_SHARE * self.lat_accel_mps2;
         let path = &ctx.bv_path;
@@ -289,6 +306,7 @@ mod tests {
             bv: OccupancyInterval { enter_s_m: 46.0, exit_s_m: 54.0 },
             vut: OccupancyInterval { enter_s_m: 56.0, exit_s_m: 64.0 },
             kind: ConflictKind::Crossing,
+            stop_line_s_m: None,
         };
         Context::new(bv_path, vut_path, zone, Target::new(2.0, Style::Rush).unwrap(), timing)
     }

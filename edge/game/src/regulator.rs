@@ -191,6 +191,26 @@ pub struct RegulatorInput {
     pub target: Target,
     /// The BV's reference speed now, m/s.
     pub reference_speed_mps: f64,
+    /// Where the BV stands when it gives way at a crossing, from the map (its centre's arc length,
+    /// [`stop_line_station`]): its front just before the junction's edge on its lane, so it waits
+    /// outside the junction as a driver who gives way does. `None` (no map) or a line nearer the
+    /// zone than [`HOLD_CLEARANCE_M`]: that clearance before the zone instead.
+    pub stop_line_s_m: Option<f64>,
+}
+
+/// The BV never stands closer to its zone than this when it gives way, m: its front stays this
+/// far from the VUT's swept path (a VUT that passes a waiting car 0.5 m away is a near miss on a
+/// track).
+pub const HOLD_CLEARANCE_M: f64 = 2.5;
+/// How far before a junction's edge on its lane the front of a BV that gives way stops, m.
+pub const STOP_LINE_MARGIN_M: f64 = 2.0;
+
+/// The arc length of the centre of a BV of `length_m` whose path enters the junction at
+/// `junction_entry_m` when it stands [`STOP_LINE_MARGIN_M`] before the junction's edge: what
+/// [`RegulatorInput::stop_line_s_m`] holds.
+#[must_use]
+pub fn stop_line_station(junction_entry_m: f64, length_m: f64) -> f64 {
+    junction_entry_m - 0.5 * length_m - STOP_LINE_MARGIN_M
 }
 
 /// Share of the BV's lateral-acceleration limit its plans may use in curves (the rest is the
@@ -352,6 +372,7 @@ fn inputs_finite(inp: &RegulatorInput) -> bool {
     ]
     .iter()
     .all(|x| x.is_finite())
+        && inp.stop_line_s_m.is_none_or(f64::is_finite)
 }
 
 const SLACK_TOL_M: f64 = 0.05;
@@ -372,8 +393,13 @@ const FIRST_KEY_GUESS_S: f64 = 5.0;
 const CREPT_IN_M: f64 = 1.0;
 /// A VUT at or below this speed stands, m/s (the same threshold as "predicted never to leave").
 const VUT_STANDING_MPS: f64 = 0.5;
-/// How far behind the zone entry the BV holds when it gives way, m.
+/// How far behind the zone entry a BV already past its hold station stops when it must give way, m.
 const HOLD_BACK_M: f64 = 0.5;
+/// A BV this far past its hold station (a stop tracked late or noisily) still holds there, m.
+const HOLD_CREEP_M: f64 = 1.0;
+/// A plan that reaches the hold station this much before the VUT is predicted in its zone passes
+/// it too early, s.
+const HOLD_TOL_S: f64 = 0.05;
 
 impl Regulator {
     /// Builds the solvers.
@@ -588,12 +614,44 @@ impl Regulator {
         self.leader_equal.solve(&qin)
     }
 
-    /// Plans the BV to stay behind the zone entry until `until_t` (relative).
-    fn hold_back(&mut self, inp: &RegulatorInput, until_t: f64) -> QpStatus {
-        let station = inp.zone_bv.enter_s_m - HOLD_BACK_M;
+    /// Where the BV stands when it gives way: at its stop line when the map gives one, never
+    /// nearer the zone than [`HOLD_CLEARANCE_M`]. A BV that can no longer stop there at the share
+    /// [`crate::qp::CAP_DECEL_SHARE`] of its deceleration stops [`HOLD_BACK_M`] before the zone.
+    fn hold_station(&self, inp: &RegulatorInput) -> f64 {
+        let enter = inp.zone_bv.enter_s_m;
+        let hold = inp.stop_line_s_m.map_or(enter - HOLD_CLEARANCE_M, |l| l.min(enter - HOLD_CLEARANCE_M));
+        let v = inp.bv.v_mps.max(0.0);
+        let stopping = v * v / (2.0 * crate::qp::CAP_DECEL_SHARE * self.params.bv.max_decel_mps2);
+        if inp.bv.s_m + stopping <= hold + HOLD_CREEP_M { hold } else { enter - HOLD_BACK_M }
+    }
+
+    /// Plans the BV to stay behind its hold station ([`Self::hold_station`]) until `until_t`
+    /// (relative), tracking `v_ref` — or, with `arrive = Some(v)`, a reference that slows from
+    /// the BV's speed now at the comfortable deceleration (`fallback_decel_mps2`) to the speed at
+    /// most `v` that then reaches the station just at `until_t`, or, when even a stop at that
+    /// deceleration would pass it, evenly to a stop there: a driver who gives way slows early and
+    /// visibly, not at the last moment.
+    fn hold_back(&mut self, inp: &RegulatorInput, until_t: f64, v_ref: f64, arrive: Option<f64>) -> QpStatus {
+        let station = self.hold_station(inp);
         let qin = self.qp_input(inp, &self.params.bv, Some((until_t, station)));
-        let v_ref = inp.reference_speed_mps.clamp(0.0, self.params.bv.max_speed_mps);
-        self.leader_upper.v_ref_mut().iter_mut().for_each(|v| *v = v_ref);
+        let (v_max, dt) = (self.params.bv.max_speed_mps, self.params.dt_s);
+        let v_ref = v_ref.clamp(0.0, v_max);
+        let (v0, gap, t) = (qin.v0_mps, (station - inp.bv.s_m).max(0.0), until_t.max(dt));
+        // Slowing at b from v0 to v_end, then keeping v_end, covers the gap in t when
+        // (v0 − v_end)² / 2b + v_end t = gap.
+        let b = self.params.fallback_decel_mps2;
+        let disc = b * b * t * t - 2.0 * b * t * v0 + 2.0 * b * gap;
+        let cruise = (disc >= 0.0).then(|| v0 - b * t + disc.sqrt()).filter(|v| (0.0..=v0).contains(v));
+        let (decel, floor) = match (arrive, cruise) {
+            (Some(v), Some(c)) => (b, c.min(v).max(0.0)),
+            _ => (if gap > 0.0 { (v0 * v0 / (2.0 * gap)).max(b) } else { self.params.bv.max_decel_mps2 }, 0.0),
+        };
+        for (k, v) in self.leader_upper.v_ref_mut().iter_mut().enumerate() {
+            *v = match arrive {
+                Some(_) => (v0 - decel * (k + 1) as f64 * dt).max(floor).clamp(0.0, v_max),
+                None => v_ref,
+            };
+        }
         self.leader_upper.solve(&qin)
     }
 
@@ -767,8 +825,17 @@ impl Regulator {
                 Style::Yield => self.wait(inp),
             };
         };
+        // Yield at a crossing, the VUT not yet in its zone: when it is predicted there (it has
+        // committed), the BV must still be before its hold station.
+        let mut commit_t: Option<f64> = None;
         if inp.target.style() == Style::Yield {
             key_t = pulled(realism, t_v + tau).max(t_v + self.params.safety_margin_s).max(0.0);
+            if inp.zone_kind == ConflictKind::Crossing
+                && inp.vut.s_m < inp.zone_vut.enter_s_m
+                && self.vut_exit_t_s.is_none()
+            {
+                commit_t = self.follower_lower.time_at_station(inp.zone_vut.enter_s_m);
+            }
         }
 
         // Rushing into a merge and already inside the zone: clear it, never slow down in it for a
@@ -780,7 +847,38 @@ impl Regulator {
         {
             key_t = key_t.min((bv_key - inp.bv.s_m) / inp.bv.v_mps.max(IN_ZONE_MIN_MPS));
         }
-        self.checked_plan(inp, bv_key, realism, key_t, t_v, free_response)
+        let d = self.checked_plan(inp, bv_key, realism, key_t, t_v, free_response);
+        match (d.status, commit_t) {
+            (RegulatorStatus::Regulating | RegulatorStatus::Degraded, Some(t_in)) => {
+                let hold = self.hold_station(inp);
+                let early = inp.bv.s_m <= hold + HOLD_CREEP_M
+                    && self.leader_equal.time_at_station(hold).is_some_and(|t| t < t_in - HOLD_TOL_S);
+                if early { self.hold_for_commit(inp, t_in, d) } else { d }
+            }
+            _ => d,
+        }
+    }
+
+    /// Yield at a crossing: the plan `planned` would pass the hold station before the VUT is in its
+    /// zone (predicted at `t_in`, s from now). A driver who gives way waits before the junction
+    /// until the other has committed to its turn: the BV holds there until then (`Waiting`, with
+    /// the key time it aims at kept for the next decision).
+    fn hold_for_commit(&mut self, inp: &RegulatorInput, t_in: f64, planned: Decision) -> Decision {
+        // It reaches the station as the VUT commits, at the average speed that then takes it to
+        // its zone at the key time it aims at.
+        let hold = self.hold_station(inp);
+        let arrive = planned
+            .key_time_s
+            .filter(|k| *k > t_in + self.params.dt_s)
+            .map_or(0.0, |k| (inp.zone_bv.enter_s_m - hold) / (k - t_in))
+            .min(inp.reference_speed_mps);
+        match self.hold_back(inp, t_in, inp.reference_speed_mps, Some(arrive)) {
+            QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
+            _ => Decision {
+                key_time_s: planned.key_time_s,
+                ..self.decision_from(&self.leader_upper, RegulatorStatus::Waiting, None, None, 0.0)
+            },
+        }
     }
 
     /// Steps 1–2: the follower's response and the leader's key time (a fixed-point step); `None`
@@ -900,7 +998,7 @@ impl Regulator {
         let until = self
             .predicted_vut_exit(inp)
             .map_or(self.params.horizon as f64 * self.params.dt_s * 2.0, |t| t + self.params.safety_margin_s);
-        match self.hold_back(inp, until) {
+        match self.hold_back(inp, until, inp.reference_speed_mps, None) {
             QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
             _ => self.decision_from(&self.leader_upper, RegulatorStatus::SafetyYield, None, None, 0.0),
         }
@@ -909,7 +1007,7 @@ impl Regulator {
     /// Yield with a VUT that does not come through: hold before the zone.
     fn wait(&mut self, inp: &RegulatorInput) -> Decision {
         let until = self.params.horizon as f64 * self.params.dt_s * 2.0;
-        match self.hold_back(inp, until) {
+        match self.hold_back(inp, until, inp.reference_speed_mps, None) {
             QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
             _ => self.decision_from(&self.leader_upper, RegulatorStatus::Waiting, None, None, 0.0),
         }

@@ -5,6 +5,7 @@
 
 use v2t_game::reference::ReferenceSample;
 use v2t_game::regulation::{Context, Zone};
+use v2t_game::regulator::stop_line_station;
 use v2t_map::drivable::DrivableArea;
 use v2t_model::TargetError;
 use v2t_model::geometry::Point2;
@@ -202,7 +203,8 @@ fn accept(up: &PriorUpload, now_ms: u64, checks: &PriorChecks, stamp_ns: u64) ->
     let bv_path = ReferencePath::through_states(&bv.states).map_err(|source| PriorError::Path { who: "BV", source })?;
     let vut_path =
         ReferencePath::through_states(&vut.states).map_err(|source| PriorError::Path { who: "VUT", source })?;
-    let hint = p.conflicts.iter().find(|c| c.bv_id == up.bv_agent).map(|c| c.point);
+    let grounded = p.conflicts.iter().find(|c| c.bv_id == up.bv_agent);
+    let hint = grounded.map(|c| c.point);
     let options = ConflictOptions::default();
     let zone = nearest_zone(conflict_zones(&vut_path, checks.vut, &bv_path, checks.bv, &options), hint)
         .ok_or_else(|| PriorError::NoConflict(up.bv_agent.clone()))?;
@@ -218,6 +220,14 @@ fn accept(up: &PriorUpload, now_ms: u64, checks: &PriorChecks, stamp_ns: u64) ->
         ..ActivePrior::default()
     };
     prior.set_target(target);
+    // The stop line of a BV that gives way: where its path enters the junction of the conflict
+    // (the grounding's point, from the map), its front just before it; none past its zone's entry.
+    let stop_line = grounded
+        .and_then(|c| c.bv_junction_entry)
+        .and_then(|q| bv_path.project(q))
+        .map(|f| stop_line_station(f.s_m, checks.bv.length_m))
+        .filter(|l| *l < zone.bv.enter_s_m);
+    prior.set_bv_stop_line(stop_line);
     path_points(&bv_path, &mut prior.bv_path)?;
     path_points(&vut_path, &mut prior.vut_path)?;
     let n = bv.states.len();
@@ -301,6 +311,7 @@ impl PriorContext {
             bv: OccupancyInterval { enter_s_m: prior.bv_zone_enter_s_m, exit_s_m: prior.bv_zone_exit_s_m },
             vut: OccupancyInterval { enter_s_m: prior.vut_zone_enter_s_m, exit_s_m: prior.vut_zone_exit_s_m },
             kind,
+            stop_line_s_m: prior.bv_stop_line(),
         };
         let timing =
             prior.bv_profile.as_slice().iter().map(|q| ReferenceSample { t_s: q.t_s, s_m: q.s_m, v_mps: q.v_mps });
@@ -391,6 +402,29 @@ mod tests {
         let bv = &up.prior.agents[1];
         let length = ReferencePath::through_states(&bv.states).unwrap().length();
         assert!((ctx.bv_path.length() - length).abs() < 0.05);
+    }
+
+    #[test]
+    fn a_bv_in_a_junction_gets_its_stop_line_from_the_grounding_and_a_cut_in_none() {
+        // The left turn crosses in junction 100: the grounding marks where the BV's route enters
+        // it, and the prior's stop line puts the BV's front 2 m before that edge.
+        let (up, checks) = upload();
+        let entry = up.prior.conflicts[0].bv_junction_entry.expect("the left turn crosses in a junction");
+        let prior = from_upload(&up, 2_000, &checks, 5).unwrap();
+        let ctx = PriorContext::new(&prior).unwrap();
+        let line = ctx.stop_line_s_m.expect("a stop line");
+        let edge_s = ctx.bv_path.project(entry).unwrap().s_m;
+        let front = line + 0.5 * checks.bv.length_m;
+        assert!(
+            (edge_s - front - v2t_game::regulator::STOP_LINE_MARGIN_M).abs() < 1e-6,
+            "front {front}, edge {edge_s}"
+        );
+        assert!(line < ctx.zone_bv.enter_s_m - 5.0, "the line is outside the junction, before the zone");
+        // A cut-in merges on a straight road: no junction, no stop line.
+        let (up, checks) = fixtures::upload("semantics_cut_in.json", 78, (0, u64::MAX));
+        assert!(up.prior.conflicts[0].bv_junction_entry.is_none());
+        let prior = from_upload(&up, 2_000, &checks, 5).unwrap();
+        assert_eq!((prior.has_bv_stop_line, prior.bv_stop_line()), (0, None));
     }
 
     #[test]

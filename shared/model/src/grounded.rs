@@ -90,6 +90,12 @@ pub struct GroundedConflict {
     pub vut_interval: OccupancyInterval,
     /// Occupancy interval along the BV's route.
     pub bv_interval: OccupancyInterval,
+    /// Where the BV's route enters the junction the zone lies in (the junction's edge on its lane,
+    /// from the map): a BV that gives way stops before it. `null` when the zone is in no junction;
+    /// files written before it existed read as `null`. (Always written: the link's binary form has
+    /// no optional fields.)
+    #[serde(default)]
+    pub bv_junction_entry: Option<Point2>,
 }
 
 /// A scenario grounded on a map fragment. Its file is `GroundedScenarioFile`'s layout: the target
@@ -213,7 +219,11 @@ impl Validate for GroundedConflict {
     fn validate(&self) -> Result<(), ValidationError> {
         plausible::coordinates("point", self.point.x, self.point.y)?;
         check_interval("vut_interval", &self.vut_interval)?;
-        check_interval("bv_interval", &self.bv_interval)
+        check_interval("bv_interval", &self.bv_interval)?;
+        match self.bv_junction_entry {
+            Some(q) => plausible::coordinates("bv_junction_entry", q.x, q.y),
+            None => Ok(()),
+        }
     }
 }
 
@@ -309,6 +319,7 @@ mod tests {
                 point: Point2 { x: 42.0, y: 0.0 },
                 vut_interval: interval,
                 bv_interval: interval,
+                bv_junction_entry: None,
             }],
             target: Target::new(2.0, Style::Rush).unwrap(),
         }

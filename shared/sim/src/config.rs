@@ -156,6 +156,11 @@ pub struct BvCard {
     pub initial_speed_mps: f64,
     /// Reference speed over time: `[t_s, speed_mps]` points, linear in between, held after the last.
     pub speed_profile: Vec<[f64; 2]>,
+    /// Where the path enters the junction of its conflict, m along it, read off the map (a test
+    /// holds each shipped card to its map): a BV that gives way stops before it. Absent: no
+    /// junction, or a card on no map.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub junction_entry_m: Option<f64>,
 }
 
 /// Most points of a BV's speed profile.
@@ -205,6 +210,9 @@ impl Validate for BvCard {
                 return Err(ValidationError::new(format!("speed_profile[{i}][0]"), "times must increase"));
             }
             last_t = *t;
+        }
+        if let Some(entry) = self.junction_entry_m {
+            in_range("junction_entry_m", entry, 0.0, v2t_model::path::MAX_COORDINATE_M)?;
         }
         Ok(())
     }

@@ -200,6 +200,9 @@ pub struct BvSetup {
     /// style), so its timing at the conflict is the one the target asks for. A card's speed
     /// profile is not: [`Scenario::realism_reference`] re-times it.
     pub timed_for_target: bool,
+    /// Where its path enters the junction of its conflict, m along it (from the map; `None`: no
+    /// junction, or no map): a BV that gives way stops before it.
+    pub junction_entry_m: Option<f64>,
 }
 
 /// The VUT and its driver's wishes.
@@ -279,6 +282,7 @@ impl Scenario {
                 },
                 reference: SpeedProfile::new(bv.speed_profile.clone()),
                 timed_for_target: false,
+                junction_entry_m: bv.junction_entry_m,
             });
         }
         start_apart(&vut, &bvs)?;
@@ -320,6 +324,7 @@ impl Scenario {
             agent: Agent { id: paths.bv_id, vehicle: bv_vehicle, route: paths.bv_route, initial_speed_mps: bv_speed },
             reference: paths.bv_reference,
             timed_for_target: true,
+            junction_entry_m: None,
         }];
         start_apart(&vut, &bvs)?;
         let conflicts = match paths.conflict {

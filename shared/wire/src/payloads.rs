@@ -175,6 +175,11 @@ pub struct ActivePrior {
     pub vut_speed_mps: f64,
     /// The BV's reference timing along `bv_path`.
     pub bv_profile: StaticVec<ProfileSample, MAX_PROFILE_SAMPLES>,
+    /// 1 when `bv_stop_line_s_m` holds a value (the map gave the junction's edge on the BV's lane).
+    pub has_bv_stop_line: u8,
+    /// Where the BV's centre stands when it gives way at this crossing: its front just before the
+    /// junction's edge on its lane, m along `bv_path`.
+    pub bv_stop_line_s_m: f64,
 }
 
 impl ActivePrior {
@@ -190,7 +195,19 @@ impl ActivePrior {
         self.style = crate::StyleCode::from(target.style()).code();
     }
 
-    /// Every number finite, both paths with at least two points, intervals ordered, τ in range.
+    /// The stop line of a BV that gives way, when the prior has one.
+    pub fn bv_stop_line(&self) -> Option<f64> {
+        (self.has_bv_stop_line == 1).then_some(self.bv_stop_line_s_m)
+    }
+
+    /// Sets (or clears) the stop line of a BV that gives way.
+    pub fn set_bv_stop_line(&mut self, s_m: Option<f64>) {
+        self.has_bv_stop_line = u8::from(s_m.is_some());
+        self.bv_stop_line_s_m = s_m.unwrap_or(0.0);
+    }
+
+    /// Every number finite, both paths with at least two points, intervals ordered, τ in range,
+    /// a stop line (when there is one) before the BV's zone.
     pub fn check(&self) -> Result<(), &'static str> {
         let numbers = [
             self.tau_s,
@@ -211,6 +228,14 @@ impl ActivePrior {
         }
         if !(self.bv_zone_enter_s_m < self.bv_zone_exit_s_m && self.vut_zone_enter_s_m < self.vut_zone_exit_s_m) {
             return Err("zone interval with enter >= exit");
+        }
+        if self.has_bv_stop_line > 1 {
+            return Err("stop-line flag neither 0 nor 1");
+        }
+        if let Some(line) = self.bv_stop_line()
+            && !(line.is_finite() && line < self.bv_zone_enter_s_m)
+        {
+            return Err("stop line not finite or not before the BV's zone");
         }
         if self.bv_path.len() < 2 || self.vut_path.len() < 2 {
             return Err("path with fewer than two points");
@@ -414,6 +439,18 @@ mod tests {
         let mut p = prior();
         p.vut_zone_exit_s_m = 20.0;
         assert_eq!(p.check(), Err("zone interval with enter >= exit"));
+        // A stop line is optional, and when there is one it lies before the BV's zone.
+        let mut p = prior();
+        p.set_bv_stop_line(Some(4.0));
+        assert_eq!((p.check(), p.bv_stop_line()), (Ok(()), Some(4.0)));
+        p.set_bv_stop_line(None);
+        assert_eq!((p.check(), p.bv_stop_line(), p.has_bv_stop_line), (Ok(()), None, 0));
+        for bad in [10.0, 12.0, f64::NAN, f64::NEG_INFINITY] {
+            p.set_bv_stop_line(Some(bad));
+            assert_eq!(p.check(), Err("stop line not finite or not before the BV's zone"), "{bad}");
+        }
+        p.has_bv_stop_line = 2;
+        assert_eq!(p.check(), Err("stop-line flag neither 0 nor 1"));
         let mut p = prior();
         p.bv_path.clear();
         assert_eq!(p.check(), Err("path with fewer than two points"));

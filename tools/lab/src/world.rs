@@ -10,6 +10,7 @@
 //! have received from the cloud.
 
 use v2t_edge::prior::{PriorChecks, PriorContext, PriorError, Refused, from_upload, path_points};
+use v2t_game::regulator::stop_line_station;
 use v2t_model::metrics::ConflictZone;
 use v2t_model::prior::TrajectoryPrior;
 use v2t_model::vehicle::VehicleConfig;
@@ -126,6 +127,10 @@ pub fn prior_of_card(
         ..ActivePrior::default()
     };
     prior.set_target(scenario.target);
+    // The stop line of a BV that gives way, where the card says its path enters a junction (a
+    // junction past its zone's entry gives none).
+    let stop_line = bv.junction_entry_m.map(|j| stop_line_station(j, bv.agent.vehicle.geometry.length_m));
+    prior.set_bv_stop_line(stop_line.filter(|l| *l < conflict.zone.bv.enter_s_m));
     path_points(&bv.agent.route, &mut prior.bv_path)?;
     path_points(&scenario.vut.agent.route, &mut prior.vut_path)?;
     // What the cloud would send for this target: the card's speed profile re-timed for it (a

@@ -173,3 +173,31 @@ fn one_process_serves_many_runs_and_a_seed_repeats_its_run() {
     // Krauss draws its imperfection from the seed: another seed drives the VUT differently.
     assert_ne!(a.truth.agents[0].states, c.truth.agents[0].states);
 }
+
+/// The paper's own yield, the VUT turning left in front of the oncoming BV, against every shipped
+/// SUMO driver: the BV waits before the junction (its stop line, from the map) until the VUT is in
+/// the zone, so SUMO's turning VUT sees the gap and goes first — a PET in the asked order, where a
+/// BV that waited inside the junction stalled every driver (no PET in 400 of 400 runs before). And a
+/// rushing BV that drives on past its route's end, off SUMO's network, no longer ends the run.
+#[test]
+fn sumos_turning_vut_goes_first_when_the_bv_gives_way_outside_the_junction() {
+    let Some(world) = world() else { return };
+    let settings: RegulatorParams = v2t_files::load_toml(&root().join("config/regulator/default.toml")).unwrap();
+    let sc = card("left_turn_vut");
+    for name in ["krauss", "idm", "eidm", "impatient"] {
+        let d = driver(name);
+        let vut = Vut::Sumo { world: &world, driver: &d };
+        let c = steer_case(&settings, &sc, Target::new(4.0, Style::Yield).unwrap(), &vut, 1..=1);
+        let s = &c.stats;
+        assert_eq!((s.collisions, s.zone_overlaps, s.unmeasured), (0, 0, 0), "{name} yield: {c:?}");
+        assert_eq!(s.order_ok_frac, 1.0, "{name} yield: {c:?}");
+        let pet = s.mean_pet_min_s.unwrap();
+        assert!((pet - 4.0).abs() <= 0.4, "{name} yield τ 4 s: PET {pet:.2} s");
+    }
+    // Rush at τ 5 s: the BV hurries through at up to 22 m/s and is 130 m past its route's end,
+    // beyond the network, before the VUT has finished its turn.
+    let krauss = driver("krauss");
+    let vut = Vut::Sumo { world: &world, driver: &krauss };
+    let c = steer_case(&settings, &sc, Target::new(5.0, Style::Rush).unwrap(), &vut, 1..=1);
+    assert_eq!((c.stats.unmeasured, c.stats.order_ok_frac), (0, 1.0), "rush τ 5 s: {c:?}");
+}

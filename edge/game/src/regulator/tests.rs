@@ -18,6 +18,7 @@ fn input(style: Style, tau: f64) -> RegulatorInput {
         zone_kind: ConflictKind::Crossing,
         target: Target::new(tau, style).unwrap(),
         reference_speed_mps: 10.0,
+        stop_line_s_m: None,
     }
 }
 
@@ -410,4 +411,80 @@ fn settings_beyond_their_bounds_are_refused_naming_the_field() {
         assert!(e.to_string().contains(bound), "{e}");
         assert!(Regulator::new(params).is_err(), "{field}: a regulator is built from refused settings");
     }
+}
+
+/// The farthest station the last hold plan reaches.
+fn farthest(r: &Regulator) -> f64 {
+    r.leader_upper.station().iter().fold(f64::NEG_INFINITY, |m, s| m.max(*s))
+}
+
+#[test]
+fn a_bv_that_gives_way_waits_at_least_the_clearance_before_its_zone() {
+    // The VUT stands before its zone: the BV waits, its plan never nearer the zone than the
+    // clearance (its front 2.5 m from the VUT's swept path).
+    let mut r = regulator();
+    let mut inp = input(Style::Yield, 2.0);
+    inp.vut.v_mps = 0.0;
+    let d = r.decide(&inp);
+    assert_eq!(d.status, RegulatorStatus::Waiting, "{d:?}");
+    let far = farthest(&r);
+    assert!(far <= 40.0 - HOLD_CLEARANCE_M + 0.05, "waits at {far} m, the zone begins at 40 m");
+    // Nearer, it stands there.
+    inp.bv = PathState { s_m: 30.0, v_mps: 3.0, age_s: 0.05 };
+    r.decide(&inp);
+    let far = farthest(&r);
+    assert!((far - (40.0 - HOLD_CLEARANCE_M)).abs() <= 0.1, "stands at {far} m");
+}
+
+#[test]
+fn a_bv_that_gives_way_at_a_junction_waits_before_its_stop_line_until_the_vut_commits() {
+    // The left turn with the VUT turning: the BV (12 m/s) 28.1 m from its stop line (its front
+    // 1 m before the junction's edge), the zone 44.8 m ahead; the VUT (8 m/s) is in its zone at
+    // 9.2 s. Yield τ = 2 s: the plan that meets the key time would cross the line at once; the BV
+    // holds before it until the VUT is in its zone, slowing from now on.
+    let mut r = regulator();
+    let mut inp = crate::fixtures::left_turn_start(Target::new(2.0, Style::Yield).unwrap());
+    inp.bv.v_mps = 12.0;
+    inp.reference_speed_mps = 12.0;
+    inp.zone_bv = zone(44.76, 56.21);
+    inp.zone_vut = zone(73.76, 85.14);
+    inp.stop_line_s_m = Some(28.11);
+    let d = r.decide(&inp);
+    assert_eq!(d.status, RegulatorStatus::Waiting, "{d:?}");
+    assert!(d.key_time_s.is_some_and(|k| k > 9.2), "the key time it aims at is kept: {d:?}");
+    let far = farthest(&r);
+    assert!(far <= 28.11 + 0.05, "the plan crosses the stop line: {far} m");
+    // Slowing early and evenly (2.6 m/s² stops within the 28 m), not at the last moment.
+    let a = r.leader_upper.accel();
+    assert!(d.accel_mps2 < -1.0, "slows from the start: {}", d.accel_mps2);
+    assert!(a.iter().all(|x| *x >= -3.5), "never brakes hard: {a:?}");
+    // Once the VUT is in its zone the BV goes for its key time.
+    let mut later = inp;
+    later.t_s = 9.5;
+    later.bv = PathState { s_m: 28.0, v_mps: 0.0, age_s: 0.05 };
+    later.vut = PathState { s_m: 75.0, v_mps: 8.0, age_s: 0.15 };
+    let d = r.decide(&later);
+    assert!(matches!(d.status, RegulatorStatus::Regulating | RegulatorStatus::Degraded), "{d:?}");
+    assert!(d.accel_mps2 > 0.5, "{d:?}");
+    // Without a map (no stop line) the same BV regulates as before: it need not stop.
+    let mut r = regulator();
+    inp.stop_line_s_m = None;
+    assert!(matches!(r.decide(&inp).status, RegulatorStatus::Regulating | RegulatorStatus::Degraded));
+}
+
+#[test]
+fn a_bv_too_fast_to_stop_at_its_line_stops_before_the_zone_and_a_bad_line_falls_back() {
+    // At 15 m/s, 5 m before its line: it cannot stop there at a comfortable share of its
+    // deceleration, so when it must give way (the VUT stands) it stops just before the zone.
+    let mut r = regulator();
+    let mut inp = input(Style::Yield, 2.0);
+    inp.vut.v_mps = 0.0;
+    inp.bv.v_mps = 15.0;
+    inp.stop_line_s_m = Some(5.0);
+    let d = r.decide(&inp);
+    assert_eq!(d.status, RegulatorStatus::Waiting, "{d:?}");
+    let far = farthest(&r);
+    assert!(far > 30.0 && far <= 40.0, "stops at {far} m");
+    inp.stop_line_s_m = Some(f64::NAN);
+    assert_eq!(r.decide(&inp).status, RegulatorStatus::Fallback);
 }

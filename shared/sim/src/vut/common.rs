@@ -150,6 +150,7 @@ pub(crate) mod fixtures {
                 path: bv,
                 initial_speed_mps: bv_speed,
                 speed_profile: vec![[0.0, bv_speed]],
+                junction_entry_m: None,
             }],
         };
         let settings = SimSettings {
