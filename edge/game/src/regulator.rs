@@ -27,6 +27,16 @@
 //!    gives way: it plans to stay behind the zone entry until the VUT is predicted to have left
 //!    (`SafetyYield`).
 //!
+//! 5. **A yield the VUT can read.** A BV that gives way at a crossing waits where a driver who
+//!    gives way waits: before the junction's edge on its lane (its *stop line*, from the map:
+//!    [`RegulatorInput::stop_line_s_m`]), never nearer the zone than [`HOLD_CLEARANCE_M`], so a VUT
+//!    that judges the gap sees an oncoming car standing outside the junction, not one already in
+//!    it. While the VUT is not yet in its zone (it has not committed), a plan that would pass the
+//!    stop line before the VUT is predicted there is replaced by one that reaches the line no
+//!    earlier, slowing from now on at the comfortable deceleration (`Waiting`); once the VUT is in
+//!    its zone the BV goes for its key time. It costs reach: from a stop line 17 m before the zone
+//!    (junction 100 of the proving ground) no yield PET below about 3 s is reached.
+//!
 //! **Why it holds in closed loop.** The key time is a commitment in absolute time, recomputed from
 //! measured states every cycle; the event may lie beyond the horizon (the QP extrapolates at the
 //! terminal speed), so the plan never pushes its waiting past the horizon, and the target tracks the
