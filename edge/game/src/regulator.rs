@@ -33,9 +33,10 @@
 //!    that judges the gap sees an oncoming car standing outside the junction, not one already in
 //!    it. While the VUT is not yet in its zone (it has not committed), a plan that would pass the
 //!    stop line before the VUT is predicted there is replaced by one that reaches the line no
-//!    earlier, slowing from now on at the comfortable deceleration (`Waiting`); once the VUT is in
-//!    its zone the BV goes for its key time. It costs reach: from a stop line 17 m before the zone
-//!    (junction 100 of the proving ground) no yield PET below about 3 s is reached.
+//!    earlier, slowing from now on at the comfortable deceleration (`Waiting`); while the VUT is in
+//!    its zone, the same keeps the BV [`HOLD_CLEARANCE_M`] before the zone until the VUT is
+//!    predicted out of it; then the BV goes for its key time. It costs reach: from a stop line 17 m
+//!    before the zone (junction 100 of the proving ground) no yield PET below about 3 s is reached.
 //!
 //! **Why it holds in closed loop.** The key time is a commitment in absolute time, recomputed from
 //! measured states every cycle; the event may lie beyond the horizon (the QP extrapolates at the
@@ -625,24 +626,35 @@ impl Regulator {
     }
 
     /// Where the BV stands when it gives way: at its stop line when the map gives one, never
-    /// nearer the zone than [`HOLD_CLEARANCE_M`]. A BV that can no longer stop there at the share
-    /// [`crate::qp::CAP_DECEL_SHARE`] of its deceleration stops [`HOLD_BACK_M`] before the zone.
+    /// nearer the zone than [`HOLD_CLEARANCE_M`] ([`Self::within_reach`] of it).
     fn hold_station(&self, inp: &RegulatorInput) -> f64 {
         let enter = inp.zone_bv.enter_s_m;
         let hold = inp.stop_line_s_m.map_or(enter - HOLD_CLEARANCE_M, |l| l.min(enter - HOLD_CLEARANCE_M));
-        let v = inp.bv.v_mps.max(0.0);
-        let stopping = v * v / (2.0 * crate::qp::CAP_DECEL_SHARE * self.params.bv.max_decel_mps2);
-        if inp.bv.s_m + stopping <= hold + HOLD_CREEP_M { hold } else { enter - HOLD_BACK_M }
+        self.within_reach(inp, hold)
     }
 
-    /// Plans the BV to stay behind its hold station ([`Self::hold_station`]) until `until_t`
-    /// (relative), tracking `v_ref` — or, with `arrive = Some(v)`, a reference that slows from
+    /// `station`, when the BV can still stop there at the share [`crate::qp::CAP_DECEL_SHARE`]
+    /// of its deceleration (or has crept past it by at most [`HOLD_CREEP_M`]); else
+    /// [`HOLD_BACK_M`] before the zone.
+    fn within_reach(&self, inp: &RegulatorInput, station: f64) -> f64 {
+        let v = inp.bv.v_mps.max(0.0);
+        let stopping = v * v / (2.0 * crate::qp::CAP_DECEL_SHARE * self.params.bv.max_decel_mps2);
+        if inp.bv.s_m + stopping <= station + HOLD_CREEP_M { station } else { inp.zone_bv.enter_s_m - HOLD_BACK_M }
+    }
+
+    /// Plans the BV to stay behind `station` until `until_t` (relative), tracking `v_ref` — or, with `arrive = Some(v)`, a reference that slows from
     /// the BV's speed now at the comfortable deceleration (`fallback_decel_mps2`) to the speed at
     /// most `v` that then reaches the station just at `until_t`, or, when even a stop at that
     /// deceleration would pass it, evenly to a stop there: a driver who gives way slows early and
     /// visibly, not at the last moment.
-    fn hold_back(&mut self, inp: &RegulatorInput, until_t: f64, v_ref: f64, arrive: Option<f64>) -> QpStatus {
-        let station = self.hold_station(inp);
+    fn hold_back(
+        &mut self,
+        inp: &RegulatorInput,
+        station: f64,
+        until_t: f64,
+        v_ref: f64,
+        arrive: Option<f64>,
+    ) -> QpStatus {
         let qin = self.qp_input(inp, &self.params.bv, Some((until_t, station)));
         let (v_max, dt) = (self.params.bv.max_speed_mps, self.params.dt_s);
         let v_ref = v_ref.clamp(0.0, v_max);
@@ -835,16 +847,19 @@ impl Regulator {
                 Style::Yield => self.wait(inp),
             };
         };
-        // Yield at a crossing, the VUT not yet in its zone: when it is predicted there (it has
-        // committed), the BV must still be before its hold station.
-        let mut commit_t: Option<f64> = None;
+        // Yield at a crossing, until the VUT has left the zone: the BV waits before its stop line
+        // until the VUT is predicted in the zone (it has committed), then at least the clearance
+        // before the zone until the VUT is predicted out of it.
+        let mut hold_until: Option<(f64, f64)> = None;
         if inp.target.style() == Style::Yield {
             key_t = pulled(realism, t_v + tau).max(t_v + self.params.safety_margin_s).max(0.0);
-            if inp.zone_kind == ConflictKind::Crossing
-                && inp.vut.s_m < inp.zone_vut.enter_s_m
-                && self.vut_exit_t_s.is_none()
-            {
-                commit_t = self.follower_lower.time_at_station(inp.zone_vut.enter_s_m);
+            if inp.zone_kind == ConflictKind::Crossing && self.vut_exit_t_s.is_none() {
+                hold_until = if inp.vut.s_m < inp.zone_vut.enter_s_m {
+                    let t_in = self.follower_lower.time_at_station(inp.zone_vut.enter_s_m);
+                    t_in.map(|t| (self.hold_station(inp), t))
+                } else {
+                    Some((self.within_reach(inp, inp.zone_bv.enter_s_m - HOLD_CLEARANCE_M), t_v))
+                };
             }
         }
 
@@ -858,31 +873,30 @@ impl Regulator {
             key_t = key_t.min((bv_key - inp.bv.s_m) / inp.bv.v_mps.max(IN_ZONE_MIN_MPS));
         }
         let d = self.checked_plan(inp, bv_key, realism, key_t, t_v, free_response);
-        match (d.status, commit_t) {
-            (RegulatorStatus::Regulating | RegulatorStatus::Degraded, Some(t_in)) => {
-                let hold = self.hold_station(inp);
-                let early = inp.bv.s_m <= hold + HOLD_CREEP_M
-                    && self.leader_equal.time_at_station(hold).is_some_and(|t| t < t_in - HOLD_TOL_S);
-                if early { self.hold_for_commit(inp, t_in, d) } else { d }
+        match (d.status, hold_until) {
+            (RegulatorStatus::Regulating | RegulatorStatus::Degraded, Some((station, until))) => {
+                let early = inp.bv.s_m <= station + HOLD_CREEP_M
+                    && self.leader_equal.time_at_station(station).is_some_and(|t| t < until - HOLD_TOL_S);
+                if early { self.hold_until(inp, station, until, d) } else { d }
             }
             _ => d,
         }
     }
 
-    /// Yield at a crossing: the plan `planned` would pass the hold station before the VUT is in its
-    /// zone (predicted at `t_in`, s from now). A driver who gives way waits before the junction
-    /// until the other has committed to its turn: the BV holds there until then (`Waiting`, with
-    /// the key time it aims at kept for the next decision).
-    fn hold_for_commit(&mut self, inp: &RegulatorInput, t_in: f64, planned: Decision) -> Decision {
-        // It reaches the station as the VUT commits, at the average speed that then takes it to
-        // its zone at the key time it aims at.
-        let hold = self.hold_station(inp);
+    /// Yield at a crossing: the plan `planned` would pass `station` before `until` (s from now):
+    /// the stop line before the VUT is in its zone, or the clearance before the zone before the
+    /// VUT has left it. A driver who gives way waits before the junction until the other has
+    /// committed, and keeps clear of its path while it passes: the BV holds there until then
+    /// (`Waiting`, with the key time it aims at kept for the next decision).
+    fn hold_until(&mut self, inp: &RegulatorInput, station: f64, until: f64, planned: Decision) -> Decision {
+        // It reaches the station just then, at the average speed that then takes it to its zone
+        // at the key time it aims at.
         let arrive = planned
             .key_time_s
-            .filter(|k| *k > t_in + self.params.dt_s)
-            .map_or(0.0, |k| (inp.zone_bv.enter_s_m - hold) / (k - t_in))
+            .filter(|k| *k > until + self.params.dt_s)
+            .map_or(0.0, |k| (inp.zone_bv.enter_s_m - station) / (k - until))
             .min(inp.reference_speed_mps);
-        match self.hold_back(inp, t_in, inp.reference_speed_mps, Some(arrive)) {
+        match self.hold_back(inp, station, until, inp.reference_speed_mps, Some(arrive)) {
             QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
             _ => Decision {
                 key_time_s: planned.key_time_s,
@@ -1008,7 +1022,7 @@ impl Regulator {
         let until = self
             .predicted_vut_exit(inp)
             .map_or(self.params.horizon as f64 * self.params.dt_s * 2.0, |t| t + self.params.safety_margin_s);
-        match self.hold_back(inp, until, inp.reference_speed_mps, None) {
+        match self.hold_back(inp, self.hold_station(inp), until, inp.reference_speed_mps, None) {
             QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
             _ => self.decision_from(&self.leader_upper, RegulatorStatus::SafetyYield, None, None, 0.0),
         }
@@ -1017,7 +1031,7 @@ impl Regulator {
     /// Yield with a VUT that does not come through: hold before the zone.
     fn wait(&mut self, inp: &RegulatorInput) -> Decision {
         let until = self.params.horizon as f64 * self.params.dt_s * 2.0;
-        match self.hold_back(inp, until, inp.reference_speed_mps, None) {
+        match self.hold_back(inp, self.hold_station(inp), until, inp.reference_speed_mps, None) {
             QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
             _ => self.decision_from(&self.leader_upper, RegulatorStatus::Waiting, None, None, 0.0),
         }

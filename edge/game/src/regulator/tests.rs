@@ -488,3 +488,26 @@ fn a_bv_too_fast_to_stop_at_its_line_stops_before_the_zone_and_a_bad_line_falls_
     inp.stop_line_s_m = Some(f64::NAN);
     assert_eq!(r.decide(&inp).status, RegulatorStatus::Fallback);
 }
+
+#[test]
+fn while_the_vut_crosses_a_yielding_bv_keeps_the_clearance_from_its_path() {
+    // The VUT (10 m/s) is in its zone, out at 1 s; the BV (2 m/s) 4 m before its zone would, for
+    // τ = 1.5 s, roll on toward the zone's edge while the VUT still passes. It stays 2.5 m back
+    // until the VUT is out, and then goes.
+    let mut r = regulator();
+    let mut inp = input(Style::Yield, 1.5);
+    inp.bv = PathState { s_m: 36.0, v_mps: 2.0, age_s: 0.05 };
+    inp.vut = PathState { s_m: 60.0, v_mps: 10.0, age_s: 0.05 };
+    inp.reference_speed_mps = 2.0;
+    let d = r.decide(&inp);
+    assert_eq!(d.status, RegulatorStatus::Waiting, "{d:?}");
+    let plan = r.leader_upper.station();
+    let out_k = 10; // 1 s
+    assert!(plan[out_k] <= 40.0 - HOLD_CLEARANCE_M + 0.05, "at the VUT's exit the BV is at {} m", plan[out_k]);
+    // Out of the zone: nothing holds it back any more.
+    inp.t_s = 1.1;
+    inp.vut = PathState { s_m: 71.0, v_mps: 10.0, age_s: 0.05 };
+    inp.bv = PathState { s_m: 37.0, v_mps: 1.0, age_s: 0.05 };
+    let d = r.decide(&inp);
+    assert!(matches!(d.status, RegulatorStatus::Regulating | RegulatorStatus::Degraded), "{d:?}");
+}
