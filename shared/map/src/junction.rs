@@ -127,4 +127,24 @@ mod tests {
         let inside = PathBuilder::new(55.0, -1.75, 0.0).line(30.0).build(0.5).unwrap();
         assert_eq!(m.junction_entry(&inside, 5.0), Some(0.0));
     }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+        /// Wherever a path starts on the lane before the junction, and wherever inside the
+        /// junction it is asked from, the entry is the junction's edge (x = 50), within 2 cm, and
+        /// every point after it up to the asking point lies in the junction.
+        #[test]
+        fn the_entry_is_the_edge_wherever_the_path_starts(start in 0.0f64..45.0, inside in 0.5f64..19.5, lateral in -1.5f64..1.5) {
+            let m = map();
+            let path = PathBuilder::new(start, -1.75 + lateral, 0.0).line(100.0).build(0.25).unwrap();
+            let at = 50.0 - start + inside;
+            let entry = m.junction_entry(&path, at).unwrap();
+            proptest::prop_assert!((entry - (50.0 - start)).abs() <= 0.02, "entry {} for a start at {}", entry, start);
+            let mut s = entry;
+            while s <= at {
+                proptest::prop_assert_eq!(m.junction_at(path.point_at(s)), Some("7"));
+                s += 0.5;
+            }
+        }
+    }
 }
