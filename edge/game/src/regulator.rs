@@ -224,6 +224,13 @@ pub fn stop_line_station(junction_entry_m: f64, length_m: f64) -> f64 {
     junction_entry_m - 0.5 * length_m - STOP_LINE_MARGIN_M
 }
 
+/// The inverse of [`stop_line_station`]: where the path enters the junction, for a BV of
+/// `length_m` whose stop line is `stop_line_s_m`.
+#[must_use]
+pub fn junction_entry_of_stop_line(stop_line_s_m: f64, length_m: f64) -> f64 {
+    stop_line_s_m + 0.5 * length_m + STOP_LINE_MARGIN_M
+}
+
 /// Share of the BV's lateral-acceleration limit its plans may use in curves (the rest is the
 /// tracker's margin): the regulator's curve speed is [`v2t_model::driving::curve_speed`] over
 /// ±[`v2t_model::driving::CURVE_HALF_WINDOW_M`] with this share of the limit

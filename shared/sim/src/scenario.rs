@@ -324,7 +324,7 @@ impl Scenario {
             agent: Agent { id: paths.bv_id, vehicle: bv_vehicle, route: paths.bv_route, initial_speed_mps: bv_speed },
             reference: paths.bv_reference,
             timed_for_target: true,
-            junction_entry_m: None,
+            junction_entry_m: paths.bv_junction_entry_m,
         }];
         start_apart(&vut, &bvs)?;
         let conflicts = match paths.conflict {
@@ -398,6 +398,9 @@ pub struct ScenarioPaths {
     /// two paths. Measuring the zone the BV regulates matters when the paths share more than one
     /// (a generated lane change that runs alongside).
     pub conflict: Option<ConflictZone>,
+    /// Where the BV's path enters the junction of its conflict, m along it (the prior's stop line
+    /// brought back to the junction's edge); `None`: none.
+    pub bv_junction_entry_m: Option<f64>,
 }
 
 /// The first conflict of every BV with the VUT; a BV without one is an error.

@@ -10,7 +10,7 @@
 //! have received from the cloud.
 
 use v2t_edge::prior::{PriorChecks, PriorContext, PriorError, Refused, from_upload, path_points};
-use v2t_game::regulator::stop_line_station;
+use v2t_game::regulator::{junction_entry_of_stop_line, stop_line_station};
 use v2t_model::metrics::ConflictZone;
 use v2t_model::prior::TrajectoryPrior;
 use v2t_model::vehicle::VehicleConfig;
@@ -100,6 +100,10 @@ pub fn from_prior(
         bv_route: ctx.bv_path,
         bv_reference: SpeedProfile::new(profile),
         conflict: Some(zone),
+        // The BV's own stop line again when the scenario's prior is rebuilt for the regulator.
+        bv_junction_entry_m: prior
+            .bv_stop_line()
+            .map(|l| junction_entry_of_stop_line(l, vehicles.bv.geometry.length_m)),
     };
     Ok(Scenario::from_paths(paths, settings, vehicles.vut.clone(), vehicles.bv.clone())?)
 }
@@ -168,6 +172,11 @@ mod tests {
         let (a, b) = (world.conflicts[0].zone, sc.conflicts[0].zone);
         assert_eq!((a.kind, a.bv, a.vut), (b.kind, b.bv, b.vut));
         assert_eq!(world.target, sc.target);
+        // And its stop line: the world rebuilt from the prior gives the regulator the same one.
+        let line = prior.bv_stop_line().expect("the left turn's BV crosses in a junction");
+        let entry = world.bvs[0].junction_entry_m.unwrap();
+        assert!((entry - bv.junction_entry_m.unwrap()).abs() < 1e-9, "{entry}");
+        assert_eq!(prior_of_card(&world, 0, 42, 7).unwrap().bv_stop_line(), Some(line));
         // The prior carries the card's speed profile re-timed for the card's target (what the
         // cloud would send for it): slower up to the key point here, the card's own speed after.
         let timed = sc.realism_reference(0).unwrap();
