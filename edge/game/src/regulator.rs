@@ -35,8 +35,9 @@
 //!    stop line before the VUT is predicted there is replaced by one that reaches the line no
 //!    earlier, slowing from now on at the comfortable deceleration (`Waiting`); while the VUT is in
 //!    its zone, the same keeps the BV [`HOLD_CLEARANCE_M`] before the zone until the VUT is
-//!    predicted out of it; then the BV goes for its key time. It costs reach: from a stop line 17 m
-//!    before the zone (junction 100 of the proving ground) no yield PET below about 3 s is reached.
+//!    predicted out of it; then the BV goes for its key time. It can cost reach: a BV that comes
+//!    too fast to roll up to its line as the VUT commits must stop there first, and from a
+//!    standstill 17 m before the zone (the VUT-turning card) no yield PET below about 3 s is reached.
 //!
 //! **Why it holds in closed loop.** The key time is a commitment in absolute time, recomputed from
 //! measured states every cycle; the event may lie beyond the horizon (the QP extrapolates at the
