@@ -37,7 +37,7 @@ fn edges(q: &[Point2; 4]) -> [(Point2, Point2); 4] {
 }
 
 /// Whether `p` lies inside the polygon `q` (crossing number; any simple quadrilateral).
-fn inside(p: Point2, q: &[Point2; 4]) -> bool {
+pub(crate) fn inside(p: Point2, q: &[Point2; 4]) -> bool {
     let mut crossings = false;
     for (a, b) in edges(q) {
         if (a.y > p.y) != (b.y > p.y) && p.x < a.x + (p.y - a.y) * (b.x - a.x) / (b.y - a.y) {
@@ -47,16 +47,18 @@ fn inside(p: Point2, q: &[Point2; 4]) -> bool {
     crossings
 }
 
+/// A lane's surface as the quadrilaterals between its successive left and right boundary samples.
+pub(crate) fn lane_quads(lane: &crate::graph::LaneInfo) -> impl Iterator<Item = [Point2; 4]> + '_ {
+    lane.samples.windows(2).filter_map(|w| match w {
+        [a, b] => Some([a.left, b.left, b.right, a.right]),
+        _ => None,
+    })
+}
+
 impl DrivableArea {
     /// The drivable area of `map`.
     pub fn from_map(map: &Map) -> Self {
-        let mut quads = Vec::new();
-        for lane in map.graph.lanes.iter().filter(|l| l.drivable) {
-            for w in lane.samples.windows(2) {
-                let [a, b] = w else { continue };
-                quads.push([a.left, b.left, b.right, a.right]);
-            }
-        }
+        let quads: Vec<[Point2; 4]> = map.graph.lanes.iter().filter(|l| l.drivable).flat_map(lane_quads).collect();
         let mut grid: HashMap<(i64, i64), Vec<u32>> = HashMap::new();
         for (i, q) in quads.iter().enumerate() {
             let (mut lo, mut hi) = (cell(q[0]), cell(q[0]));

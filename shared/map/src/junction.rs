@@ -1,9 +1,9 @@
 //! Where a path enters a junction: the line a vehicle that gives way waits before.
 //!
-//! A point is in a junction when it lies on one of the junction's connecting lanes (within half the
-//! lane's width of its centreline). Connecting lanes cover the junction's whole area between its
-//! incoming roads, so the first point of a path on them is where the path crosses the junction's
-//! edge on its lane: the stop line of a driver who waits outside.
+//! A point is in a junction when it lies on one of the junction's drivable connecting lanes (the
+//! lane surfaces of the drivable area, [`crate::drivable`]). Connecting lanes cover the junction's
+//! whole area between its incoming roads, so the first point of a path on them is where the path
+//! crosses the junction's edge on its lane: the stop line of a driver who waits outside.
 
 use v2t_model::geometry::Point2;
 use v2t_model::path::ReferencePath;
@@ -16,20 +16,15 @@ const SCAN_STEP_M: f64 = 0.25;
 const ENTRY_TOLERANCE_M: f64 = 0.01;
 
 impl Map {
-    /// The junction whose connecting lanes hold `q` (within half a lane's width of its
-    /// centreline), if any; the first one found where junctions overlap.
+    /// The junction whose drivable connecting lanes hold `q`, if any; the first one found where
+    /// junctions overlap.
     pub fn junction_at(&self, q: Point2) -> Option<&str> {
         self.graph
             .lanes
             .iter()
             .filter(|l| l.drivable)
             .filter_map(|l| Some((l, l.junction.as_deref()?)))
-            .find(|(l, _)| {
-                l.samples.windows(2).any(|w| match w {
-                    [a, b] => within_half_width(q, a.p, b.p, a.width, b.width),
-                    _ => false,
-                })
-            })
+            .find(|(l, _)| crate::drivable::lane_quads(l).any(|quad| crate::drivable::inside(q, &quad)))
             .map(|(_, j)| j)
     }
 
@@ -65,22 +60,6 @@ impl Map {
         }
         inn
     }
-}
-
-/// Whether `q` lies within half the (linearly varying) width of the centreline piece `a`–`b`,
-/// measured square to the piece (points beyond its ends belong to the pieces there).
-fn within_half_width(q: Point2, a: Point2, b: Point2, width_a: f64, width_b: f64) -> bool {
-    let (dx, dy) = (b.x - a.x, b.y - a.y);
-    let len2 = dx * dx + dy * dy;
-    if len2 <= 0.0 {
-        return false;
-    }
-    let t = ((q.x - a.x) * dx + (q.y - a.y) * dy) / len2;
-    if !(0.0..=1.0).contains(&t) {
-        return false;
-    }
-    let foot = a.lerp(b, t);
-    q.dist(foot) <= 0.5 * (width_a + t * (width_b - width_a))
 }
 
 #[cfg(test)]
