@@ -219,10 +219,12 @@ pub const STOP_LINE_MARGIN_M: f64 = 2.0;
 
 /// The arc length of the centre of a BV of `length_m` whose path enters the junction at
 /// `junction_entry_m` when it stands [`STOP_LINE_MARGIN_M`] before the junction's edge: what
-/// [`RegulatorInput::stop_line_s_m`] holds.
+/// [`RegulatorInput::stop_line_s_m`] holds. `None` when that is not before the BV's zone, which
+/// begins at `zone_enter_s_m` (a junction entered only after the zone gives no stop line).
 #[must_use]
-pub fn stop_line_station(junction_entry_m: f64, length_m: f64) -> f64 {
-    junction_entry_m - 0.5 * length_m - STOP_LINE_MARGIN_M
+pub fn stop_line_station(junction_entry_m: f64, length_m: f64, zone_enter_s_m: f64) -> Option<f64> {
+    let line = junction_entry_m - 0.5 * length_m - STOP_LINE_MARGIN_M;
+    (line < zone_enter_s_m).then_some(line)
 }
 
 /// The inverse of [`stop_line_station`]: where the path enters the junction, for a BV of
@@ -650,22 +652,16 @@ impl Regulator {
         if inp.bv.s_m + stopping <= station + HOLD_CREEP_M { station } else { inp.zone_bv.enter_s_m - HOLD_BACK_M }
     }
 
-    /// Plans the BV to stay behind `station` until `until_t` (relative), tracking `v_ref` — or, with `arrive = Some(v)`, a reference that slows from
-    /// the BV's speed now at the comfortable deceleration (`fallback_decel_mps2`) to the speed at
-    /// most `v` that then reaches the station just at `until_t`, or, when even a stop at that
-    /// deceleration would pass it, evenly to a stop there: a driver who gives way slows early and
-    /// visibly, not at the last moment.
-    fn hold_back(
-        &mut self,
-        inp: &RegulatorInput,
-        station: f64,
-        until_t: f64,
-        v_ref: f64,
-        arrive: Option<f64>,
-    ) -> QpStatus {
+    /// Plans the BV to stay behind `station` until `until_t` (relative), tracking its reference
+    /// speed — or, with `arrive = Some(v)`, a reference that slows from the BV's speed now at the
+    /// comfortable deceleration (`fallback_decel_mps2`) to the speed at most `v` that then reaches
+    /// the station just at `until_t`, or, when even a stop at that deceleration would pass it,
+    /// evenly to a stop there: a driver who gives way slows early and visibly, not at the last
+    /// moment.
+    fn hold_back(&mut self, inp: &RegulatorInput, station: f64, until_t: f64, arrive: Option<f64>) -> QpStatus {
         let qin = self.qp_input(inp, &self.params.bv, Some((until_t, station)));
         let (v_max, dt) = (self.params.bv.max_speed_mps, self.params.dt_s);
-        let v_ref = v_ref.clamp(0.0, v_max);
+        let v_ref = inp.reference_speed_mps.clamp(0.0, v_max);
         let (v0, gap, t) = (qin.v0_mps, (station - inp.bv.s_m).max(0.0), until_t.max(dt));
         // Slowing at b from v0 to v_end, then keeping v_end, covers the gap in t when
         // (v0 − v_end)² / 2b + v_end t = gap.
@@ -904,7 +900,7 @@ impl Regulator {
             .filter(|k| *k > until + self.params.dt_s)
             .map_or(0.0, |k| (inp.zone_bv.enter_s_m - station) / (k - until))
             .min(inp.reference_speed_mps);
-        match self.hold_back(inp, station, until, inp.reference_speed_mps, Some(arrive)) {
+        match self.hold_back(inp, station, until, Some(arrive)) {
             QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
             _ => Decision {
                 key_time_s: planned.key_time_s,
@@ -1030,7 +1026,7 @@ impl Regulator {
         let until = self
             .predicted_vut_exit(inp)
             .map_or(self.params.horizon as f64 * self.params.dt_s * 2.0, |t| t + self.params.safety_margin_s);
-        match self.hold_back(inp, self.hold_station(inp), until, inp.reference_speed_mps, None) {
+        match self.hold_back(inp, self.hold_station(inp), until, None) {
             QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
             _ => self.decision_from(&self.leader_upper, RegulatorStatus::SafetyYield, None, None, 0.0),
         }
@@ -1039,7 +1035,7 @@ impl Regulator {
     /// Yield with a VUT that does not come through: hold before the zone.
     fn wait(&mut self, inp: &RegulatorInput) -> Decision {
         let until = self.params.horizon as f64 * self.params.dt_s * 2.0;
-        match self.hold_back(inp, self.hold_station(inp), until, inp.reference_speed_mps, None) {
+        match self.hold_back(inp, self.hold_station(inp), until, None) {
             QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
             _ => self.decision_from(&self.leader_upper, RegulatorStatus::Waiting, None, None, 0.0),
         }

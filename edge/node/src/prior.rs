@@ -225,8 +225,7 @@ fn accept(up: &PriorUpload, now_ms: u64, checks: &PriorChecks, stamp_ns: u64) ->
     let stop_line = grounded
         .and_then(|c| c.bv_junction_entry)
         .and_then(|q| bv_path.project(q))
-        .map(|f| stop_line_station(f.s_m, checks.bv.length_m))
-        .filter(|l| *l < zone.bv.enter_s_m);
+        .and_then(|f| stop_line_station(f.s_m, checks.bv.length_m, zone.bv.enter_s_m));
     prior.set_bv_stop_line(stop_line);
     path_points(&bv_path, &mut prior.bv_path)?;
     path_points(&vut_path, &mut prior.vut_path)?;

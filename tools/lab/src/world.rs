@@ -133,8 +133,8 @@ pub fn prior_of_card(
     prior.set_target(scenario.target);
     // The stop line of a BV that gives way, where the card says its path enters a junction (a
     // junction past its zone's entry gives none).
-    let stop_line = bv.junction_entry_m.map(|j| stop_line_station(j, bv.agent.vehicle.geometry.length_m));
-    prior.set_bv_stop_line(stop_line.filter(|l| *l < conflict.zone.bv.enter_s_m));
+    let length = bv.agent.vehicle.geometry.length_m;
+    prior.set_bv_stop_line(bv.junction_entry_m.and_then(|j| stop_line_station(j, length, conflict.zone.bv.enter_s_m)));
     path_points(&bv.agent.route, &mut prior.bv_path)?;
     path_points(&scenario.vut.agent.route, &mut prior.vut_path)?;
     // What the cloud would send for this target: the card's speed profile re-timed for it (a
