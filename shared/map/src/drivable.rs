@@ -4,7 +4,7 @@
 
 use std::collections::HashMap;
 
-use v2t_model::geometry::Point2;
+use v2t_model::geometry::{Point2, point_segment_distance};
 
 use crate::Map;
 
@@ -20,14 +20,6 @@ pub struct DrivableArea {
 
 fn cell(p: Point2) -> (i64, i64) {
     ((p.x / CELL_M).floor() as i64, (p.y / CELL_M).floor() as i64)
-}
-
-/// Distance from `p` to the segment `a`–`b`.
-fn segment_distance(p: Point2, a: Point2, b: Point2) -> f64 {
-    let d = b.sub(a);
-    let len2 = d.dot(d);
-    let f = if len2 > 0.0 { (p.sub(a).dot(d) / len2).clamp(0.0, 1.0) } else { 0.0 };
-    a.lerp(b, f).dist(p)
 }
 
 /// The four edges of `q`.
@@ -101,7 +93,7 @@ impl DrivableArea {
                 let Some(ids) = self.grid.get(&(x, y)) else { continue };
                 for &i in ids {
                     let Some(q) = self.quads.get(i as usize) else { continue };
-                    if inside(p, q) || edges(q).iter().any(|&(a, b)| segment_distance(p, a, b) <= margin_m) {
+                    if inside(p, q) || edges(q).iter().any(|&(a, b)| point_segment_distance(p, a, b) <= margin_m) {
                         return true;
                     }
                 }
