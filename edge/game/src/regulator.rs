@@ -39,6 +39,16 @@
 //!    too fast to roll up to its line as the VUT commits must stop there first, and from a
 //!    standstill 17 m before the zone (the VUT-turning card) no yield PET below about 3 s is reached.
 //!
+//! 6. **A rush the VUT can read.** A BV that goes first at a crossing does its slowing before
+//!    it commits, where its front enters the junction (its stop line plus [`STOP_LINE_MARGIN_M`];
+//!    without a stop line, its zone entry): when the average speed to its key point is below the
+//!    speed it would cross at (its reference speed within the path's limits there), the plan goes
+//!    to the commit station, due the crossing time before the key time, and speeds up from there.
+//!    Inside the zone it never slows down for a VUT that comes later than predicted: a VUT that
+//!    waits to turn, or one with priority that brakes for a car in its path, waits for as long as
+//!    it sees the BV slowing in there, and a car that dawdles in another's path is not one to put
+//!    on a track. It costs some reach against a VUT that slows down late (the PET comes out long).
+//!
 //! **Why it holds in closed loop.** The key time is a commitment in absolute time, recomputed from
 //! measured states every cycle; the event may lie beyond the horizon (the QP extrapolates at the
 //! terminal speed), so the plan never pushes its waiting past the horizon, and the target tracks the
@@ -338,6 +348,9 @@ pub struct Regulator {
     waiting_since_t_s: Option<f64>,
     /// What this run has shown (kept until [`Regulator::reset`]).
     seen_below_reach: Option<BelowReach>,
+    /// The lowest speed limit of the path between a rushing BV's commit station and its key
+    /// point, this decision (infinite without limits), m/s.
+    traverse_cap_mps: f64,
 }
 
 /// What the realism term pulls toward in one decision: the reference's remaining time to the
@@ -363,6 +376,17 @@ struct KeyTime {
     /// Whether `t_vut` came from a follower solve whose order constraint did not bind (then the
     /// safety check need not solve again when its constraint cannot bind either).
     free_response: bool,
+}
+
+/// A rushing BV's plan to its commit station ([`Regulator::rush_commit`]).
+#[derive(Debug, Clone, Copy)]
+struct Commit {
+    /// Where it commits, m.
+    station_m: f64,
+    /// How long it takes from there to its key point at the crossing speed, s.
+    cross_s: f64,
+    /// The crossing speed, m/s.
+    speed_mps: f64,
 }
 
 /// The leader's objective `w_adv (PET − τ)² + w_real (T − T_ref)²` minimised over the key time T
@@ -449,6 +473,7 @@ impl Regulator {
             known_below_reach: None,
             waiting_since_t_s: None,
             seen_below_reach: None,
+            traverse_cap_mps: f64::INFINITY,
         })
     }
 
@@ -590,6 +615,7 @@ impl Regulator {
         key_t: Option<f64>,
         station: f64,
         realism: Option<RealismPull>,
+        then_mps: Option<f64>,
     ) -> QpStatus {
         let qin = self.qp_input(inp, &self.params.bv, key_t.map(|t| (t, station)));
         let v_max = self.params.bv.max_speed_mps;
@@ -619,7 +645,10 @@ impl Regulator {
                 for (k, v) in self.leader_equal.v_ref_mut().iter_mut().enumerate() {
                     let t_k = (k + 1) as f64 * dt;
                     let frac = (t_k / t).min(1.0);
-                    let adversarial = v_avg + ramp * (2.0 * frac - 1.0);
+                    let adversarial = match then_mps {
+                        Some(v_then) if t_k > t => v_then,
+                        _ => v_avg + ramp * (2.0 * frac - 1.0),
+                    };
                     let blended = match warp {
                         Some((r, ratio)) => {
                             let prior = ratio * reference.speed_at_time(r.now_ref_s + t_k * ratio);
@@ -633,6 +662,33 @@ impl Regulator {
             _ => self.leader_equal.v_ref_mut().iter_mut().for_each(|v| *v = v_ref),
         }
         self.leader_equal.solve(&qin)
+    }
+
+    /// Rushing across a crossing with time to spare: the BV slows *before* it commits and
+    /// crosses at the speed it would drive there, so it is not seen creeping through the junction
+    /// (a VUT that sees a car slow in the junction waits for it). With the key point `bv_key` at
+    /// `key_t` (s from now), the plan goes to the commit station instead, reaching it
+    /// [`Commit::cross_s`] before the key time, and then tracks the crossing speed (the reference
+    /// speed within the path's limits between the two). `None` when the average speed to the key
+    /// point is not below that speed (no time to spare), past the commit station, or not a
+    /// rushing BV at a crossing.
+    fn rush_commit(&self, inp: &RegulatorInput, bv_key: f64, key_t: f64) -> Option<Commit> {
+        if inp.target.style() != Style::Rush || inp.zone_kind != ConflictKind::Crossing {
+            return None;
+        }
+        let station_m = Self::rush_commit_station(inp);
+        let speed_mps = inp.reference_speed_mps.min(self.traverse_cap_mps).min(self.params.bv.max_speed_mps);
+        let (approach, cross) = (station_m - inp.bv.s_m, bv_key - station_m);
+        if approach <= 0.0
+            || cross <= 0.0
+            || speed_mps <= 0.0
+            || key_t <= 0.0
+            || (bv_key - inp.bv.s_m) / key_t >= speed_mps
+        {
+            return None;
+        }
+        let cross_s = cross / speed_mps;
+        (key_t - cross_s > self.params.dt_s).then_some(Commit { station_m, cross_s, speed_mps })
     }
 
     /// Where the BV stands when it gives way: at its stop line when the map gives one, never
@@ -742,6 +798,23 @@ impl Regulator {
 
     /// Writes the leader plans' per-step speed caps (no allocation).
     fn set_caps(&mut self, inp: &RegulatorInput, speed_limit_at: Option<&dyn Fn(f64) -> f64>) {
+        self.traverse_cap_mps = f64::INFINITY;
+        if let Some(limit) = speed_limit_at
+            && inp.target.style() == Style::Rush
+            && inp.zone_kind == ConflictKind::Crossing
+        {
+            let (from, to) = (Self::rush_commit_station(inp).max(inp.bv.s_m), inp.zone_bv.exit_s_m);
+            if from.is_finite() && to.is_finite() {
+                let mut s = from;
+                while s <= to.min(from + CAP_SCAN_MAX_M) {
+                    let v = limit(s);
+                    if v >= 0.0 && v < self.traverse_cap_mps {
+                        self.traverse_cap_mps = v;
+                    }
+                    s += 1.0;
+                }
+            }
+        }
         let (dt, a_max) = (self.params.dt_s, self.params.bv.max_accel_mps2);
         let (s0, v0) = (inp.bv.s_m, inp.bv.v_mps.max(0.0));
         let mut cap = f64::INFINITY;
@@ -820,7 +893,7 @@ impl Regulator {
             || (inp.target.style() == Style::Yield && inp.bv.s_m >= inp.zone_bv.enter_s_m)
         {
             let after = self.after_merge(inp);
-            return Some(match self.lead(&after, None, 0.0, None) {
+            return Some(match self.lead(&after, None, 0.0, None, None) {
                 QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
                 _ => self.decision_from(&self.leader_equal, RegulatorStatus::Passed, None, None, 0.0),
             });
@@ -844,7 +917,7 @@ impl Regulator {
             // The VUT is predicted never to reach (rush) or leave (yield) the zone.
             return match inp.target.style() {
                 // Rush with a VUT that stays away: nothing to regulate against; go at the reference.
-                Style::Rush => match self.lead(inp, None, 0.0, None) {
+                Style::Rush => match self.lead(inp, None, 0.0, None, None) {
                     QpStatus::Failed => self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps),
                     _ => self.decision_from(&self.leader_equal, RegulatorStatus::Regulating, None, None, 0.0),
                 },
@@ -867,16 +940,16 @@ impl Regulator {
             }
         }
 
-        // Rushing into a merge and already inside the zone: clear it, never slow down in it for a
-        // VUT that comes later than predicted (the VUT follows the BV from here on: a BV that
-        // slows in front of it brakes it more, which only makes the PET longer still).
-        if inp.target.style() == Style::Rush
-            && inp.zone_kind == ConflictKind::Merge
-            && inp.bv.s_m >= inp.zone_bv.enter_s_m
-        {
+        // Rushing and inside the zone: clear it, never slow down in it for a VUT that comes later
+        // than predicted. In a merge the VUT follows the BV from here on: a BV that slows in front
+        // of it brakes it more, which only makes the PET longer still. At a crossing, a VUT that
+        // waits to turn (or brakes for a car in its path) waits for as long as it sees the BV
+        // slowing in there; and a car that dawdles in another's path is not one to put on a track.
+        if inp.target.style() == Style::Rush && inp.bv.s_m >= inp.zone_bv.enter_s_m {
             key_t = key_t.min((bv_key - inp.bv.s_m) / inp.bv.v_mps.max(IN_ZONE_MIN_MPS));
         }
-        let d = self.checked_plan(inp, bv_key, realism, key_t, t_v, free_response);
+        let commit = self.rush_commit(inp, bv_key, key_t);
+        let d = self.checked_plan(inp, bv_key, realism, key_t, t_v, free_response, commit);
         match (d.status, hold_until) {
             (RegulatorStatus::Regulating | RegulatorStatus::Degraded, Some((station, until))) => {
                 let early = inp.bv.s_m <= station + HOLD_CREEP_M
@@ -884,6 +957,17 @@ impl Regulator {
                 if early { self.hold_until(inp, station, until, d) } else { d }
             }
             _ => d,
+        }
+    }
+
+    /// Where a rushing BV commits at a crossing ([`Self::rush_commit`]): where its front enters
+    /// the junction (its stop line plus [`STOP_LINE_MARGIN_M`]); without a stop line, or in a
+    /// merge, its zone entry.
+    fn rush_commit_station(inp: &RegulatorInput) -> f64 {
+        let enter = inp.zone_bv.enter_s_m;
+        match (inp.zone_kind, inp.stop_line_s_m) {
+            (ConflictKind::Crossing, Some(line)) => (line + STOP_LINE_MARGIN_M).min(enter),
+            _ => enter,
         }
     }
 
@@ -948,6 +1032,7 @@ impl Regulator {
     /// Steps 3–4: the leader's plan for key time `key_t`, checked against the follower's best
     /// response to it (`t_v`, the VUT's time at the zone, came from a free response when
     /// `free_response`); the BV gives way when the order could not be kept.
+    #[allow(clippy::too_many_arguments)]
     fn checked_plan(
         &mut self,
         inp: &RegulatorInput,
@@ -956,15 +1041,26 @@ impl Regulator {
         key_t: f64,
         t_v: f64,
         free_response: bool,
+        commit: Option<Commit>,
     ) -> Decision {
-        // 3: the leader's plan.
-        if self.lead(inp, Some(key_t), bv_key, realism) == QpStatus::Failed {
+        // 3: the leader's plan: to the key point at the key time, or, for a rushing BV that
+        // slows before it commits, to its commit station that much earlier than the key time as
+        // it takes to cross from there at the speed it crosses at.
+        let (event_t, event_station, then, realism) = match commit {
+            Some(c) => (key_t - c.cross_s, c.station_m, Some(c.speed_mps), self.realism_pull(inp.bv.s_m, c.station_m)),
+            None => (key_t, bv_key, None, realism),
+        };
+        if self.lead(inp, Some(event_t), event_station, realism, then) == QpStatus::Failed {
             return self.fallback(RegulatorStatus::Fallback, inp.bv.v_mps);
         }
         let lslack = self.leader_equal.slack_m();
         // Met exactly: the key time is the event's (the plan may stand at the station just before
         // it); missed: when the plan actually gets there.
-        let planned_key = if lslack <= SLACK_TOL_M { Some(key_t) } else { self.leader_equal.time_at_station(bv_key) };
+        let planned_key = match commit {
+            _ if lslack <= SLACK_TOL_M => Some(key_t),
+            None => self.leader_equal.time_at_station(bv_key),
+            Some(c) => self.leader_equal.time_at_station(c.station_m).map(|t| t + c.cross_s),
+        };
 
         // 4: safety against the follower's best response to the planned key time.
         let margin = self.params.safety_margin_s;

@@ -511,3 +511,75 @@ fn while_the_vut_crosses_a_yielding_bv_keeps_the_clearance_from_its_path() {
     let d = r.decide(&inp);
     assert!(matches!(d.status, RegulatorStatus::Regulating | RegulatorStatus::Degraded), "{d:?}");
 }
+
+/// Integrates a plan of accelerations from `(s, v)` at the regulator's step: (time, station, speed)
+/// after each step.
+fn rollout(s: f64, v: f64, plan: &[f64]) -> Vec<(f64, f64, f64)> {
+    let dt = RegulatorParams::default().dt_s;
+    let (mut s, mut v) = (s, v);
+    plan.iter()
+        .enumerate()
+        .map(|(k, a)| {
+            s += v * dt + 0.5 * a * dt * dt;
+            v = (v + a * dt).max(0.0);
+            ((k + 1) as f64 * dt, s, v)
+        })
+        .collect()
+}
+
+#[test]
+fn a_rushing_bv_with_time_to_spare_slows_before_the_junction_and_crosses_at_speed() {
+    // Rush τ = 3 s at a crossing: the VUT (10 m/s) is in its zone at 10 s, so the BV (10 m/s) is
+    // out of its zone (40–50 m) at 7 s, on average 7.1 m/s. Its front enters the junction at
+    // 27 m (stop line 25 m). In closed loop (the BV applies each decision for one step, the VUT
+    // keeps its speed) it does its slowing before the junction and never slows after it: no
+    // creeping through the junction.
+    let run = |stop_line: Option<f64>| {
+        let mut r = regulator();
+        let mut inp = input(Style::Rush, 3.0);
+        inp.zone_vut = zone(100.0, 110.0);
+        inp.stop_line_s_m = stop_line;
+        let mut trace = Vec::new();
+        while inp.bv.s_m < 50.0 && inp.t_s < 12.0 {
+            let d = r.decide(&inp);
+            assert!(matches!(d.status, RegulatorStatus::Regulating | RegulatorStatus::Degraded), "{d:?}");
+            inp.bv.s_m += inp.bv.v_mps * 0.1 + 0.5 * d.accel_mps2 * 0.01;
+            inp.bv.v_mps = (inp.bv.v_mps + d.accel_mps2 * 0.1).max(0.0);
+            inp.bv_accel_mps2 = d.accel_mps2;
+            inp.vut.s_m += inp.vut.v_mps * 0.1;
+            inp.t_s += 0.1;
+            trace.push((inp.t_s, inp.bv.s_m, inp.bv.v_mps));
+        }
+        trace
+    };
+    let trace = run(Some(25.0));
+    let out = trace.last().unwrap();
+    // It arrives at its commit station slower than it crosses, so it is a little late (a PET
+    // within 10 % of τ, against a VUT that does not react).
+    assert!(out.1 >= 50.0 && (out.0 - 7.0).abs() <= 0.3 + 1e-6, "out of the zone at {} s, 7 s asked", out.0);
+    let speeds_from = |t: &[(f64, f64, f64)]| t.iter().filter(|p| p.1 >= 27.0).map(|p| p.2).collect::<Vec<f64>>();
+    let after = speeds_from(&trace);
+    assert!(after.windows(2).all(|w| w[1] >= w[0] - 0.05), "slows in the junction: {after:?}");
+    // Without a stop line it is still slowing where the junction begins.
+    let plain = speeds_from(&run(None));
+    assert!(plain.windows(2).any(|w| w[1] < w[0] - 1e-3), "{plain:?}");
+}
+
+#[test]
+fn a_rushing_bv_in_the_zone_of_a_crossing_never_slows_for_a_late_vut() {
+    // The BV (6 m/s) is 2 m into its zone; the VUT comes slowly: to keep τ = 2 s the BV would
+    // have to stay in the VUT's path for 18 s more. It clears the zone at no less than its speed,
+    // and says the PET it expects.
+    let mut r = regulator();
+    let mut inp = input(Style::Rush, 2.0);
+    inp.bv = PathState { s_m: 42.0, v_mps: 6.0, age_s: 0.05 };
+    inp.vut = PathState { s_m: 0.0, v_mps: 5.0, age_s: 0.15 };
+    inp.zone_vut = zone(100.0, 110.0);
+    let d = r.decide(&inp);
+    assert!(matches!(d.status, RegulatorStatus::Regulating | RegulatorStatus::Degraded), "{d:?}");
+    assert!(d.key_time_s.is_some_and(|k| k <= 8.0 / 6.0 + 0.05), "{d:?}");
+    assert!(d.predicted_pet_s.is_some_and(|p| p > 15.0), "{d:?}");
+    let plan = r.planned_accels(&d).unwrap();
+    let path = rollout(inp.bv.s_m, inp.bv.v_mps, plan);
+    assert!(path.iter().take_while(|p| p.1 < 50.0).all(|p| p.2 >= 6.0 - 0.05), "slows in the zone: {path:?}");
+}
