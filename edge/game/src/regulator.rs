@@ -43,7 +43,9 @@
 //!    it commits, where its front enters the junction (its stop line plus [`STOP_LINE_MARGIN_M`];
 //!    without a stop line, its zone entry): when the average speed to its key point is below the
 //!    speed it would cross at (its reference speed within the path's limits there), the plan goes
-//!    to the commit station, due the crossing time before the key time, and speeds up from there.
+//!    to the commit station, due the crossing time before the key time, and speeds up from there
+//!    — unless that means crawling to the junction at less than half the crossing speed: a BV
+//!    that all but stops there while the VUT slows for it only waits for both to go at once.
 //!    Inside the zone it never slows down for a VUT that comes later than predicted: a VUT that
 //!    waits to turn, or one with priority that brakes for a car in its path, waits for as long as
 //!    it sees the BV slowing in there, and a car that dawdles in another's path is not one to put
@@ -423,6 +425,9 @@ fn inputs_finite(inp: &RegulatorInput) -> bool {
 const SLACK_TOL_M: f64 = 0.05;
 /// A follower key time this far from its constraint's time means the constraint did not bind, s.
 const BINDING_TOL_S: f64 = 0.05;
+/// A rushing BV plans to its commit station only at an average speed of at least this share of
+/// its crossing speed ([`Regulator::rush_commit`]).
+const COMMIT_MIN_APPROACH_SHARE: f64 = 0.5;
 /// A rushing BV inside a merge zone plans to leave it at no less than this speed, m/s.
 const IN_ZONE_MIN_MPS: f64 = 2.0;
 /// A rushing cut-in arrives at least this much faster than the VUT drives, m/s: a VUT that closes
@@ -670,7 +675,8 @@ impl Regulator {
     /// `key_t` (s from now), the plan goes to the commit station instead, reaching it
     /// [`Commit::cross_s`] before the key time, and then tracks the crossing speed (the reference
     /// speed within the path's limits between the two). `None` when the average speed to the key
-    /// point is not below that speed (no time to spare), past the commit station, or not a
+    /// point is not below that speed (no time to spare), when the approach would be slower than
+    /// [`COMMIT_MIN_APPROACH_SHARE`] of the crossing speed, past the commit station, or not a
     /// rushing BV at a crossing.
     fn rush_commit(&self, inp: &RegulatorInput, bv_key: f64, key_t: f64) -> Option<Commit> {
         if inp.target.style() != Style::Rush || inp.zone_kind != ConflictKind::Crossing {
@@ -688,7 +694,11 @@ impl Regulator {
             return None;
         }
         let cross_s = cross / speed_mps;
-        (key_t - cross_s > self.params.dt_s).then_some(Commit { station_m, cross_s, speed_mps })
+        let t_commit = key_t - cross_s;
+        // Not to a crawl: a BV that would have to all but stop before the junction to let the
+        // time pass (a VUT that slows down for it) keeps rolling on instead.
+        let slow = approach < COMMIT_MIN_APPROACH_SHARE * speed_mps * t_commit;
+        (t_commit > self.params.dt_s && !slow).then_some(Commit { station_m, cross_s, speed_mps })
     }
 
     /// Where the BV stands when it gives way: at its stop line when the map gives one, never

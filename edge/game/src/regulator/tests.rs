@@ -583,3 +583,22 @@ fn a_rushing_bv_in_the_zone_of_a_crossing_never_slows_for_a_late_vut() {
     let path = rollout(inp.bv.s_m, inp.bv.v_mps, plan);
     assert!(path.iter().take_while(|p| p.1 < 50.0).all(|p| p.2 >= 6.0 - 0.05), "slows in the zone: {path:?}");
 }
+
+#[test]
+fn a_rushing_bv_with_much_time_to_spare_keeps_rolling_instead_of_stopping_before_the_junction() {
+    // The VUT is far (in its zone at 20 s), so the BV (5 m/s) has 17 s for its 50 m. Slowing to
+    // cross at speed would mean crawling the 27 m to the junction at 1.6 m/s, and a VUT that then
+    // slows for it would hold it there, standing, until both go at once: it rolls on instead,
+    // at about its average speed.
+    let mut r = regulator();
+    let mut inp = input(Style::Rush, 3.0);
+    inp.bv.v_mps = 5.0;
+    inp.reference_speed_mps = 10.0;
+    inp.zone_vut = zone(200.0, 210.0);
+    inp.stop_line_s_m = Some(25.0);
+    let d = r.decide(&inp);
+    assert_eq!(d.status, RegulatorStatus::Regulating, "{d:?}");
+    let path = rollout(inp.bv.s_m, inp.bv.v_mps, r.planned_accels(&d).unwrap());
+    let slowest = path.iter().map(|p| p.2).fold(f64::INFINITY, f64::min);
+    assert!(slowest >= 2.0, "crawls at {slowest} m/s: {path:?}");
+}
