@@ -958,8 +958,7 @@ impl Regulator {
         if inp.target.style() == Style::Rush && inp.bv.s_m >= inp.zone_bv.enter_s_m {
             key_t = key_t.min((bv_key - inp.bv.s_m) / inp.bv.v_mps.max(IN_ZONE_MIN_MPS));
         }
-        let commit = self.rush_commit(inp, bv_key, key_t);
-        let d = self.checked_plan(inp, bv_key, realism, key_t, t_v, free_response, commit);
+        let d = self.checked_plan(inp, bv_key, realism, key_t, t_v, free_response);
         match (d.status, hold_until) {
             (RegulatorStatus::Regulating | RegulatorStatus::Degraded, Some((station, until))) => {
                 let early = inp.bv.s_m <= station + HOLD_CREEP_M
@@ -1042,7 +1041,6 @@ impl Regulator {
     /// Steps 3–4: the leader's plan for key time `key_t`, checked against the follower's best
     /// response to it (`t_v`, the VUT's time at the zone, came from a free response when
     /// `free_response`); the BV gives way when the order could not be kept.
-    #[allow(clippy::too_many_arguments)]
     fn checked_plan(
         &mut self,
         inp: &RegulatorInput,
@@ -1051,11 +1049,11 @@ impl Regulator {
         key_t: f64,
         t_v: f64,
         free_response: bool,
-        commit: Option<Commit>,
     ) -> Decision {
         // 3: the leader's plan: to the key point at the key time, or, for a rushing BV that
         // slows before it commits, to its commit station that much earlier than the key time as
         // it takes to cross from there at the speed it crosses at.
+        let commit = self.rush_commit(inp, bv_key, key_t);
         let (event_t, event_station, then, realism) = match commit {
             Some(c) => (key_t - c.cross_s, c.station_m, Some(c.speed_mps), self.realism_pull(inp.bv.s_m, c.station_m)),
             None => (key_t, bv_key, None, realism),
