@@ -43,6 +43,17 @@ fn card(name: &str) -> v2t_sim::scenario::Scenario {
     v2t_sim::files::load_scenario(&root().join(format!("config/scenarios/{name}.toml"))).unwrap()
 }
 
+/// The PET of one run (seed 1) of `sc` at `target` against `vut`, which must be safe (no collision,
+/// no zone overlap, a PET) and in the asked order.
+fn safe_pet(settings: &RegulatorParams, sc: &v2t_sim::scenario::Scenario, target: Target, vut: &Vut<'_>) -> f64 {
+    let c = steer_case(settings, sc, target, vut, 1..=1);
+    let s = &c.stats;
+    let tag = format!("{} {target:?} {}", sc.name, c.vut);
+    assert_eq!((s.collisions, s.zone_overlaps, s.unmeasured), (0, 0, 0), "{tag}: {c:?}");
+    assert_eq!(s.order_ok_frac, 1.0, "{tag}: {c:?}");
+    s.mean_pet_min_s.unwrap()
+}
+
 #[test]
 fn the_regulated_bv_steers_sumos_vut_in_every_scenario() {
     let Some(world) = world() else { return };
@@ -187,11 +198,7 @@ fn sumos_turning_vut_goes_first_when_the_bv_gives_way_outside_the_junction() {
     for name in ["krauss", "idm", "eidm", "impatient"] {
         let d = driver(name);
         let vut = Vut::Sumo { world: &world, driver: &d };
-        let c = steer_case(&settings, &sc, Target::new(4.0, Style::Yield).unwrap(), &vut, 1..=1);
-        let s = &c.stats;
-        assert_eq!((s.collisions, s.zone_overlaps, s.unmeasured), (0, 0, 0), "{name} yield: {c:?}");
-        assert_eq!(s.order_ok_frac, 1.0, "{name} yield: {c:?}");
-        let pet = s.mean_pet_min_s.unwrap();
+        let pet = safe_pet(&settings, &sc, Target::new(4.0, Style::Yield).unwrap(), &vut);
         assert!((pet - 4.0).abs() <= 0.4, "{name} yield τ 4 s: PET {pet:.2} s");
     }
     // Rush at τ 5 s: the BV hurries through at up to 22 m/s and is 130 m past its route's end,
@@ -214,11 +221,7 @@ fn sumos_vut_does_not_wait_for_a_rushing_bv_that_crosses_at_speed() {
     for name in ["krauss", "idm", "eidm", "impatient"] {
         let d = driver(name);
         let vut = Vut::Sumo { world: &world, driver: &d };
-        let c = steer_case(&settings, &sc, Target::new(1.5, Style::Rush).unwrap(), &vut, 1..=1);
-        let s = &c.stats;
-        assert_eq!((s.collisions, s.zone_overlaps, s.unmeasured), (0, 0, 0), "{name}: {c:?}");
-        assert_eq!(s.order_ok_frac, 1.0, "{name}: {c:?}");
-        let pet = s.mean_pet_min_s.unwrap();
+        let pet = safe_pet(&settings, &sc, Target::new(1.5, Style::Rush).unwrap(), &vut);
         assert!(pet <= 2.5, "{name} rush τ 1.5 s: PET {pet:.2} s");
     }
 }
