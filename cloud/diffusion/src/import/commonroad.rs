@@ -1,9 +1,12 @@
 //! CommonRoad XML scenarios: dynamic obstacles as tracks, lanelets as a [`LaneletNetwork`].
 //!
-//! Both formats found in published scenarios are read: **2020a** (`dynamicObstacle`) and the older
-//! **2018b** (`obstacle` with `<role>dynamic</role>`; static obstacles are skipped). Every dynamic
-//! obstacle becomes a [`Track`]: its `initialState` and the `state`s of its
-//! `trajectory`, each at `time × timeStepSize` (the scenario's attribute). A state gives
+//! The formats found in published scenarios are read: **2020a** (`dynamicObstacle`), the older
+//! **2018b** (`obstacle` with `<role>dynamic</role>`; static obstacles are skipped), and **2018a**
+//! (and its predecessor **2017a**), written like 2018b but without an `initialState` (the first
+//! `state` of the trajectory is the start) and with `time` in seconds instead of steps. Every
+//! dynamic obstacle becomes a [`Track`]: its `initialState` and the `state`s of its `trajectory`,
+//! each at `time × timeStepSize` (the scenario's attribute; 2018a and 2017a: at `time`, on the grid
+//! of `timeStepSize`). A state gives
 //! `position/point/{x,y}` (or the centre of a `rectangle`/`circle` position), `orientation`,
 //! `time` and `velocity`, each either `exact` or an interval (`intervalStart`/`intervalEnd`; the
 //! midpoint is used, for time the start). CommonRoad's velocity is along the orientation, so
@@ -96,7 +99,7 @@ pub enum CommonRoadError {
         reason: String,
     },
     /// A version this reader does not know.
-    #[error("line {line}: commonRoadVersion `{version}` is not one of 2018a, 2018b, 2020a")]
+    #[error("line {line}: commonRoadVersion `{version}` is not one of 2017a, 2018a, 2018b, 2020a")]
     Version {
         /// Line of the root element.
         line: u32,
@@ -208,16 +211,20 @@ fn position(
     xy(doc, p, obstacle)
 }
 
+/// One state: its step on the scenario's grid of `dt_s` and its sample. `time_in_seconds`: the
+/// file writes `time` in seconds (2018a, 2017a), not in steps.
 fn state_sample(
     doc: &roxmltree::Document<'_>,
     state: Node<'_, '_>,
     obstacle: &str,
     dt_s: f64,
+    time_in_seconds: bool,
 ) -> Result<(i64, TrackSample), CommonRoadError> {
     let missing = |what| CommonRoadError::Missing { line: line(doc, state), obstacle: obstacle.to_owned(), what };
     let (x, y) = position(doc, state, obstacle)?.ok_or_else(|| missing("position/point"))?;
     let raw_step = value(doc, state, "time", obstacle, true)?.ok_or_else(|| missing("time"))?;
     let time_node = child(state, "time").unwrap_or(state);
+    let raw_step = if time_in_seconds { raw_step / dt_s } else { raw_step };
     let step = within(doc, time_node, obstacle, raw_step, MAX_TIME_STEP)?.round() as i64;
     let psi = value(doc, state, "orientation", obstacle, false)?;
     let v = value(doc, state, "velocity", obstacle, false)?;
@@ -306,7 +313,7 @@ fn lanelet(doc: &roxmltree::Document<'_>, node: Node<'_, '_>) -> Result<Lanelet,
     })
 }
 
-/// Parses CommonRoad XML (2020a or 2018b) into its tracks and lanelet network.
+/// Parses CommonRoad XML (2020a, 2018b, 2018a or 2017a) into its tracks and lanelet network.
 pub fn parse_scenario(xml: &str, name: &str) -> Result<Scenario, CommonRoadError> {
     let doc = roxmltree::Document::parse(xml).map_err(|e| CommonRoadError::Xml(e.to_string()))?;
     let root = doc.root_element();
@@ -314,7 +321,7 @@ pub fn parse_scenario(xml: &str, name: &str) -> Result<Scenario, CommonRoadError
         return Err(CommonRoadError::NotCommonRoad(root.tag_name().name().to_owned()));
     }
     let version = root.attribute("commonRoadVersion").unwrap_or("").trim().to_owned();
-    if !matches!(version.as_str(), "" | "2018a" | "2018b" | "2020a") {
+    if !matches!(version.as_str(), "" | "2017a" | "2018a" | "2018b" | "2020a") {
         return Err(CommonRoadError::Version { line: line(&doc, root), version });
     }
     let raw = root.attribute("timeStepSize").unwrap_or("");
@@ -324,6 +331,7 @@ pub fn parse_scenario(xml: &str, name: &str) -> Result<Scenario, CommonRoadError
         .ok()
         .filter(|v| v.is_finite() && *v > 0.0 && *v <= MAX_TIME_STEP_SIZE_S)
         .ok_or_else(|| CommonRoadError::TimeStepSize { line: line(&doc, root), value: raw.to_owned() })?;
+    let time_in_seconds = matches!(version.as_str(), "2017a" | "2018a");
     let mut tracks = Vec::new();
     for obstacle in root.children().filter(|c| is_dynamic_obstacle(*c)) {
         let id = obstacle.attribute("id").unwrap_or("").to_owned();
@@ -342,7 +350,7 @@ pub fn parse_scenario(xml: &str, name: &str) -> Result<Scenario, CommonRoadError
         }
         let mut samples: Vec<(i64, u32, TrackSample)> = Vec::with_capacity(states.len());
         for s in states {
-            let (step, sample) = state_sample(&doc, s, &id, dt_s)?;
+            let (step, sample) = state_sample(&doc, s, &id, dt_s, time_in_seconds)?;
             samples.push((step, line(&doc, s), sample));
         }
         samples.sort_by_key(|s| s.0);
@@ -503,5 +511,35 @@ mod tests {
         assert!(matches!(parse("<OpenDRIVE/>", "x"), Err(CommonRoadError::NotCommonRoad(_))));
         assert!(matches!(parse("<commonRoad", "x"), Err(CommonRoadError::Xml(_))));
         assert_eq!(parse(&obstacle(state("1", 1)), "x").unwrap().tracks[0].samples.len(), 2);
+    }
+
+    #[test]
+    fn a_2018a_obstacle_starts_with_its_first_state_and_counts_time_in_seconds() {
+        // As CommonRoad 2018a writes an obstacle: no initialState, `time` in seconds.
+        let state = |t: &str, x: f64| {
+            format!(
+                "<state><position><point><x>{x}</x><y>0</y></point></position>\
+                 <orientation><exact>0</exact></orientation><time><exact>{t}</exact></time>\
+                 <velocity><exact>10</exact></velocity><acceleration><exact>0</exact></acceleration></state>"
+            )
+        };
+        let xml = format!(
+            "<commonRoad commonRoadVersion=\"2018a\" benchmarkID=\"A\" timeStepSize=\"0.1\">\
+             <obstacle id=\"7\"><role>dynamic</role><type>car</type>\
+             <shape><rectangle><length>4.7</length><width>1.9</width></rectangle></shape>\
+             <trajectory>{}{}{}</trajectory></obstacle></commonRoad>",
+            state("0", 0.0),
+            state("0.1", 1.0),
+            state("0.2", 2.0)
+        );
+        let s = parse_scenario(&xml, "a").unwrap();
+        let t = &s.episode.tracks[0];
+        assert_eq!(t.samples.iter().map(|q| q.t_s).collect::<Vec<_>>(), vec![0.0, 0.1, 0.2]);
+        assert_eq!(t.samples[2].x_m, 2.0);
+        // The same states read as 2018b steps would collapse onto step 0.
+        let as_2018b = xml.replace("2018a", "2018b");
+        assert!(matches!(parse_scenario(&as_2018b, "a"), Err(CommonRoadError::DuplicateTime { .. })));
+        // 2017a is written the same way.
+        assert_eq!(parse_scenario(&xml.replace("2018a", "2017a"), "a").unwrap().episode, s.episode);
     }
 }
