@@ -2,8 +2,10 @@
 //! formats, INTERACTION/highD-style CSV) → the recorded corpus that `train` and `realism` read, with
 //! every episode's source file and licence tag; and the counts of a corpus.
 
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
+use v2t_diffusion::dedup::VehicleIndex;
 use v2t_diffusion::import::{commonroad, csv};
 use v2t_diffusion::lanes::LaneletNetwork;
 use v2t_diffusion::mining::MiningOptions;
@@ -61,6 +63,14 @@ pub struct ImportArgs {
     /// recordings such as MONA or inD: the model works at 0.1 s; Catmull–Rom between samples).
     #[arg(long)]
     resample: Option<f64>,
+    /// Count each vehicle once across the files: a track whose vehicle an earlier file (in name
+    /// order) already held is counted as a duplicate, and an interaction between two vehicles an
+    /// earlier file already gave is dropped (CommonRoad cuts one recording into overlapping
+    /// scenarios, each shifted and renumbered: vehicles are matched on footprint and speeds,
+    /// `v2t_diffusion::dedup`). The tracks stay in every file's mining: a duplicate vehicle is
+    /// still the other vehicle of a new one's interaction.
+    #[arg(long)]
+    dedup: bool,
     /// Output corpus (JSON lines).
     #[arg(long, short)]
     out: PathBuf,
@@ -203,19 +213,42 @@ fn import(a: ImportArgs) -> anyhow::Result<()> {
     };
     let files = recording_files(&a.inputs)?;
     let mut corpus = RecordedCorpus::default();
+    let mut index = VehicleIndex::new();
+    let mut pairs: HashSet<(usize, usize)> = HashSet::new();
     for file in &files {
         let (episode, lanes, format) = read_recording(file, a.csv_frame_rate)?;
-        let (source, episodes) =
+        let (mut source, mut episodes) =
             recorded::import_scenario(&episode, &lanes, &file.display().to_string(), &format, &options);
+        if a.dedup {
+            let ids = index.identify(&episode.tracks);
+            let vehicle_of: HashMap<&str, usize> =
+                episode.tracks.iter().zip(&ids).map(|(t, i)| (t.id.as_str(), i.vehicle)).collect();
+            source.duplicate_vehicles =
+                episode.tracks.iter().zip(&ids).filter(|(t, i)| t.kind.is_vehicle() && i.seen_before).count();
+            let before = episodes.len();
+            episodes.retain(|e| {
+                let mut v: Vec<Option<usize>> =
+                    e.agents.iter().map(|g| vehicle_of.get(g.id.as_str()).copied()).collect();
+                v.sort_unstable();
+                match v[..] {
+                    [Some(a), Some(b)] => pairs.insert((a, b)),
+                    _ => true,
+                }
+            });
+            source.duplicate_episodes = before - episodes.len();
+            source.kept = episodes.len();
+        }
         eprintln!(
-            "{}: {} tracks, {} interactions mined, {} kept ({} without a lane, {} without controls, {} not an interaction on the lanes)",
+            "{}: {} tracks ({} vehicles already in an earlier file), {} interactions mined, {} kept ({} without a lane, {} without controls, {} not an interaction on the lanes, {} already in an earlier file)",
             file.display(),
             source.tracks,
+            source.duplicate_vehicles,
             source.mined,
             source.kept,
             source.no_route,
             source.no_controls,
-            source.not_interaction
+            source.not_interaction,
+            source.duplicate_episodes
         );
         corpus.sources.push(source);
         corpus.episodes.extend(episodes);
@@ -223,10 +256,11 @@ fn import(a: ImportArgs) -> anyhow::Result<()> {
     recorded::write_file(&corpus, &a.out)?;
     let s = corpus.stats();
     outln!(
-        "imported {} files: {} tracks ({} vehicles), {} interaction episodes; wrote {}",
+        "imported {} files: {} tracks ({} vehicles, {} of them already in an earlier file), {} interaction episodes; wrote {}",
         files.len(),
         s.tracks,
         s.vehicles,
+        s.duplicate_vehicles,
         s.episodes,
         a.out.display()
     )?;
@@ -296,26 +330,31 @@ fn stats(a: StatsArgs) -> anyhow::Result<()> {
 /// The counts as markdown.
 fn stats_table(s: &RecordedStats) -> String {
     let mut out = String::from(
-        "| dataset | licence | files | tracks | vehicles | period | cut-in | lane change | left turn | crossing | merge | dropped |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| dataset | licence | files | tracks | vehicles | of them seen before | period | cut-in | lane change | left turn | crossing | merge | dropped | dropped as seen before |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for d in &s.datasets {
         let periods: Vec<String> = d.periods_s.iter().map(|p| format!("{p} s")).collect();
         let kinds: Vec<String> = d.kinds.iter().map(|(_, n)| n.to_string()).collect();
         out.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
             d.dataset,
             d.licences.join("; "),
             d.files,
             d.tracks,
             d.vehicles,
+            d.duplicate_vehicles,
             periods.join(", "),
             kinds.join(" | "),
-            d.dropped
+            d.dropped,
+            d.duplicate_episodes
         ));
     }
     out.push_str(&format!(
-        "\ntotal: {} tracks ({} vehicles), {} interaction episodes\n\nPET of the episodes (s):\n\n| dataset |",
-        s.tracks, s.vehicles, s.episodes
+        "\ntotal: {} tracks ({} vehicles, {} distinct), {} interaction episodes\n\nPET of the episodes (s):\n\n| dataset |",
+        s.tracks,
+        s.vehicles,
+        s.vehicles - s.duplicate_vehicles,
+        s.episodes
     ));
     let Some(first) = s.datasets.first() else { return out };
     let bins = first.pet.counts.len();

@@ -314,3 +314,32 @@ fn a_bad_recording_is_named_and_nothing_is_written() {
     let err = fails(&["corpus", "stats", s(&good)]);
     assert!(err.contains("USA_Peach-4_8_T-1.xml") && err.contains("line 1"), "{err}");
 }
+
+#[test]
+fn with_dedup_a_vehicle_in_two_files_is_counted_once_and_its_interactions_too() {
+    let dir_scratch = tempdir("dedup");
+    let dir = dir_scratch.path();
+    let file = recordings("train").join("USA_US101-3_1_T-1.xml");
+    for name in ["a.xml", "b.xml"] {
+        std::fs::copy(&file, dir.join(name)).unwrap();
+    }
+    let args = |out: &Path, dedup: bool| {
+        let mut a = vec!["corpus", "import", s(dir), "--dataset", "d", "--licence", "l", "-o", s(out)];
+        if dedup {
+            a.push("--dedup");
+        }
+        a.into_iter().map(str::to_owned).collect::<Vec<_>>()
+    };
+    let (plain, dedup) = (dir.join("plain.jsonl"), dir.join("dedup.jsonl"));
+    let once = ok(&args(&plain, false).iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(once.contains("imported 2 files: 70 tracks (70 vehicles, 0 of them already in an earlier file)"), "{once}");
+    let text = ok(&args(&dedup, true).iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(
+        text.contains("imported 2 files: 70 tracks (70 vehicles, 35 of them already in an earlier file)"),
+        "{text}"
+    );
+    let count = |p: &Path| v2t_diffusion::recorded::read_file(p).unwrap().episodes.len();
+    assert!(count(&plain) > 0 && count(&dedup) * 2 == count(&plain), "{} {}", count(&plain), count(&dedup));
+    let stats = ok(&["corpus", "stats", s(&dedup)]);
+    assert!(stats.contains("total: 70 tracks (70 vehicles, 35 distinct)"), "{stats}");
+}

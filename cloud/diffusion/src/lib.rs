@@ -31,6 +31,7 @@
 //! ```
 
 pub mod condition;
+pub mod dedup;
 pub mod denoiser;
 pub mod generate;
 pub mod guidance;

@@ -66,6 +66,14 @@ pub struct SourceFile {
     /// … dropped because the lanes show no interaction ([`on_lanes`]): two vehicles side by side
     /// in their own lanes whose driven corridors touch, or a vehicle leaving the other's lane.
     pub not_interaction: usize,
+    /// Motor-vehicle tracks of vehicles an earlier file of the same import already held (the
+    /// importer's `--dedup`, [`crate::dedup`]; 0 without it).
+    #[serde(default)]
+    pub duplicate_vehicles: usize,
+    /// Kept interactions dropped because an earlier file already gave the same two vehicles'
+    /// (`--dedup`; not counted in `kept`).
+    #[serde(default)]
+    pub duplicate_episodes: usize,
 }
 
 /// One vehicle of a recorded episode.
@@ -286,6 +294,8 @@ pub fn import_scenario(
         no_route: 0,
         no_controls: 0,
         not_interaction: 0,
+        duplicate_vehicles: 0,
+        duplicate_episodes: 0,
     };
     let mut out = Vec::new();
     for mut it in interactions {
@@ -398,6 +408,8 @@ pub struct RecordedStats {
     pub tracks: usize,
     /// Total motor-vehicle tracks.
     pub vehicles: usize,
+    /// … of which vehicles an earlier file of their import already held.
+    pub duplicate_vehicles: usize,
     /// Total episodes.
     pub episodes: usize,
 }
@@ -415,6 +427,10 @@ pub struct DatasetStats {
     pub tracks: usize,
     /// Motor-vehicle tracks.
     pub vehicles: usize,
+    /// … of which vehicles an earlier file already held (`--dedup`).
+    pub duplicate_vehicles: usize,
+    /// Interactions dropped as the same two vehicles' as an earlier file's (`--dedup`).
+    pub duplicate_episodes: usize,
     /// Sampling periods seen, s.
     pub periods_s: Vec<f64>,
     /// Episodes per interaction kind.
@@ -447,6 +463,8 @@ impl RecordedCorpus {
                 files: 0,
                 tracks: 0,
                 vehicles: 0,
+                duplicate_vehicles: 0,
+                duplicate_episodes: 0,
                 periods_s: Vec::new(),
                 kinds: KINDS.iter().map(|k| (*k, 0)).collect(),
                 dropped: 0,
@@ -460,6 +478,8 @@ impl RecordedCorpus {
             r.files += 1;
             r.tracks += s.tracks;
             r.vehicles += s.vehicles;
+            r.duplicate_vehicles += s.duplicate_vehicles;
+            r.duplicate_episodes += s.duplicate_episodes;
             r.dropped += s.no_route + s.no_controls + s.not_interaction;
             if !r.licences.contains(&s.licence) {
                 r.licences.push(s.licence.clone());
@@ -479,6 +499,7 @@ impl RecordedCorpus {
         RecordedStats {
             tracks: rows.iter().map(|r| r.tracks).sum(),
             vehicles: rows.iter().map(|r| r.vehicles).sum(),
+            duplicate_vehicles: rows.iter().map(|r| r.duplicate_vehicles).sum(),
             episodes: self.episodes.len(),
             datasets: rows,
         }
