@@ -137,7 +137,16 @@ fn record(a: RecordArgs) -> anyhow::Result<()> {
     }
     let mut memory = load_for(&a.test.memory, &a.vut, &a.world)?;
     let case = memory.case_mut(&a.test.scenario, a.test.bv, target);
-    case.record(target, RunRecord { aim_s: a.aim, pet_s: a.pet, order_ok: !a.opposite_order, collision: a.collision });
+    case.record(
+        target,
+        RunRecord {
+            aim_s: a.aim,
+            pet_s: a.pet,
+            order_ok: !a.opposite_order,
+            collision: a.collision,
+            learned_route: false,
+        },
+    );
     let line = v2t_lab::campaign::case_line(case, target);
     save(&a.test.memory, &memory)?;
     outln!("{line}")?;

@@ -51,6 +51,7 @@ use v2t_model::validate::{Validate, ValidationError, in_range};
 use v2t_model::{Style, Target};
 
 use crate::regulator::{BelowReach, BelowReachCause};
+use crate::route_speed::RouteSpeed;
 
 /// Valid runs the reaction model is fitted to (the most recent).
 pub const FIT_WINDOW: usize = 4;
@@ -100,6 +101,11 @@ pub struct RunRecord {
     pub order_ok: bool,
     /// Whether the run ended in a collision.
     pub collision: bool,
+    /// Whether the regulator's follower knew how the VUT drives its route in this run (a
+    /// learned [`RouteSpeed`]). The reaction model is fitted to runs made the same way as the next
+    /// one: what a follower without it got wrong, one with it has already corrected.
+    #[serde(default)]
+    pub learned_route: bool,
 }
 
 impl RunRecord {
@@ -132,6 +138,10 @@ pub struct CaseMemory {
     /// The aim holds where the PET came closest to τ (the PET did not follow the aim).
     #[serde(default)]
     pub holding: bool,
+    /// How the VUT drove its route in the last valid runs (the follower's free motion in the
+    /// next run, [`crate::route_speed`]); `None` until a valid run was recorded with it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub route_speed: Option<RouteSpeed>,
 }
 
 impl Default for CaseMemory {
@@ -146,6 +156,7 @@ impl Default for CaseMemory {
             compared: 0,
             below_reach: None,
             holding: false,
+            route_speed: None,
         }
     }
 }
@@ -175,8 +186,11 @@ impl CaseMemory {
         Target::new(aim, target.style()).unwrap_or(target)
     }
 
+    /// The valid runs `(aim, PET)` made as the next run will be: with a learned route speed when
+    /// one is known, without one otherwise.
     fn valid(&self) -> impl DoubleEndedIterator<Item = (f64, f64)> + '_ {
-        self.runs.iter().filter_map(|r| r.valid_pet().map(|p| (r.aim_s, p)))
+        let learned = self.route_speed.is_some();
+        self.runs.iter().filter(move |r| r.learned_route == learned).filter_map(|r| r.valid_pet().map(|p| (r.aim_s, p)))
     }
 
     /// Records a run of the test whose target is `target`, and updates what is learned.
@@ -197,8 +211,32 @@ impl CaseMemory {
             self.runs.remove(0);
         }
         self.runs.push(run);
+        self.update(tau);
+    }
+
+    /// The reaction model and the reach verdict after the runs so far.
+    fn update(&mut self, tau: f64) {
         (self.offset_s, self.gain) = if self.dropped { (0.0, 1.0) } else { self.fit(tau) };
         (self.below_reach, self.holding) = self.reach_verdict(tau);
+    }
+
+    /// Learns how the VUT drove its route in a run just [`Self::record`]ed: kept only when that
+    /// run measured a PET in the asked order without a collision (a run that went wrong says
+    /// little about how this VUT drives), merged with what earlier runs showed
+    /// ([`RouteSpeed::merge`]).
+    /// The first learned route starts the reaction model over: the runs made without one no
+    /// longer describe how the next run's follower errs.
+    pub fn learn_route(&mut self, target: Target, route: &RouteSpeed) {
+        if self.runs.last().and_then(RunRecord::valid_pet).is_none() || route.validate().is_err() {
+            return;
+        }
+        match &mut self.route_speed {
+            Some(known) if known.step_m == route.step_m => known.merge(route),
+            _ => {
+                self.route_speed = Some(RouteSpeed { runs: 1, ..route.clone() });
+                self.update(target.tau_s());
+            }
+        }
     }
 
     /// The reaction model `(offset, gain)` fitted to the recent valid runs.
@@ -457,6 +495,9 @@ impl Validate for CaseEntry {
         in_range("memory.default_error_s", m.default_error_s, 0.0, 1e9)?;
         if let Some(b) = m.below_reach.and_then(|b| b.pet_bound_s) {
             in_range("memory.below_reach.pet_bound_s", b, 0.0, 3600.0)?;
+        }
+        if let Some(r) = &m.route_speed {
+            r.validate().map_err(|e| e.within("memory.route_speed"))?;
         }
         Ok(())
     }

@@ -40,3 +40,4 @@ pub mod qp;
 pub mod reference;
 pub mod regulation;
 pub mod regulator;
+pub mod route_speed;

@@ -22,6 +22,7 @@ use crate::reference::ReferenceSample;
 use crate::regulator::{
     BelowReach, CURVE_LAT_SHARE, Decision, PathState, Regulator, RegulatorInput, RegulatorParams, RegulatorStatus,
 };
+use crate::route_speed::RouteSpeed;
 
 /// How far from the last projection a vehicle is looked for along its path, m: the projection
 /// never jumps to another branch of a path that passes near itself.
@@ -218,6 +219,18 @@ impl Regulation {
             c.target = target;
         }
         self.regulator.set_known_below_reach(known);
+    }
+
+    /// How this VUT drove its route in earlier runs of the test (see
+    /// [`Regulator::set_route_speed`]); it stays across contexts. A refused record is the error
+    /// and leaves the one before.
+    pub fn set_route_speed(&mut self, learned: Option<RouteSpeed>) -> Result<(), ValidationError> {
+        self.regulator.set_route_speed(learned)
+    }
+
+    /// The learned route speed in use.
+    pub fn route_speed(&self) -> Option<&RouteSpeed> {
+        self.regulator.route_speed()
     }
 
     /// The regulator's settings.

@@ -8,7 +8,10 @@
 //! 1. **Follower best response.** The VUT is modelled as a QP-MPC (see [`crate::qp`]) that tracks
 //!    its current speed with an effort penalty, speed ≥ 0 and its limits, and keeps the zone order
 //!    the style fixes with one linear inequality at the BV's planned key time (slack reported).
-//!    From its plan come the VUT's entry time (rush) or exit time (yield) `t_V`.
+//!    From its plan come the VUT's entry time (rush) or exit time (yield) `t_V`. When earlier runs
+//!    of the test showed how this VUT drives its route ([`Regulator::set_route_speed`], kept by
+//!    the campaign memory), it tracks that speed instead, its deviation from it now fading, and
+//!    `t_V` is no earlier than that free motion gives (see [`crate::route_speed`]).
 //! 2. **Leader choice.** PET is `t_V − T` (rush) or `T − t_V` (yield); the adversarial term
 //!    `w_adv (PET − τ)²` plus the realism term `w_real (T − T_ref)²` is minimised in closed form,
 //!    `T* = (w_adv (t_V ∓ τ) + w_real T_ref) / (w_adv + w_real)`. `T_ref` is the prior's own time
@@ -72,6 +75,7 @@ use v2t_model::{Style, Target};
 
 use crate::qp::{EventKind, LongitudinalQp, QpError, QpInput, QpShape, QpStatus};
 use crate::reference::{ReferenceSample, ReferenceTiming};
+use crate::route_speed::{DEVIATION_FADE_S, RouteSpeed};
 
 /// Longitudinal limits of one vehicle.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -353,6 +357,8 @@ pub struct Regulator {
     /// The lowest speed limit of the path between a rushing BV's commit station and its key
     /// point, this decision (infinite without limits), m/s.
     traverse_cap_mps: f64,
+    /// How this VUT drove its route in earlier runs of the test ([`Regulator::set_route_speed`]).
+    route_speed: Option<RouteSpeed>,
 }
 
 /// What the realism term pulls toward in one decision: the reference's remaining time to the
@@ -398,6 +404,54 @@ fn pulled(realism: Option<RealismPull>, t_adv: f64) -> f64 {
         Some(r) => (1.0 - r.share) * t_adv + r.share * r.key_time_s,
         None => t_adv,
     }
+}
+
+/// When a plan (`s`, `v` every `dt`) reaches `station`: within the horizon as the plan says,
+/// beyond it along the learned route speed from the plan's end ([`along_learned`]).
+fn beyond_horizon(s: &[f64], v: &[f64], dt: f64, station: f64, learned: &RouteSpeed) -> Option<f64> {
+    let (Some(&s_n), Some(&v_n)) = (s.last(), v.last()) else { return None };
+    if s_n >= station {
+        return crate::qp::time_at_station(s, v, dt, station);
+    }
+    along_learned(s.len().saturating_sub(1) as f64 * dt, s_n, v_n, station, learned)
+}
+
+/// When a VUT at `s0` driving the speeds `v_ref` (one per step of `dt`, from now) and then the
+/// learned route speed reaches `station`: the follower's free motion itself, which its QP, with
+/// its effort and jerk penalties, only smooths.
+fn reference_time(s0: f64, v_ref: &[f64], dt: f64, station: f64, learned: &RouteSpeed) -> Option<f64> {
+    let (mut at, mut last) = (s0, 0.0);
+    if at >= station {
+        return Some(0.0);
+    }
+    for (k, &v) in v_ref.iter().enumerate() {
+        let next = at + v * dt;
+        if next >= station {
+            return Some((k as f64 + (station - at) / (v * dt)) * dt);
+        }
+        (at, last) = (next, v);
+    }
+    along_learned(v_ref.len() as f64 * dt, at, last, station, learned)
+}
+
+/// When a VUT at `from` at time `t0`, going on along the learned route speed, reaches `station`
+/// (at `v_end` where nothing was learned; never if that is a standstill). Bounded by the grid.
+fn along_learned(t0: f64, from: f64, v_end: f64, station: f64, learned: &RouteSpeed) -> Option<f64> {
+    let (mut t, mut at) = (t0, from);
+    while at < station {
+        let next = ((at / learned.step_m).floor() + 1.0) * learned.step_m;
+        let to = next.min(station);
+        let speed = match (learned.speed_at(at), learned.speed_at(to)) {
+            (Some(a), Some(b)) => 0.5 * (a + b),
+            _ => return (v_end > 1e-3).then(|| t + (station - at) / v_end),
+        };
+        if speed <= 1e-3 {
+            return None;
+        }
+        t += (to - at) / speed;
+        at = to;
+    }
+    Some(t)
 }
 
 /// Whether every number of the input is finite.
@@ -479,7 +533,26 @@ impl Regulator {
             waiting_since_t_s: None,
             seen_below_reach: None,
             traverse_cap_mps: f64::INFINITY,
+            route_speed: None,
         })
+    }
+
+    /// How this VUT drove its route in earlier runs of this test (the campaign memory's
+    /// [`crate::campaign::CaseMemory::route_speed`]): the follower's free motion from then on (see
+    /// [`crate::route_speed`]). `None`: the follower keeps the VUT's current speed. Like what
+    /// earlier runs showed about reach, it outlives [`Self::reset`]. A refused record leaves the
+    /// one before in place.
+    pub fn set_route_speed(&mut self, learned: Option<RouteSpeed>) -> Result<(), ValidationError> {
+        if let Some(r) = &learned {
+            r.validate().map_err(|e| e.within("route_speed"))?;
+        }
+        self.route_speed = learned;
+        Ok(())
+    }
+
+    /// The learned route speed in use.
+    pub fn route_speed(&self) -> Option<&RouteSpeed> {
+        self.route_speed.as_ref()
     }
 
     /// Sets the prior's timing along the BV's path (time since its start, arc length, speed), the
@@ -588,7 +661,23 @@ impl Regulator {
             Style::Yield => (&mut self.follower_lower, inp.zone_vut.exit_s_m, inp.zone_vut.exit_s_m),
         };
         let v_track = vut.v_mps.clamp(0.0, lim.max_speed_mps);
-        qp.v_ref_mut().iter_mut().for_each(|v| *v = v_track);
+        // With a learned route speed, the VUT is predicted to drive its route as it did before,
+        // its deviation from that now fading; a standing VUT keeps standing.
+        let learned = self.route_speed.as_ref().filter(|_| v_track > VUT_STANDING_MPS);
+        match learned.and_then(|r| Some((r, r.speed_at(vut.s_m)?))) {
+            Some((r, here)) => {
+                let (dt, deviation) = (self.params.dt_s, v_track - here);
+                let mut s = vut.s_m;
+                let mut last = here;
+                for (k, v) in qp.v_ref_mut().iter_mut().enumerate() {
+                    last = r.speed_at(s).unwrap_or(last);
+                    let fade = (-((k + 1) as f64) * dt / DEVIATION_FADE_S).exp();
+                    *v = (last + deviation * fade).clamp(0.0, lim.max_speed_mps);
+                    s += *v * dt;
+                }
+            }
+            None => qp.v_ref_mut().iter_mut().for_each(|v| *v = v_track),
+        }
         let input = QpInput {
             s0_m: vut.s_m,
             v0_mps: v_track,
@@ -602,7 +691,21 @@ impl Regulator {
         if qp.solve(&input) == QpStatus::Failed {
             return None;
         }
-        Some((qp.time_at_station(probe), qp.slack_m()))
+        let t = match learned {
+            // Beyond the horizon the VUT drives on as learned, not at its terminal speed; and it
+            // comes no sooner than its free motion says (the plan smooths its slowdown).
+            Some(r) => {
+                let dt = self.params.dt_s;
+                let planned = beyond_horizon(qp.station(), qp.speed(), dt, probe, r);
+                let free = reference_time(vut.s_m, qp.v_ref_mut(), dt, probe, r);
+                match (planned, free) {
+                    (Some(p), Some(f)) => Some(p.max(f)),
+                    _ => None,
+                }
+            }
+            None => qp.time_at_station(probe),
+        };
+        Some((t, qp.slack_m()))
     }
 
     /// Plans the BV to be at `station` exactly at `key_t` (relative); returns the status of the solve.

@@ -7,6 +7,7 @@
 use v2t_game::qp::{EventKind, LongitudinalQp, QpInput, QpShape};
 use v2t_game::reference::ReferenceSample;
 use v2t_game::regulator::{Regulator, RegulatorParams};
+use v2t_game::route_speed::RouteSpeed;
 use v2t_model::{Style, Target};
 use v2t_test_support::alloc::count;
 
@@ -44,7 +45,7 @@ fn allocations_per_decision_come_only_from_the_solver() {
             per_solve = per_solve.max(n);
         }
     }
-    // The regulator over an approach, after warm-up: without the realism term, and with it
+    // The regulator over an approach, after warm-up: without the realism term, with it
     // around a prior (10 m/s, then easing to 7 m/s), whose reference is set once before.
     let prior: Vec<ReferenceSample> = {
         let mut s = 0.0;
@@ -58,10 +59,14 @@ fn allocations_per_decision_come_only_from_the_solver() {
             })
             .collect()
     };
+    // And with a follower that knows how the VUT drives its route (slowing to 5 m/s from 60 m on).
+    let route =
+        RouteSpeed { step_m: 2.0, speeds_mps: (0..=100).map(|i| if i < 30 { 10.0 } else { 5.0 }).collect(), runs: 1 };
     let mut worst = 0;
-    for w_real in [0.0, 1.0] {
+    for (w_real, learned) in [(0.0, None), (1.0, None), (0.0, Some(route))] {
         let mut reg = Regulator::new(RegulatorParams { w_real, ..RegulatorParams::default() }).unwrap();
         reg.set_reference(prior.iter().copied()).unwrap();
+        reg.set_route_speed(learned).unwrap();
         for style in [Style::Rush, Style::Yield] {
             reg.reset();
             let mut inp = v2t_game::fixtures::left_turn_start(Target::new(2.0, style).unwrap());

@@ -23,6 +23,7 @@ mod view;
 use serde::Serialize;
 use v2t_game::campaign::{CampaignMemory, CaseMemory, RunRecord};
 use v2t_game::regulator::{BelowReach, BelowReachCause, RegulatorParams};
+use v2t_game::route_speed::RouteSpeed;
 use v2t_model::{Style, Target};
 use v2t_sim::bv::BvController;
 use v2t_sim::runner::{RunError, RunOutcome, RunResult};
@@ -190,6 +191,8 @@ pub struct RegulatedRun {
     pub below_reach: Vec<Option<BelowReach>>,
     /// Each BV's decisions over the run (status, predicted PET).
     pub decisions: Vec<Vec<crate::controllers::LoggedDecision>>,
+    /// Whether each BV's follower knew how the VUT drives its route (a learned route speed).
+    pub learned_routes: Vec<bool>,
 }
 
 impl RegulatedRun {
@@ -222,15 +225,18 @@ pub fn regulated_run(
     let mut reports: Vec<Rc<Cell<Option<BelowReach>>>> = Vec::new();
     let mut logs = Vec::new();
     let mut aims = Vec::with_capacity(scenario.bvs.len());
+    let mut learned_routes = Vec::with_capacity(scenario.bvs.len());
     let mut bvs: Vec<Box<dyn BvController>> = Vec::with_capacity(scenario.bvs.len());
     for i in 0..scenario.bvs.len() {
         let case = memory.and_then(|m| m.case(&scenario.name, i, target));
         let aim = case.map_or(target, |c| c.aim(target));
         let r = RegulatedBv::new(RegulatedBv::params_for(settings, scenario, i), scenario, i)?
-            .aiming(aim, case.and_then(|c| c.below_reach));
+            .aiming(aim, case.and_then(|c| c.below_reach))
+            .with_route_speed(case.and_then(|c| c.route_speed.clone()));
         reports.push(r.below_reach_report());
         logs.push(r.decision_log());
         aims.push(aim);
+        learned_routes.push(r.knows_route());
         bvs.push(Box::new(r));
     }
     let outcome = vut.run(scenario, &mut bvs, seed)?;
@@ -240,16 +246,32 @@ pub fn regulated_run(
         aims,
         below_reach: reports.iter().map(|r| r.get()).collect(),
         decisions: logs.iter().map(|l| l.take()).collect(),
+        learned_routes,
     })
 }
 
-/// Records a regulated run of `scenario` (its target is the test's) in `memory`, BV by BV.
+/// Records a regulated run of `scenario` (its target is the test's) in `memory`, BV by BV: its
+/// outcome, and how the VUT drove its route up to that BV's zone ([`vut_route_speed`]).
 pub fn record_run(memory: &mut CampaignMemory, scenario: &Scenario, run: &RegulatedRun) {
     let target = scenario.target;
     for (i, aim) in run.aims.iter().enumerate() {
         let id = scenario.bvs.get(i).map(|b| b.agent.id.as_str());
-        memory.case_mut(&scenario.name, i, target).record(target, bv_record(&run.outcome.result, id, aim.tau_s()));
+        let case = memory.case_mut(&scenario.name, i, target);
+        let learned_route = run.learned_routes.get(i).copied().unwrap_or(false);
+        case.record(target, RunRecord { learned_route, ..bv_record(&run.outcome.result, id, aim.tau_s()) });
+        if let Some(route) = vut_route_speed(&run.outcome, i) {
+            case.learn_route(target, &route);
+        }
     }
+}
+
+/// How the VUT drove its route in `outcome`, up to the exit of its zone with BV `bv_index` (the
+/// follower looks no farther): its speed on the route's grid where it first passed each point,
+/// up to where it first stood ([`RouteSpeed::from_samples`]). `None` without that zone or trace.
+pub fn vut_route_speed(outcome: &RunOutcome, bv_index: usize) -> Option<RouteSpeed> {
+    let zone = outcome.layout.zones.iter().find(|z| z.bv_index == bv_index)?;
+    let samples = outcome.trace.iter().filter_map(|t| t.agents.first()).map(|a| (a.s_m, a.state.speed_mps));
+    RouteSpeed::from_samples(samples, zone.zone.vut.exit_s_m)
 }
 
 /// One run of a campaign: the aim and what is known from the memory, the run, the memory updated.
@@ -308,6 +330,7 @@ pub fn bv_record(r: &RunResult, bv_id: Option<&str>, aim_s: f64) -> RunRecord {
             |c| c.order_matches_style == Some(true),
         ),
         collision: r.collision.is_some(),
+        learned_route: false,
     }
 }
 
@@ -629,6 +652,12 @@ pub fn case_line(memory: &CaseMemory, target: Target) -> String {
             cause(&b),
             b.pet_bound_s.map_or_else(String::new, |x| format!(", PET bound {x:.2} s"))
         ));
+    }
+    if let Some(r) = &memory.route_speed {
+        s.push_str(&format!("; the VUT's speed along its route learned over {} run(s), to {:.0} m", r.runs, r.end_m()));
+        if let Some((at, v)) = r.slowest() {
+            s.push_str(&format!(", slowest {v:.1} m/s at {at:.0} m"));
+        }
     }
     s
 }

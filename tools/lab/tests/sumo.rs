@@ -225,3 +225,30 @@ fn sumos_vut_does_not_wait_for_a_rushing_bv_that_crosses_at_speed() {
         assert!(pet <= 2.5, "{name} rush τ 1.5 s: PET {pet:.2} s");
     }
 }
+
+#[test]
+fn a_campaign_learns_how_sumos_vut_drives_its_turn_and_the_next_run_lands_on_tau() {
+    // The VUT turns left in front of the oncoming BV, which goes first, τ 2 s. SUMO's IDM slows
+    // from 8 to about 4 m/s as it enters the junction whatever the BV does (the same slowdown at
+    // τ 5 s, with the BV long gone): a follower that keeps the VUT's speed predicts it a second
+    // early and the PET comes out near 2.9 s. The first run's record of how it drove its route is
+    // the second run's follower, which then lands on τ while still aiming at τ itself.
+    let Some(world) = world() else { return };
+    let settings: RegulatorParams = v2t_files::load_toml(&root().join("config/regulator/default.toml")).unwrap();
+    let sc = card("left_turn_vut");
+    let target = Target::new(2.0, Style::Rush).unwrap();
+    let d = driver("idm");
+    let vut = Vut::Sumo { world: &world, driver: &d };
+    let mut memory = v2t_game::campaign::CampaignMemory::new(vut.name(), vut.world().as_str());
+    let runs = v2t_lab::campaign::run_campaign(&settings, &sc, target, &vut, 1, 2, &mut memory);
+    for r in &runs {
+        assert!(!r.failed && !r.collision && !r.zone_overlap && r.order_ok, "{r:?}");
+    }
+    let (first, second) = (runs[0].pet_s.unwrap(), runs[1].pet_s.unwrap());
+    assert!(first > 2.6, "without the learned route the PET comes out long: {first:.2} s");
+    let learned = memory.case("left_turn_vut", 0, target).unwrap().route_speed.clone().unwrap();
+    let (at, slowest) = learned.slowest().unwrap();
+    assert!(slowest < 5.0 && (60.0..72.0).contains(&at), "slowest {slowest:.1} m/s at {at:.0} m");
+    assert_eq!(runs[1].aim_s, 2.0, "the second run aims at τ: its follower knows the route");
+    assert!((second - 2.0).abs() <= 0.2, "the second run lands on τ: {second:.2} s");
+}

@@ -9,7 +9,7 @@ fn rush(tau: f64) -> Target {
 }
 
 fn run(aim: Target, pet: f64) -> RunRecord {
-    RunRecord { aim_s: aim.tau_s(), pet_s: Some(pet), order_ok: true, collision: false }
+    RunRecord { aim_s: aim.tau_s(), pet_s: Some(pet), order_ok: true, collision: false, learned_route: false }
 }
 
 /// Runs `n` runs of a test against a VUT whose PET is `vut(aim, run index)`; returns the aims.
@@ -108,7 +108,7 @@ fn a_learned_bias_that_predicts_worse_than_none_is_dropped() {
 fn two_runs_without_a_pet_in_the_asked_order_refuse_the_order() {
     let mut m = CaseMemory::default();
     let t = Target::new(2.0, Style::Yield).unwrap();
-    let none = RunRecord { aim_s: 2.0, pet_s: None, order_ok: false, collision: false };
+    let none = RunRecord { aim_s: 2.0, pet_s: None, order_ok: false, collision: false, learned_route: false };
     m.record(t, none);
     assert!(m.below_reach.is_none());
     m.record(t, none);
@@ -122,7 +122,7 @@ fn two_runs_without_a_pet_in_the_asked_order_refuse_the_order() {
 fn runs_with_a_collision_teach_nothing() {
     let mut m = CaseMemory::default();
     let t = rush(2.0);
-    m.record(t, RunRecord { aim_s: 2.0, pet_s: Some(0.2), order_ok: true, collision: true });
+    m.record(t, RunRecord { aim_s: 2.0, pet_s: Some(0.2), order_ok: true, collision: true, learned_route: false });
     assert_eq!(m.offset_s, 0.0);
     assert_eq!(m.aim(t), t);
 }
@@ -207,7 +207,7 @@ proptest! {
             let aim = m.aim(t);
             prop_assert!(aim.tau_s() >= AIM_MIN_SHARE * tau - 1e-9 && aim.tau_s() <= AIM_MAX_SHARE * tau + 1e-9);
             prop_assert_eq!(aim.style(), t.style());
-            m.record(t, RunRecord { aim_s: aim.tau_s(), pet_s: pet, order_ok, collision });
+            m.record(t, RunRecord { aim_s: aim.tau_s(), pet_s: pet, order_ok, collision, learned_route: false });
             prop_assert!(m.offset_s.is_finite() && m.gain.is_finite());
         }
     }
@@ -234,4 +234,69 @@ fn runs_that_keep_missing_on_either_side_show_tau_out_of_reach_without_holding_t
     // One run on τ ends it.
     m.record(t, run(t, 1.52));
     assert!(m.below_reach.is_none());
+}
+
+/// A learned route speed: `v` m/s over 100 m.
+fn route(v: f64) -> RouteSpeed {
+    RouteSpeed { step_m: 2.0, speeds_mps: vec![v; 51], runs: 1 }
+}
+
+#[test]
+fn the_first_learned_route_starts_the_reaction_model_over() {
+    let mut m = CaseMemory::default();
+    let t = rush(2.0);
+    // Run 1 without a learned route: 1 s long.
+    m.record(t, run(t, 3.0));
+    assert!((m.aim(t).tau_s() - 1.0).abs() < 1e-12, "the bias alone would aim 1 s lower");
+    m.learn_route(t, &route(8.0));
+    assert_eq!(m.aim(t), t, "the next run's follower knows the route: nothing is known of how it errs");
+    assert_eq!((m.offset_s, m.gain), (0.0, 1.0));
+    // Run 2 with it: 0.3 s long; the model is fitted to it alone.
+    m.record(t, RunRecord { learned_route: true, ..run(t, 2.3) });
+    assert!((m.offset_s - 0.3).abs() < 1e-12, "{}", m.offset_s);
+    m.learn_route(t, &route(6.0));
+    let learned = m.route_speed.as_ref().unwrap();
+    assert_eq!(learned.runs, 2);
+    assert_eq!(learned.speeds_mps[0], 8.0, "the faster of the two runs");
+    assert!((m.offset_s - 0.3).abs() < 1e-12, "a merged route keeps the model");
+}
+
+#[test]
+fn a_run_that_went_wrong_teaches_no_route() {
+    let mut m = CaseMemory::default();
+    let t = rush(2.0);
+    m.record(t, RunRecord { collision: true, ..run(t, 0.4) });
+    m.learn_route(t, &route(8.0));
+    assert!(m.route_speed.is_none(), "a collision");
+    m.record(t, RunRecord { order_ok: false, ..run(t, 2.0) });
+    m.learn_route(t, &route(8.0));
+    assert!(m.route_speed.is_none(), "the order refused");
+    m.record(t, run(t, 2.0));
+    m.learn_route(t, &RouteSpeed { speeds_mps: vec![f64::NAN; 3], ..route(8.0) });
+    assert!(m.route_speed.is_none(), "a record that is not one");
+    m.learn_route(t, &route(8.0));
+    assert!(m.route_speed.is_some());
+}
+
+#[test]
+fn a_memory_with_a_learned_route_is_read_back_and_an_older_file_without_one_too() {
+    let mut mem = CampaignMemory::new("sumo-idm", "sumo");
+    let t = rush(2.0);
+    let case = mem.case_mut("left_turn_vut", 0, t);
+    case.record(t, run(t, 2.9));
+    case.learn_route(t, &route(8.0));
+    let json = serde_json::to_string(&mem).unwrap();
+    let back: CampaignMemory = serde_json::from_str(&json).unwrap();
+    assert_eq!(back, mem);
+    assert!(back.validate().is_ok());
+    // A file written before routes were learned: no `route_speed`, no `learned_route`.
+    let old = json.replace(r#","learned_route":false"#, "");
+    let old = &old[..old.find(r#","route_speed""#).unwrap()];
+    let old = format!("{old}}}}}]}}");
+    let back: CampaignMemory = serde_json::from_str(&old).unwrap();
+    assert!(back.cases[0].memory.route_speed.is_none() && !back.cases[0].memory.runs[0].learned_route);
+    // A learned speed out of range is refused naming it.
+    let bad = json.replacen("[8.0,", "[-8.0,", 1);
+    let e = serde_json::from_str::<CampaignMemory>(&bad).unwrap().validate().unwrap_err().to_string();
+    assert!(e.contains("cases[0].memory.route_speed.speeds_mps[0]"), "{e}");
 }

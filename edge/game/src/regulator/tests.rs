@@ -1,5 +1,6 @@
 use super::*;
 use crate::reference::ReferenceSample;
+use crate::route_speed::RouteSpeed;
 use proptest::prelude::*;
 
 fn zone(enter: f64, exit: f64) -> OccupancyInterval {
@@ -595,4 +596,77 @@ fn a_rushing_bv_with_much_time_to_spare_keeps_rolling_instead_of_stopping_before
     let path = rollout(inp.bv.s_m, inp.bv.v_mps, r.planned_accels(&d).unwrap());
     let slowest = path.iter().map(|p| p.2).fold(f64::INFINITY, f64::min);
     assert!(slowest >= 2.0, "crawls at {slowest} m/s: {path:?}");
+}
+
+/// What a VUT did on its route in earlier runs: 10 m/s to 30 m, slowing evenly in arc length to
+/// 5 m/s at 50 m, 5 m/s on to 100 m.
+fn slowing_route() -> RouteSpeed {
+    let speeds = (0..=50)
+        .map(|i| {
+            let s = 2.0 * f64::from(i);
+            if s <= 30.0 {
+                10.0
+            } else if s <= 50.0 {
+                10.0 - 5.0 * (s - 30.0) / 20.0
+            } else {
+                5.0
+            }
+        })
+        .collect();
+    RouteSpeed { step_m: 2.0, speeds_mps: speeds, runs: 1 }
+}
+
+#[test]
+fn a_learned_route_speed_is_where_the_follower_slows_down() {
+    // Rush, τ = 2 s. The VUT at 10 m/s reaches its zone (60 m) at 6 s if it keeps its speed; as
+    // learned, at 3 + 20 / ∫(10 → 5) + 2 ≈ 7.77 s (the slowdown's 20 m take 4 ln 2 s).
+    let arrival = 3.0 + 4.0 * 2f64.ln() + 2.0;
+    let mut r = regulator();
+    r.set_route_speed(Some(slowing_route())).unwrap();
+    let d = r.decide(&input(Style::Rush, 2.0));
+    let key = d.key_time_s.unwrap();
+    assert!((key - (arrival - 2.0)).abs() < 0.1, "key time {key}, the VUT in at {arrival:.2} s");
+    assert!((d.predicted_pet_s.unwrap() - 2.0).abs() < 0.05, "{d:?}");
+    // A learned speed that is the VUT's own changes nothing.
+    let mut r = regulator();
+    r.set_route_speed(Some(RouteSpeed { speeds_mps: vec![10.0; 51], ..slowing_route() })).unwrap();
+    let d = r.decide(&input(Style::Rush, 2.0));
+    assert!((d.key_time_s.unwrap() - 4.0).abs() < 0.05, "{d:?}");
+    // It outlives a reset (it belongs to the test, not to one run).
+    r.reset();
+    assert!(r.route_speed().is_some());
+}
+
+#[test]
+fn a_vut_faster_than_learned_is_believed_for_a_while() {
+    // Learned 10 m/s everywhere, the VUT comes at 12 m/s: between 60/12 and 60/10 s.
+    let mut r = regulator();
+    r.set_route_speed(Some(RouteSpeed { speeds_mps: vec![10.0; 51], ..slowing_route() })).unwrap();
+    let mut inp = input(Style::Rush, 2.0);
+    inp.vut.v_mps = 12.0;
+    let key = r.decide(&inp).key_time_s.unwrap() + 2.0;
+    assert!(key > 5.0 + 0.2 && key < 6.0 - 0.2, "the VUT predicted in at {key} s");
+}
+
+#[test]
+fn a_standing_vut_keeps_standing_whatever_was_learned() {
+    let mut inp = input(Style::Yield, 2.0);
+    inp.vut = PathState { s_m: 50.0, v_mps: 0.0, age_s: 0.1 };
+    inp.bv.s_m = 20.0;
+    let plain = regulator().decide(&inp);
+    let mut r = regulator();
+    r.set_route_speed(Some(slowing_route())).unwrap();
+    let learned = r.decide(&inp);
+    assert_eq!((learned.status, learned.key_time_s), (plain.status, plain.key_time_s));
+}
+
+#[test]
+fn a_refused_route_speed_names_its_field_and_keeps_the_one_before() {
+    let mut r = regulator();
+    r.set_route_speed(Some(slowing_route())).unwrap();
+    let mut bad = slowing_route();
+    bad.speeds_mps[7] = f64::NAN;
+    let e = r.set_route_speed(Some(bad)).unwrap_err().to_string();
+    assert!(e.contains("route_speed.speeds_mps[7]"), "{e}");
+    assert_eq!(r.route_speed(), Some(&slowing_route()));
 }

@@ -94,6 +94,22 @@ impl RegulatedBv {
         self
     }
 
+    /// This BV's follower predicting the VUT's free motion from how it drove its route in earlier
+    /// runs of the test (the campaign memory's, [`v2t_game::route_speed`]). A record the regulator
+    /// refuses is left out: the follower keeps the VUT's current speed.
+    #[must_use]
+    pub fn with_route_speed(mut self, learned: Option<v2t_game::route_speed::RouteSpeed>) -> Self {
+        if self.regulation.set_route_speed(learned).is_err() {
+            let _ = self.regulation.set_route_speed(None);
+        }
+        self
+    }
+
+    /// Whether the follower predicts the VUT's free motion from a learned route speed.
+    pub fn knows_route(&self) -> bool {
+        self.regulation.route_speed().is_some()
+    }
+
     /// Where the last "τ out of reach" of the run will be (`None` while nothing said so).
     pub fn below_reach_report(&self) -> Rc<Cell<Option<BelowReach>>> {
         Rc::clone(&self.below_reach)
