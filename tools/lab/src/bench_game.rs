@@ -1,7 +1,9 @@
 //! Decision latency and allocations of the regulator (`v2t-bench game`).
 //!
 //! With the shipped regulator settings (`config/regulator/default.toml`, the realism weight
-//! included, around a prior), for N = 30 and N = 50, on one thread:
+//! included, around a prior), for N = 30 and N = 50, and for N = 50 with a follower that knows
+//! how the VUT drives its route (a learned route speed, [`v2t_game::route_speed`]: the VUT
+//! slowing evenly from its speed to half of it over 300 m), on one thread:
 //! - *sim*: every decision of the regulated BV in the simulated proving ground — both bundled
 //!   cards, rush and yield, τ ∈ {1.5, 3, 5} s, every VUT model, one seed each;
 //! - *approaches*: a left-turn approach in both styles replayed kinematically (the BV moving as its
@@ -21,6 +23,7 @@ use v2t_files::parse_toml;
 use v2t_game::fixtures as common;
 use v2t_game::reference::ReferenceSample;
 use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams};
+use v2t_game::route_speed::RouteSpeed;
 use v2t_model::vehicle::VehicleConfig;
 use v2t_model::{Style, Target};
 use v2t_sim::bv::BvController;
@@ -38,6 +41,8 @@ use crate::controllers::RegulatedBv;
 pub struct BenchFigures {
     /// MPC horizon N.
     pub horizon: usize,
+    /// Whether the follower had a learned route speed.
+    pub learned_route: bool,
     /// Decisions timed (approaches + random).
     pub decisions: u64,
     /// Decisions timed in the closed-loop simulations.
@@ -116,7 +121,12 @@ fn scenario(card: &str, vut: &str, bv: &str, sim: &str) -> Result<Scenario, Box<
 }
 
 /// Latencies of every regulator decision in closed-loop simulations, µs.
-fn sim_latencies(settings: RegulatorParams) -> Result<Vec<f64>, Box<dyn std::error::Error>> {
+/// A learned route speed for the bench: from `v_mps` evenly down to half of it over 300 m.
+fn learned_route(v_mps: f64) -> RouteSpeed {
+    RouteSpeed { step_m: 2.0, speeds_mps: (0..=150).map(|i| v_mps * (1.0 - f64::from(i) / 300.0)).collect(), runs: 1 }
+}
+
+fn sim_latencies(settings: RegulatorParams, learned: bool) -> Result<Vec<f64>, Box<dyn std::error::Error>> {
     let vut = include_str!("../../../config/vehicles/vut_sedan.toml");
     let bv = include_str!("../../../config/vehicles/bv_sedan.toml");
     let sim = include_str!("../../../config/sim/default.toml");
@@ -133,6 +143,7 @@ fn sim_latencies(settings: RegulatorParams) -> Result<Vec<f64>, Box<dyn std::err
                 let Ok(inner) = RegulatedBv::new(RegulatedBv::params_for(&settings, &sc, 0), &sc, 0) else {
                     continue;
                 };
+                let inner = inner.with_route_speed(learned.then(|| learned_route(sc.vut.agent.initial_speed_mps)));
                 let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(Timed { inner, sink: Rc::clone(&sink) })];
                 let _ = run(&sc, &mut bvs, model.driver().as_mut(), 1);
             }
@@ -146,9 +157,10 @@ pub fn run_bench(allocations: fn() -> u64) -> Result<Vec<BenchFigures>, Box<dyn 
     let mut report = Vec::new();
     // The shipped settings (the realism weight included), at each horizon.
     let shipped: RegulatorParams = parse_toml(include_str!("../../../config/regulator/default.toml"), "regulator")?;
-    for horizon in [30usize, 50] {
+    for (horizon, learned) in [(30usize, false), (50, false), (50, true)] {
         let params = RegulatorParams { horizon, ..shipped };
         let mut reg = Regulator::new(params)?;
+        reg.set_route_speed(learned.then(|| learned_route(8.0)))?;
         // The left turn's prior for the realism term: the BV at its start speed, easing off before
         // the zone and back (set once, as a BV does when a prior arrives).
         reg.set_reference((0..400).map(|k| {
@@ -207,7 +219,7 @@ pub fn run_bench(allocations: fn() -> u64) -> Result<Vec<BenchFigures>, Box<dyn 
             reg.reset();
             decide(&mut reg, &inp, true, &mut random_us);
         }
-        let mut sim_us = sim_latencies(params)?;
+        let mut sim_us = sim_latencies(params, learned)?;
         sim_us.sort_by(f64::total_cmp);
         lat_us.extend_from_slice(&approach_us);
         lat_us.extend_from_slice(&random_us);
@@ -215,6 +227,7 @@ pub fn run_bench(allocations: fn() -> u64) -> Result<Vec<BenchFigures>, Box<dyn 
         approach_us.sort_by(f64::total_cmp);
         report.push(BenchFigures {
             horizon,
+            learned_route: learned,
             decisions: counted,
             sim_decisions: sim_us.len(),
             sim_p50_us: percentile(&sim_us, 0.5),
@@ -240,8 +253,9 @@ pub fn table(figures: &[BenchFigures]) -> String {
     );
     for f in figures {
         out.push_str(&format!(
-            "| {} | {} | {:.0} µs | {:.0} µs | {:.0} µs | {:.0} µs | {:.0} µs | {:.0} µs | {:.2} | {} |\n",
+            "| {}{} | {} | {:.0} µs | {:.0} µs | {:.0} µs | {:.0} µs | {:.0} µs | {:.0} µs | {:.2} | {} |\n",
             f.horizon,
+            if f.learned_route { ", learned route" } else { "" },
             f.sim_decisions,
             f.sim_p50_us,
             f.sim_p99_us,
@@ -254,7 +268,8 @@ pub fn table(figures: &[BenchFigures]) -> String {
         ));
     }
     for f in figures {
-        out.push_str(&format!("statuses (N = {}): {:?}\n", f.horizon, f.statuses));
+        let learned = if f.learned_route { ", learned route" } else { "" };
+        out.push_str(&format!("statuses (N = {}{learned}): {:?}\n", f.horizon, f.statuses));
     }
     out
 }
