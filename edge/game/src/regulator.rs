@@ -117,12 +117,21 @@ pub struct RegulatorParams {
     pub fallback_decel_mps2: f64,
     /// Time headway the VUT is assumed to keep behind a vehicle that cuts in ahead of it, s.
     pub vut_headway_s: f64,
+    /// Weight of the jerk in the BV's plan, against its acceleration's 1 and its speed
+    /// reference's 0.2: how smoothly it moves, traded against how fast it answers (3 when the
+    /// file does not say; `docs/BENCHMARKS.md`, "What the plan's jerk weight buys").
+    #[serde(default = "default_w_jerk")]
+    pub w_jerk: f64,
     /// BV limits (from the BV's vehicle file).
     #[serde(skip, default = "default_bv_limits")]
     pub bv: Limits,
     /// Assumed VUT limits for its best response (from the VUT's vehicle file).
     #[serde(skip, default = "default_vut_limits")]
     pub vut: Limits,
+}
+
+fn default_w_jerk() -> f64 {
+    3.0
 }
 
 fn default_bv_limits() -> Limits {
@@ -154,6 +163,7 @@ impl Default for RegulatorParams {
             max_input_age_s: 0.5,
             fallback_decel_mps2: 2.0,
             vut_headway_s: 1.5,
+            w_jerk: default_w_jerk(),
             bv: default_bv_limits(),
             vut: default_vut_limits(),
         }
@@ -182,6 +192,7 @@ impl Validate for RegulatorParams {
         in_range("max_input_age_s", self.max_input_age_s, 0.01, 5.0)?;
         in_range("fallback_decel_mps2", self.fallback_decel_mps2, 0.5, 12.0)?;
         in_range("vut_headway_s", self.vut_headway_s, 0.0, 5.0)?;
+        in_range("w_jerk", self.w_jerk, 0.01, 1000.0)?;
         self.bv.validate().map_err(|e| e.within("bv"))?;
         self.vut.validate().map_err(|e| e.within("vut"))
     }
@@ -518,7 +529,7 @@ impl Regulator {
             w_slack: 1e4,
             event: EventKind::Upper,
         };
-        let leader = QpShape { w_speed: 0.2, w_accel: 1.0, w_jerk: 3.0, ..base };
+        let leader = QpShape { w_speed: 0.2, w_accel: 1.0, w_jerk: params.w_jerk, ..base };
         Ok(Self {
             params,
             follower_upper: LongitudinalQp::new(base)?,

@@ -670,3 +670,24 @@ fn a_refused_route_speed_names_its_field_and_keeps_the_one_before() {
     assert!(e.contains("route_speed.speeds_mps[7]"), "{e}");
     assert_eq!(r.route_speed(), Some(&slowing_route()));
 }
+
+#[test]
+fn the_plans_jerk_weight_is_a_setting_that_smooths_the_plan() {
+    // A file written before the setting reads as the weight the plans always had.
+    let text = r#"{"horizon": 50, "dt_s": 0.1, "w_adv": 1.0, "w_real": 0.1, "safety_margin_s": 0.5,
+                   "max_input_age_s": 0.5, "fallback_decel_mps2": 2.0, "vut_headway_s": 2.0}"#;
+    let p: RegulatorParams = serde_json::from_str(text).unwrap();
+    assert_eq!(p.w_jerk, 3.0);
+    let e = RegulatorParams { w_jerk: 0.0, ..p }.validate().unwrap_err().to_string();
+    assert!(e.contains("w_jerk"), "{e}");
+    // From rest, asked to be 40 m on in 4 s: the smoother plan starts more gently.
+    let first_jerk = |w_jerk: f64| {
+        let mut r = Regulator::new(RegulatorParams { w_jerk, ..p }).unwrap();
+        let mut inp = input(Style::Rush, 2.0);
+        inp.bv.v_mps = 5.0;
+        let d = r.decide(&inp);
+        let a = r.planned_accels(&d).unwrap();
+        (a[1] - a[0]).abs().max((a[0] - inp.bv_accel_mps2).abs())
+    };
+    assert!(first_jerk(30.0) < first_jerk(3.0), "{} {}", first_jerk(30.0), first_jerk(3.0));
+}
