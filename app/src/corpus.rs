@@ -215,6 +215,7 @@ fn import(a: ImportArgs) -> anyhow::Result<()> {
     let mut corpus = RecordedCorpus::default();
     let mut index = VehicleIndex::new();
     let mut pairs: HashSet<(usize, usize)> = HashSet::new();
+    let mut turned_left: HashSet<usize> = HashSet::new();
     for file in &files {
         let (episode, lanes, format) = read_recording(file, a.csv_frame_rate)?;
         let (mut source, mut episodes) =
@@ -225,6 +226,11 @@ fn import(a: ImportArgs) -> anyhow::Result<()> {
                 episode.tracks.iter().zip(&ids).map(|(t, i)| (t.id.as_str(), i.vehicle)).collect();
             source.duplicate_vehicles =
                 episode.tracks.iter().zip(&ids).filter(|(t, i)| t.kind.is_vehicle() && i.seen_before).count();
+            let turning = |t: &&v2t_diffusion::tracks::Track| {
+                t.kind.is_vehicle() && t.heading_change_rad().is_some_and(|d| d >= recorded::LEFT_TURN_VEHICLE_RAD)
+            };
+            source.left_turning_vehicles =
+                episode.tracks.iter().zip(&ids).filter(|(t, i)| turning(t) && turned_left.insert(i.vehicle)).count();
             let before = episodes.len();
             episodes.retain(|e| {
                 let mut v: Vec<Option<usize>> =
@@ -330,19 +336,20 @@ fn stats(a: StatsArgs) -> anyhow::Result<()> {
 /// The counts as markdown.
 fn stats_table(s: &RecordedStats) -> String {
     let mut out = String::from(
-        "| dataset | licence | files | tracks | vehicles | of them seen before | period | cut-in | lane change | left turn | crossing | merge | dropped | dropped as seen before |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| dataset | licence | files | tracks | vehicles | of them seen before | vehicles turning left | period | cut-in | lane change | left turn | crossing | merge | dropped | dropped as seen before |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for d in &s.datasets {
         let periods: Vec<String> = d.periods_s.iter().map(|p| format!("{p} s")).collect();
         let kinds: Vec<String> = d.kinds.iter().map(|(_, n)| n.to_string()).collect();
         out.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
             d.dataset,
             d.licences.join("; "),
             d.files,
             d.tracks,
             d.vehicles,
             d.duplicate_vehicles,
+            d.left_turning_vehicles,
             periods.join(", "),
             kinds.join(" | "),
             d.dropped,

@@ -74,7 +74,16 @@ pub struct SourceFile {
     /// (`--dedup`; not counted in `kept`).
     #[serde(default)]
     pub duplicate_episodes: usize,
+    /// Motor vehicles that turn left by at least [`LEFT_TURN_VEHICLE_RAD`] over their track, with
+    /// or without another vehicle to interact with (with `--dedup`, each vehicle once: counted in
+    /// the first file where it turns).
+    #[serde(default)]
+    pub left_turning_vehicles: usize,
 }
+
+/// A vehicle whose heading turns left by at least this over its track counts as turning left, rad
+/// (60°).
+pub const LEFT_TURN_VEHICLE_RAD: f64 = std::f64::consts::FRAC_PI_3;
 
 /// One vehicle of a recorded episode.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -296,6 +305,11 @@ pub fn import_scenario(
         not_interaction: 0,
         duplicate_vehicles: 0,
         duplicate_episodes: 0,
+        left_turning_vehicles: episode
+            .tracks
+            .iter()
+            .filter(|t| t.kind.is_vehicle() && t.heading_change_rad().is_some_and(|d| d >= LEFT_TURN_VEHICLE_RAD))
+            .count(),
     };
     let mut out = Vec::new();
     for mut it in interactions {
@@ -431,6 +445,8 @@ pub struct DatasetStats {
     pub duplicate_vehicles: usize,
     /// Interactions dropped as the same two vehicles' as an earlier file's (`--dedup`).
     pub duplicate_episodes: usize,
+    /// Vehicles that turn left, interacting or not ([`SourceFile::left_turning_vehicles`]).
+    pub left_turning_vehicles: usize,
     /// Sampling periods seen, s.
     pub periods_s: Vec<f64>,
     /// Episodes per interaction kind.
@@ -465,6 +481,7 @@ impl RecordedCorpus {
                 vehicles: 0,
                 duplicate_vehicles: 0,
                 duplicate_episodes: 0,
+                left_turning_vehicles: 0,
                 periods_s: Vec::new(),
                 kinds: KINDS.iter().map(|k| (*k, 0)).collect(),
                 dropped: 0,
@@ -480,6 +497,7 @@ impl RecordedCorpus {
             r.vehicles += s.vehicles;
             r.duplicate_vehicles += s.duplicate_vehicles;
             r.duplicate_episodes += s.duplicate_episodes;
+            r.left_turning_vehicles += s.left_turning_vehicles;
             r.dropped += s.no_route + s.no_controls + s.not_interaction;
             if !r.licences.contains(&s.licence) {
                 r.licences.push(s.licence.clone());

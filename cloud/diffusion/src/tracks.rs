@@ -112,6 +112,44 @@ impl Track {
         self.samples.windows(2).map(|w| if let [a, b] = w { a.position().dist(b.position()) } else { 0.0 }).sum()
     }
 
+    /// How far the track turns, rad, counter-clockwise positive (a left turn with y up): the
+    /// unwrapped heading over its last five samples' mean minus over its first five's. The heading
+    /// is the recorded one where every sample has it, else the direction of travel between samples
+    /// at least 0.2 m apart. `None` with fewer than two headings.
+    pub fn heading_change_rad(&self) -> Option<f64> {
+        let headings: Vec<f64> = if self.samples.iter().all(|s| s.psi_rad.is_some_and(f64::is_finite)) {
+            self.samples.iter().filter_map(|s| s.psi_rad).collect()
+        } else {
+            let mut out = Vec::new();
+            let mut from: Option<Point2> = None;
+            for p in self.positions() {
+                match from {
+                    Some(q) if q.dist(p) >= 0.2 => {
+                        out.push((p.y - q.y).atan2(p.x - q.x));
+                        from = Some(p);
+                    }
+                    None => from = Some(p),
+                    Some(_) => {}
+                }
+            }
+            out
+        };
+        let (first, rest) = headings.split_first()?;
+        if rest.is_empty() {
+            return None;
+        }
+        let mut unwrapped = vec![*first];
+        let mut last = *first;
+        for h in rest {
+            let d = (h - last + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+            last += d;
+            unwrapped.push(last);
+        }
+        let k = unwrapped.len().min(5);
+        let mean = |xs: &[f64]| xs.iter().sum::<f64>() / xs.len() as f64;
+        Some(mean(unwrapped.get(unwrapped.len() - k..)?) - mean(unwrapped.get(..k)?))
+    }
+
     /// The footprint, or a typical car's (4.6 m × 1.9 m) when unknown.
     pub fn dims_or_default(&self) -> Dimensions {
         self.dims.unwrap_or(Dimensions { length_m: 4.6, width_m: 1.9 })
@@ -226,6 +264,56 @@ fn natural_order(a: &str, b: &str) -> std::cmp::Ordering {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A track on a circle of radius 20 m through `angle` rad (positive: counter-clockwise, a left
+    /// turn), 40 samples, with or without recorded headings.
+    fn turning(angle: f64, with_heading: bool) -> Track {
+        let samples = (0..40)
+            .map(|k| {
+                let a = angle * f64::from(k) / 39.0;
+                let (x, y) = if angle >= 0.0 {
+                    (20.0 * a.sin(), 20.0 * (1.0 - a.cos()))
+                } else {
+                    (20.0 * (-a).sin(), -20.0 * (1.0 - a.cos()))
+                };
+                TrackSample {
+                    t_s: f64::from(k) * 0.1,
+                    x_m: x,
+                    y_m: y,
+                    vx_mps: None,
+                    vy_mps: None,
+                    psi_rad: with_heading.then_some(a),
+                }
+            })
+            .collect();
+        Track { id: "t".into(), dt_s: 0.1, kind: AgentKind::Car, dims: None, samples }
+    }
+
+    #[test]
+    fn a_left_turn_turns_counter_clockwise_from_headings_or_from_motion() {
+        let quarter = std::f64::consts::FRAC_PI_2;
+        for with_heading in [true, false] {
+            let left = turning(quarter, with_heading).heading_change_rad().unwrap();
+            // The means over five samples at each end take a little off the full quarter turn.
+            assert!(left > 0.8 * quarter && left <= quarter + 1e-9, "{left}");
+            let right = turning(-quarter, with_heading).heading_change_rad().unwrap();
+            assert!(right < -0.8 * quarter, "{right}");
+            let mut straight = turning(quarter, with_heading);
+            for (k, s) in straight.samples.iter_mut().enumerate() {
+                (s.x_m, s.y_m, s.psi_rad) = (k as f64, 0.0, s.psi_rad.map(|_| 0.0));
+            }
+            let straight = straight.heading_change_rad();
+            assert!(straight.is_some_and(|d| d.abs() < 1e-9), "{straight:?}");
+        }
+        // Headings across ±π are unwrapped: a turn through west is still one left turn.
+        let mut t = turning(quarter, true);
+        for s in &mut t.samples {
+            s.psi_rad = s
+                .psi_rad
+                .map(|p| (p + 2.5 + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI);
+        }
+        assert!(t.heading_change_rad().unwrap() > 0.8 * quarter);
+    }
 
     fn track(id: &str, t0: f64, n: usize) -> Track {
         let samples = (0..n).map(|k| TrackSample::at(t0 + 0.1 * k as f64, k as f64, 0.0)).collect();
