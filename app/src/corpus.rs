@@ -226,11 +226,12 @@ fn import(a: ImportArgs) -> anyhow::Result<()> {
                 episode.tracks.iter().zip(&ids).map(|(t, i)| (t.id.as_str(), i.vehicle)).collect();
             source.duplicate_vehicles =
                 episode.tracks.iter().zip(&ids).filter(|(t, i)| t.kind.is_vehicle() && i.seen_before).count();
-            let turning = |t: &&v2t_diffusion::tracks::Track| {
-                t.kind.is_vehicle() && t.heading_change_rad().is_some_and(|d| d >= recorded::LEFT_TURN_VEHICLE_RAD)
-            };
-            source.left_turning_vehicles =
-                episode.tracks.iter().zip(&ids).filter(|(t, i)| turning(t) && turned_left.insert(i.vehicle)).count();
+            source.left_turning_vehicles = episode
+                .tracks
+                .iter()
+                .zip(&ids)
+                .filter(|(t, i)| recorded::turns_left(t) && turned_left.insert(i.vehicle))
+                .count();
             let before = episodes.len();
             episodes.retain(|e| {
                 let mut v: Vec<Option<usize>> =

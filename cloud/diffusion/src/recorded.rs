@@ -85,6 +85,11 @@ pub struct SourceFile {
 /// (60°).
 pub const LEFT_TURN_VEHICLE_RAD: f64 = std::f64::consts::FRAC_PI_3;
 
+/// Whether `track` is a motor vehicle that turns left by at least [`LEFT_TURN_VEHICLE_RAD`].
+pub fn turns_left(track: &Track) -> bool {
+    track.kind.is_vehicle() && track.heading_change_rad().is_some_and(|d| d >= LEFT_TURN_VEHICLE_RAD)
+}
+
 /// One vehicle of a recorded episode.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -305,11 +310,7 @@ pub fn import_scenario(
         not_interaction: 0,
         duplicate_vehicles: 0,
         duplicate_episodes: 0,
-        left_turning_vehicles: episode
-            .tracks
-            .iter()
-            .filter(|t| t.kind.is_vehicle() && t.heading_change_rad().is_some_and(|d| d >= LEFT_TURN_VEHICLE_RAD))
-            .count(),
+        left_turning_vehicles: episode.tracks.iter().filter(|t| turns_left(t)).count(),
     };
     let mut out = Vec::new();
     for mut it in interactions {

@@ -282,6 +282,11 @@ impl LongitudinalQp {
         &mut self.v_ref
     }
 
+    /// The reference speeds the last solve tracked.
+    pub fn v_ref(&self) -> &[f64] {
+        &self.v_ref
+    }
+
     /// Solves for `input`; the plan is then in [`Self::station`], [`Self::speed`], [`Self::accel`].
     pub fn solve(&mut self, input: &QpInput) -> QpStatus {
         let n = self.shape.horizon;

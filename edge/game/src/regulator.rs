@@ -708,7 +708,7 @@ impl Regulator {
             Some(r) => {
                 let dt = self.params.dt_s;
                 let planned = beyond_horizon(qp.station(), qp.speed(), dt, probe, r);
-                let free = reference_time(vut.s_m, qp.v_ref_mut(), dt, probe, r);
+                let free = reference_time(vut.s_m, qp.v_ref(), dt, probe, r);
                 match (planned, free) {
                     (Some(p), Some(f)) => Some(p.max(f)),
                     _ => None,

@@ -96,12 +96,12 @@ impl RegulatedBv {
 
     /// This BV's follower predicting the VUT's free motion from how it drove its route in earlier
     /// runs of the test (the campaign memory's, [`v2t_game::route_speed`]). A record the regulator
-    /// refuses is left out: the follower keeps the VUT's current speed.
+    /// refuses leaves none in place (a new BV has none): the follower keeps the VUT's current
+    /// speed, and [`Self::knows_route`] says so.
     #[must_use]
     pub fn with_route_speed(mut self, learned: Option<v2t_game::route_speed::RouteSpeed>) -> Self {
-        if self.regulation.set_route_speed(learned).is_err() {
-            let _ = self.regulation.set_route_speed(None);
-        }
+        // Refused: the one before stays, and a new BV has none.
+        let _ = self.regulation.set_route_speed(learned);
         self
     }
 
