@@ -34,6 +34,21 @@ pub struct ReferenceArgs {
     /// Recorded corpus files (every episode at one sampling period).
     #[arg(required = true)]
     corpora: Vec<PathBuf>,
+    /// Recordings (files or directories, as `import` reads them) whose vehicles turning left by at
+    /// least 60° make the left-turn class, each vehicle once across the files (matched as
+    /// `import --dedup` matches them), whether or not an interaction was mined around it. Without
+    /// it the left-turn class is the actors of the corpora's mined left turns.
+    #[arg(long = "left-turns", num_args = 1.., requires_all = ["left_turns_dataset", "left_turns_licence"])]
+    left_turns: Vec<PathBuf>,
+    /// What the `--left-turns` recordings are.
+    #[arg(long)]
+    left_turns_dataset: Option<String>,
+    /// Their licence tag.
+    #[arg(long)]
+    left_turns_licence: Option<String>,
+    /// Position noise of the `--left-turns` recordings for the smoother, m (as `import`'s).
+    #[arg(long, default_value_t = 0.1)]
+    position_noise: f64,
     /// Output file (JSON).
     #[arg(long, short)]
     out: PathBuf,
@@ -96,17 +111,22 @@ pub fn run(command: CorpusCommand) -> anyhow::Result<()> {
     }
 }
 
-/// The human reference of recorded corpora: the actor of a left turn is a left turn, the actor of a
-/// cut-in or lane change a lane change, the other vehicle of any interaction straight through when
-/// its path is straight ([`v2t_model::realism::ManoeuvreClass::of_states`]); each vehicle once per class.
+/// The human reference of recorded corpora: the actor of a left turn is a left turn (or, with
+/// `--left-turns`, every vehicle of those recordings that turns left by at least 60°), the actor of
+/// a cut-in or lane change a lane change unless it turns into the lane, the other vehicle of any
+/// interaction straight through when its path is straight
+/// ([`v2t_model::realism::ManoeuvreClass::of_states`]); each vehicle once per class (across the
+/// cuts of one `import --dedup` by its vehicle number).
 fn reference(a: ReferenceArgs) -> anyhow::Result<()> {
     use v2t_diffusion::mining::InteractionKind as K;
-    use v2t_model::realism::{HumanReference, ManoeuvreClass, motion_samples};
+    use v2t_model::realism::{
+        HumanReference, LANE_CHANGE_MAX_TURN_RAD, ManoeuvreClass, heading_change_rad, motion_samples,
+    };
     let mut vehicles = Vec::new();
     let mut seen = std::collections::HashSet::new();
     let mut sources: Vec<String> = Vec::new();
     let mut dt: Option<f64> = None;
-    for path in &a.corpora {
+    for (n, path) in a.corpora.iter().enumerate() {
         let c = recorded::read_file(path).map_err(|e| crate::named(path, e))?;
         for s in &c.sources {
             let tag = format!("{} [{}]", s.dataset, s.licence);
@@ -130,14 +150,27 @@ fn reference(a: ReferenceArgs) -> anyhow::Result<()> {
             }
             for (k, agent) in e.agents.iter().enumerate() {
                 let class = match (k, e.mined.kind) {
-                    (0, K::LeftTurn) => ManoeuvreClass::LeftTurn,
-                    (0, K::CutIn | K::LaneChange) => ManoeuvreClass::LaneChange,
+                    (0, K::LeftTurn) if a.left_turns.is_empty() => ManoeuvreClass::LeftTurn,
+                    (0, K::LeftTurn) => continue,
+                    // A vehicle that turns into the other's lane is no lane change (Lankershim's
+                    // junctions give such "cut-ins").
+                    (0, K::CutIn | K::LaneChange)
+                        if heading_change_rad(&agent.states).abs() < LANE_CHANGE_MAX_TURN_RAD =>
+                    {
+                        ManoeuvreClass::LaneChange
+                    }
                     (1, _) if ManoeuvreClass::of_states(&agent.states) == ManoeuvreClass::Straight => {
                         ManoeuvreClass::Straight
                     }
                     _ => continue,
                 };
-                if seen.insert((e.recording.clone(), agent.id.clone(), class)) {
+                // One vehicle once per class: across the cuts of one `import --dedup` by its
+                // number, else by recording and id.
+                let who = match agent.vehicle {
+                    Some(v) => (format!("corpus {n}"), format!("vehicle {v}")),
+                    None => (e.recording.clone(), agent.id.clone()),
+                };
+                if seen.insert((who, class)) {
                     let (acc, jerk, yaw) = motion_samples(&agent.states, e.dt_s);
                     vehicles.push((class, acc, jerk, yaw));
                 }
@@ -145,14 +178,71 @@ fn reference(a: ReferenceArgs) -> anyhow::Result<()> {
         }
     }
     let Some(dt) = dt else { return Err(Usage("no episode in the corpora".into()).into()) };
+    let mut left = String::new();
+    if !a.left_turns.is_empty() {
+        let (turners, files) = left_turners(&a, dt)?;
+        let dataset = a.left_turns_dataset.as_deref().unwrap_or_default();
+        let licence = a.left_turns_licence.as_deref().unwrap_or_default();
+        left = format!(
+            "; left turns: the {} vehicles turning left by at least 60° in {files} recordings of {dataset} [{licence}], each once",
+            turners.len()
+        );
+        vehicles.extend(turners.into_iter().map(|(acc, jerk, yaw)| (ManoeuvreClass::LeftTurn, acc, jerk, yaw)));
+    }
     let command = std::env::args().collect::<Vec<_>>().join(" ");
-    let provenance = format!("recorded human driving: {}; made by `{command}`", sources.join(", "));
+    let provenance = format!("recorded human driving: {}{left}; made by `{command}`", sources.join(", "));
     let r = HumanReference::from_vehicles(provenance, dt, &vehicles);
     r.validate().map_err(|e| Usage(format!("the reference: {e}")))?;
     for c in &r.classes {
         outln!("{:?}: {} vehicles, {} samples", c.class, c.vehicles, c.samples)?;
     }
     crate::write_json(&a.out, &r)
+}
+
+/// Acceleration, jerk and yaw-rate samples of one vehicle.
+type Motion = (Vec<f64>, Vec<f64>, Vec<f64>);
+
+/// The motion of every vehicle turning left in `corpus reference --left-turns`' recordings, each
+/// vehicle once across the files (the first file in name order that holds its turn), and how many
+/// files were read. Every recording must be sampled at `dt_s`.
+fn left_turners(a: &ReferenceArgs, dt_s: f64) -> anyhow::Result<(Vec<Motion>, usize)> {
+    if !(a.position_noise.is_finite() && (0.0..=2.0).contains(&a.position_noise)) {
+        return Err(Usage(format!("--position-noise {}: must lie in [0, 2] m", a.position_noise)).into());
+    }
+    for (field, value) in
+        [("--left-turns-dataset", &a.left_turns_dataset), ("--left-turns-licence", &a.left_turns_licence)]
+    {
+        if value.as_deref().is_none_or(|v| v.trim().is_empty()) {
+            return Err(Usage(format!("{field} is empty: say what the recordings are and under which licence")).into());
+        }
+    }
+    let options = v2t_diffusion::inverse::InverseOptions { position_noise_m: a.position_noise, ..Default::default() };
+    let files = recording_files(&a.left_turns)?;
+    let mut index = VehicleIndex::new();
+    let mut counted: HashSet<usize> = HashSet::new();
+    let mut out = Vec::new();
+    for file in &files {
+        let (episode, _, _) = read_recording(file, 10.0)?;
+        if (episode.dt_s - dt_s).abs() > 1e-9 {
+            return Err(Usage(format!(
+                "{}: sampled at {} s, the corpora at {dt_s} s: the reference needs one period",
+                file.display(),
+                episode.dt_s
+            ))
+            .into());
+        }
+        let ids = index.identify(&episode.tracks);
+        for (track, id) in episode.tracks.iter().zip(&ids) {
+            if counted.contains(&id.vehicle) {
+                continue;
+            }
+            if let Some(states) = recorded::left_turn_states(track, &options) {
+                counted.insert(id.vehicle);
+                out.push(v2t_model::realism::motion_samples(&states, dt_s));
+            }
+        }
+    }
+    Ok((out, files.len()))
 }
 
 /// The recording files under `inputs`, in the order given (directories sorted by name).
@@ -243,6 +333,9 @@ fn import(a: ImportArgs) -> anyhow::Result<()> {
                 }
             });
             source.duplicate_episodes = before - episodes.len();
+            for agent in episodes.iter_mut().flat_map(|e| e.agents.iter_mut()) {
+                agent.vehicle = vehicle_of.get(agent.id.as_str()).copied();
+            }
             source.kept = episodes.len();
         }
         eprintln!(

@@ -343,3 +343,120 @@ fn with_dedup_a_vehicle_in_two_files_is_counted_once_and_its_interactions_too() 
     let stats = ok(&["corpus", "stats", s(&dedup)]);
     assert!(stats.contains("total: 70 tracks (70 vehicles, 35 distinct)"), "{stats}");
 }
+
+/// A CommonRoad 2020a file made here: one lanelet and `cars` cars, each driving a quarter circle
+/// to the left (radius 40 m) at its own speed from 6 m/s up, sampled every `dt` s.
+fn left_turners_xml(cars: usize, dt: f64) -> String {
+    let mut xml = format!(
+        "<commonRoad commonRoadVersion=\"2020a\" benchmarkID=\"ZAM_V2T-9_1_T-1\" source=\"made by this test\" timeStepSize=\"{dt}\">\
+         <lanelet id=\"1\"><leftBound><point><x>0</x><y>2</y></point><point><x>100</x><y>2</y></point></leftBound>\
+         <rightBound><point><x>0</x><y>-2</y></point><point><x>100</x><y>-2</y></point></rightBound></lanelet>"
+    );
+    let r = 40.0;
+    for car in 0..cars {
+        let v = 6.0 + car as f64;
+        let steps = (r * std::f64::consts::FRAC_PI_2 / v / dt) as usize;
+        xml.push_str(&format!(
+            "<dynamicObstacle id=\"{}\"><type>car</type><shape><rectangle><length>{}</length><width>1.8</width></rectangle></shape>",
+            10 + car,
+            4.0 + 0.1 * car as f64
+        ));
+        for k in 0..=steps {
+            let a = v * dt * k as f64 / r;
+            let (x, y) = (100.0 * car as f64 + r * a.sin(), r * (1.0 - a.cos()));
+            let tag = if k == 0 { "initialState" } else { "state" };
+            if k == 1 {
+                xml.push_str("<trajectory>");
+            }
+            xml.push_str(&format!(
+                "<{tag}><position><point><x>{x}</x><y>{y}</y></point></position><orientation><exact>{a}</exact></orientation>\
+                 <time><exact>{k}</exact></time><velocity><exact>{v}</exact></velocity></{tag}>"
+            ));
+        }
+        xml.push_str("</trajectory></dynamicObstacle>");
+    }
+    xml + "</commonRoad>"
+}
+
+/// `corpus reference --left-turns`: every vehicle turning left in the recordings makes the
+/// left-turn class, each once although two files hold it; without the option the corpora's mined
+/// left turns alone (too few in the shipped recordings for a class).
+#[test]
+fn the_human_reference_takes_every_left_turner_once_from_recordings() {
+    let dir_scratch = tempdir("reference");
+    let dir = dir_scratch.path();
+    let corpus = dir.join("heldout.jsonl");
+    let licence = "NGSIM: US DOT public data; CommonRoad conversion BSD-3-Clause / MIT";
+    ok(&["corpus", "import", s(&recordings("heldout")), "--dataset", "NGSIM", "--licence", licence, "-o", s(&corpus)]);
+    let (a, b) = (dir.join("turns_a.xml"), dir.join("turns_b.xml"));
+    std::fs::write(&a, left_turners_xml(6, 0.1)).unwrap();
+    std::fs::copy(&a, &b).unwrap();
+    let out = dir.join("reference.json");
+    let args = |extra: &[&str]| {
+        let mut v = vec!["corpus", "reference", s(&corpus)];
+        v.extend_from_slice(extra);
+        v.extend_from_slice(&["-o", s(&out)]);
+        v.into_iter().map(str::to_owned).collect::<Vec<_>>()
+    };
+    let run = |extra: &[&str]| ok(&args(extra).iter().map(String::as_str).collect::<Vec<_>>());
+    let text = run(&[]);
+    assert!(!text.contains("LeftTurn"), "{text}");
+    let text =
+        run(&["--left-turns", s(&a), s(&b), "--left-turns-dataset", "made here", "--left-turns-licence", "Apache-2.0"]);
+    assert!(text.contains("LeftTurn: 6 vehicles"), "{text}");
+    let r: v2t_model::realism::HumanReference = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    r.validate().unwrap();
+    assert!(
+        r.provenance.contains("the 6 vehicles turning left by at least 60° in 2 recordings of made here [Apache-2.0]")
+    );
+    let turn = r.classes.iter().find(|c| c.class == v2t_model::realism::ManoeuvreClass::LeftTurn).unwrap();
+    // Each car turns at v / r, 0.15 to 0.28 rad/s, at constant speed (the smoother's ends aside).
+    let (yaw, acc) = (&turn.yaw_rate_radps, &turn.accel_mps2);
+    assert!(yaw[20] > 0.14 && yaw[80] < 0.29 && acc[20].abs() < 0.1 && acc[80].abs() < 0.1, "{yaw:?} {acc:?}");
+    // Bad input: no licence, a recording at another period.
+    let err = fails(
+        &args(&["--left-turns", s(&a), "--left-turns-dataset", "d"]).iter().map(String::as_str).collect::<Vec<_>>(),
+    );
+    assert!(err.contains("--left-turns-licence"), "{err}");
+    let slow = dir.join("slow.xml");
+    std::fs::write(&slow, left_turners_xml(6, 0.2)).unwrap();
+    let err = fails(
+        &args(&["--left-turns", s(&slow), "--left-turns-dataset", "d", "--left-turns-licence", "l"])
+            .iter()
+            .map(String::as_str)
+            .collect::<Vec<_>>(),
+    );
+    assert!(err.contains("slow.xml: sampled at 0.2 s, the corpora at 0.1 s"), "{err}");
+}
+
+/// The shipped human reference is exactly what `scripts/human-reference` makes of the fetched
+/// recordings (its classes to the last bit, its provenance up to the command). The recordings are
+/// fetch only (`scripts/fetch-ngsim`, GPL-3.0 conversions): where they are absent this test says
+/// so and checks nothing more than `tests/config_files.rs` does.
+#[test]
+fn the_shipped_human_reference_is_what_its_script_makes() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let data = std::env::var_os("V2T_NGSIM_DIR")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| root.join("target/recordings-ngsim"));
+    if !data.join("commonroad-search").is_dir() {
+        eprintln!("the fetched NGSIM recordings are not in {}: nothing to rebuild", data.display());
+        return;
+    }
+    let dir_scratch = tempdir("human-reference");
+    let out = dir_scratch.path().join("reference.json");
+    let o = std::process::Command::new(root.join("scripts/human-reference"))
+        .args(["-o", s(&out)])
+        .env("V2T_BIN", env!("CARGO_BIN_EXE_video2track"))
+        .env("V2T_NGSIM_DIR", &data)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let read = |p: &Path| -> v2t_model::realism::HumanReference {
+        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    };
+    let (made, shipped) = (read(&out), read(&root.join("config/realism/human_reference.json")));
+    let source = |r: &v2t_model::realism::HumanReference| r.provenance.split("; made by").next().unwrap().to_owned();
+    assert_eq!(source(&made), source(&shipped));
+    assert_eq!((made.dt_s, &made.classes), (shipped.dt_s, &shipped.classes));
+}

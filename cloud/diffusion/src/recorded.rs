@@ -90,6 +90,22 @@ pub fn turns_left(track: &Track) -> bool {
     track.kind.is_vehicle() && track.heading_change_rad().is_some_and(|d| d >= LEFT_TURN_VEHICLE_RAD)
 }
 
+/// The motion of a vehicle turning left, as an episode's vehicle is kept: the gap-free piece of
+/// `track` that turns left most (at least [`LEFT_TURN_VEHICLE_RAD`]), smoothed and inverted
+/// ([`to_controls`]). `None` when no piece turns left that far or the inversion fails.
+pub fn left_turn_states(track: &Track, options: &InverseOptions) -> Option<Vec<State>> {
+    if !track.kind.is_vehicle() {
+        return None;
+    }
+    let piece = split_at_gaps(track)
+        .into_iter()
+        .filter_map(|p| p.heading_change_rad().map(|d| (d, p)))
+        .filter(|(d, _)| *d >= LEFT_TURN_VEHICLE_RAD)
+        .max_by(|a, b| a.0.total_cmp(&b.0))?
+        .1;
+    to_controls(&piece, options).ok().map(|r| r.trajectory.states)
+}
+
 /// One vehicle of a recorded episode.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -113,6 +129,10 @@ pub struct RecordedAgent {
     pub route_from: String,
     /// RMS distance between recorded and smoothed positions, m.
     pub smoothing_rms_m: f64,
+    /// The vehicle's number across the files of one `corpus import --dedup` (CommonRoad's cuts of
+    /// one recording renumber a vehicle; this number does not change); absent without `--dedup`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vehicle: Option<usize>,
 }
 
 /// One mined interaction with its two vehicles.
@@ -282,6 +302,7 @@ fn recorded_agent(
         route: thin(&route, ROUTE_SPACING_M),
         route_from: route_from.to_owned(),
         smoothing_rms_m: inv.smoothing_rms_m,
+        vehicle: None,
     })
 }
 
@@ -599,6 +620,51 @@ mod tests {
         assert!(
             !episodes.is_empty() && episodes.iter().all(|e| e.agents.iter().all(|a| a.route_from == "driven path"))
         );
+    }
+
+    /// A car that drives 20 m east, turns left on a 15 m radius (90°), and drives 20 m north, at
+    /// 8 m/s; a gap of `gap_s` from 1.0 s (none if 0) and `turn_rad` of turn.
+    fn turning(turn_rad: f64, gap_s: f64) -> Track {
+        let (v, r) = (8.0, 15.0);
+        let arc = r * turn_rad;
+        let at = |d: f64| -> (f64, f64) {
+            if d <= 20.0 {
+                (d, 0.0)
+            } else if d <= 20.0 + arc {
+                let a = (d - 20.0) / r;
+                (20.0 + r * a.sin(), r * (1.0 - a.cos()))
+            } else {
+                let e = d - 20.0 - arc;
+                (20.0 + r * turn_rad.sin() + e * turn_rad.cos(), r * (1.0 - turn_rad.cos()) + e * turn_rad.sin())
+            }
+        };
+        let n = ((40.0 + arc) / v / 0.1) as usize;
+        let samples = (0..n)
+            .map(|k| 0.1 * k as f64)
+            .filter(|t| gap_s == 0.0 || !(1.0..1.0 + gap_s).contains(t))
+            .map(|t| {
+                let (x, y) = at(v * t);
+                TrackSample::at(t, x, y)
+            })
+            .collect();
+        Track { id: "7".into(), dt_s: 0.1, kind: AgentKind::Car, dims: None, samples }
+    }
+
+    #[test]
+    fn a_left_turn_is_kept_as_smoothed_states_of_its_turning_piece() {
+        let options = InverseOptions::default();
+        let states = left_turn_states(&turning(std::f64::consts::FRAC_PI_2, 0.0), &options).expect("a left turn");
+        let total: f64 =
+            states.windows(2).map(|w| v2t_model::geometry::wrap_angle(w[1].theta_rad - w[0].theta_rad)).sum();
+        assert!((total - std::f64::consts::FRAC_PI_2).abs() < 0.15, "turns {total} rad");
+        assert!(states.iter().skip(5).all(|s| (s.speed_mps - 8.0).abs() < 0.3), "the speed stays 8 m/s");
+        // Across a gap: the piece after it (the whole turn) is kept, not the 1 s before it.
+        let split = left_turn_states(&turning(std::f64::consts::FRAC_PI_2, 0.5), &options).expect("a left turn");
+        assert!(split.len() > 50 && split.len() < states.len(), "{} of {} states", split.len(), states.len());
+        // 45° is no left turn; a pedestrian is no vehicle.
+        assert!(left_turn_states(&turning(std::f64::consts::FRAC_PI_4, 0.0), &options).is_none());
+        let walker = Track { kind: AgentKind::Pedestrian, ..turning(std::f64::consts::FRAC_PI_2, 0.0) };
+        assert!(left_turn_states(&walker, &options).is_none());
     }
 
     #[test]

@@ -64,26 +64,36 @@ impl ManoeuvreClass {
 
     /// The class of a driven trajectory: a left turn when its heading turns left by more than
     /// 1 rad overall, a lane change when it ends 2–5 m to the side of the line its start heading
-    /// points along (having turned less than 0.5 rad), straight otherwise.
+    /// points along (having turned less than [`LANE_CHANGE_MAX_TURN_RAD`]), straight otherwise.
     pub fn of_states(states: &[State]) -> Self {
         let (Some(first), Some(last)) = (states.first(), states.last()) else { return Self::Straight };
-        let mut turn = 0.0;
-        for w in states.windows(2) {
-            if let [a, b] = w {
-                turn += wrap_angle(b.theta_rad - a.theta_rad);
-            }
-        }
+        let turn = heading_change_rad(states);
         let d = last.position().sub(first.position());
         let (s, c) = first.theta_rad.sin_cos();
         let lateral = (-s * d.x + c * d.y).abs();
         if turn > 1.0 {
             Self::LeftTurn
-        } else if turn.abs() < 0.5 && (2.0..=5.0).contains(&lateral) {
+        } else if turn.abs() < LANE_CHANGE_MAX_TURN_RAD && (2.0..=5.0).contains(&lateral) {
             Self::LaneChange
         } else {
             Self::Straight
         }
     }
+}
+
+/// A lane change turns by less than this overall, rad (a vehicle that turns into a lane is turning).
+pub const LANE_CHANGE_MAX_TURN_RAD: f64 = 0.5;
+
+/// How far a driven trajectory's heading turns overall, rad, counter-clockwise positive (the sum of
+/// its wrapped steps).
+pub fn heading_change_rad(states: &[State]) -> f64 {
+    states
+        .windows(2)
+        .map(|w| match w {
+            [a, b] => wrap_angle(b.theta_rad - a.theta_rad),
+            _ => 0.0,
+        })
+        .sum()
 }
 
 /// One class's human distributions.
