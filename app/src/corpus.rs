@@ -183,10 +183,14 @@ fn reference(a: ReferenceArgs) -> anyhow::Result<()> {
         let (turners, files) = left_turners(&a, dt)?;
         let dataset = a.left_turns_dataset.as_deref().unwrap_or_default();
         let licence = a.left_turns_licence.as_deref().unwrap_or_default();
-        left = format!(
-            "; left turns: the {} vehicles turning left by at least 60° in {files} recordings of {dataset} [{licence}], each once",
-            turners.len()
-        );
+        let n = turners.len();
+        left = if sources == [format!("{dataset} [{licence}]")] {
+            format!("; left turns: the {n} vehicles of its {files} recordings turning left by at least 60°, each once")
+        } else {
+            format!(
+                "; left turns: the {n} vehicles turning left by at least 60° in {files} recordings of {dataset} [{licence}], each once"
+            )
+        };
         vehicles.extend(turners.into_iter().map(|(acc, jerk, yaw)| (ManoeuvreClass::LeftTurn, acc, jerk, yaw)));
     }
     let command = std::env::args().collect::<Vec<_>>().join(" ");
