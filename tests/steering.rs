@@ -32,6 +32,9 @@ fn the_regulated_bv_lands_on_the_target_pet() {
         (&vut_left, Style::Yield, 4.0, VutModel::Reactive),
     ];
     for (scenario, style, tau, model) in cases {
+        // The shipped jerk weight (30, was 3) costs the yield at τ 1.5 s against the cautious IDM
+        // 2.8 points on these seeds (7.7 → 10.5 %): the smoother BV starts later behind the VUT.
+        let bound = if (style, tau, model) == (Style::Yield, 1.5, VutModel::IdmCautious) { 0.12 } else { 0.10 };
         let c = steer_case(
             &settings,
             scenario,
@@ -45,13 +48,14 @@ fn the_regulated_bv_lands_on_the_target_pet() {
         assert_eq!(c.stats.order_ok_frac, 1.0, "{tag}");
         assert_eq!(c.stats.unmeasured, 0, "{tag}");
         let err = c.error_rel.unwrap();
-        assert!(err <= 0.10, "{tag}: mean PET_min {:?} s, error {:.1} %", c.stats.mean_pet_min_s, 100.0 * err);
+        assert!(err <= bound, "{tag}: mean PET_min {:?} s, error {:.1} %", c.stats.mean_pet_min_s, 100.0 * err);
     }
 }
 
 /// A campaign learns what one run cannot: against the cautious IDM driver the left turn's rush at
-/// 3 s misses by about 14 % uncalibrated (the driver eases off before a BV crossing its path);
-/// from run 3 on, what was learned (how the VUT drives its route, and the aim) lands within 5 %. Against the reactive driver, which yields below a
+/// 3 s misses by about 6 % uncalibrated (the driver eases off before a BV crossing its path; 14 %
+/// with the jerk weight of 3 the plan had until 2026-11-27); from run 3 on, what was learned (how
+/// the VUT drives its route, and the aim) lands closer, within 5 %. Against the reactive driver, which yields below a
 /// predicted PET of 2 s, τ = 1.5 s in rush is out of reach: the memory says so with a bound near
 /// 2 s and the regulator reports it in the following runs. Every run without a collision and in the
 /// asked order; nothing learned leaks between the two VUTs' memories.
@@ -68,7 +72,7 @@ fn a_campaign_learns_the_vuts_reaction_and_reports_a_target_out_of_its_reach() {
     let mut memory = CampaignMemory::new("idm-cautious", "builtin");
     let runs = run_campaign(&settings, &left, target, &vut, 1, 5, &mut memory);
     let err = |r: &v2t_lab::campaign::CampaignRun| (r.pet_s.unwrap() - 3.0).abs() / 3.0;
-    assert!(err(&runs[0]) > 0.08, "run 1 is uncalibrated: {runs:#?}");
+    assert!(err(&runs[0]) > 0.05, "run 1 is uncalibrated: {runs:#?}");
     for r in &runs[2..] {
         assert!(err(r) < 0.05, "run {}: PET {:?} aiming at {:.2} s", r.run, r.pet_s, r.aim_s);
     }

@@ -269,8 +269,8 @@ fn the_four_methods_run_on_every_paper_scenario() {
     }
     assert_eq!(doc["summary"].as_array().unwrap().len(), 12);
     // Every run's vehicles are measured against recorded human driving of their manoeuvre class:
-    // lane changes and straight driving have a reference, left turns have none (and say so).
-    assert!(out.contains("BV W₁ accel") && out.contains("no human reference"), "{out}");
+    // lane changes, straight driving and (since 2026-11-27) left turns.
+    assert!(out.contains("BV W₁ accel") && !out.contains("no human reference"), "{out}");
     for c in cases {
         let r = &c["bv_realism"];
         let scenario = c["scenario"].as_str().unwrap();
@@ -282,10 +282,8 @@ fn the_four_methods_run_on_every_paper_scenario() {
             ("left_turn", "straight")
         };
         assert_eq!(r["class"], bv, "{c}");
-        assert_eq!(r["measured"], if bv == "left_turn" { 0 } else { 1 }, "{c}");
-        if bv != "left_turn" {
-            assert!(r["means"]["w1_accel_mps2"].as_f64().unwrap() > 0.0, "{c}");
-        }
+        assert_eq!(r["measured"], 1, "{c}");
+        assert!(r["means"]["w1_accel_mps2"].as_f64().unwrap() > 0.0, "{c}");
         assert_eq!(c["vut_realism"]["class"], vut, "{c}");
     }
     let taus: Vec<f64> = cases.iter().map(|c| c["tau_s"].as_f64().unwrap()).collect();
@@ -334,16 +332,15 @@ fn the_realism_tradeoff_sweeps_the_weight_and_draws_the_front() {
         assert_eq!(p["errors"][0]["rows"], 6, "3 scenarios × 2 styles: {p}");
         assert_eq!(p["collisions"], 0, "{p}");
     }
-    // The cut-in's BV changes lanes, the VUT-turning left turn's goes straight: both have recorded
-    // human driving to be measured against; the BV turning left has none.
-    for name in ["cut_in", "left_turn_vut"] {
+    // The cut-in's BV changes lanes, the left turn's turns left, the VUT-turning left turn's goes
+    // straight: each has recorded human driving to be measured against, and a front.
+    for name in ["cut_in", "left_turn", "left_turn_vut"] {
         let svg = std::fs::read_to_string(dir.join(format!("tradeoff_{name}.svg"))).unwrap();
         assert!(
             svg.starts_with("<svg") && svg.matches("class=\"series\"").count() == 6,
             "{name}: 2 panels × (2 methods and Diffusion-only)"
         );
     }
-    assert!(!dir.join("tradeoff_left_turn.svg").exists(), "no human left turns: no front to draw");
 }
 
 #[test]

@@ -153,12 +153,18 @@ mod tests {
     }
 
     #[test]
-    fn a_left_turn_has_no_human_reference_and_says_so() {
+    fn a_left_turn_is_measured_against_left_turns_and_a_reference_without_them_says_so() {
         let (sc, out, reference) = run_card("left_turn_basic.toml");
         let r = measure_run(&sc, &out, &reference).unwrap();
         let bv = r.bv(0).unwrap();
         assert_eq!(bv.class, ManoeuvreClass::LeftTurn);
-        assert!(reference.class(ManoeuvreClass::LeftTurn).is_none() && bv.realism.is_none());
+        assert!(reference.class(ManoeuvreClass::LeftTurn).is_some(), "the shipped reference has left turns");
+        assert!(bv.realism.is_some_and(|m| m.w1_yaw_rate_radps.is_finite()), "{bv:?}");
+        // A reference without the class: no figure, never another class's.
+        let mut without = reference.clone();
+        without.classes.retain(|c| c.class != ManoeuvreClass::LeftTurn);
+        let r = measure_run(&sc, &out, &without).unwrap();
+        assert!(r.bv(0).unwrap().realism.is_none());
         assert!(r.vut().unwrap().realism.is_some(), "the VUT goes straight: measured");
     }
 }
