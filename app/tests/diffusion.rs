@@ -342,6 +342,28 @@ fn with_dedup_a_vehicle_in_two_files_is_counted_once_and_its_interactions_too() 
     assert!(count(&plain) > 0 && count(&dedup) * 2 == count(&plain), "{} {}", count(&plain), count(&dedup));
     let stats = ok(&["corpus", "stats", s(&dedup)]);
     assert!(stats.contains("total: 70 tracks (70 vehicles, 35 distinct)"), "{stats}");
+    // Each agent carries its vehicle's number with --dedup (none without); and recordings imported
+    // twice under other names add no vehicle to the human reference.
+    let agents = |p: &Path| v2t_diffusion::recorded::read_file(p).unwrap().episodes.into_iter().flat_map(|e| e.agents);
+    assert!(agents(&dedup).all(|a| a.vehicle.is_some()) && agents(&plain).all(|a| a.vehicle.is_none()));
+    // Every training recording, then each again under another name (7 recordings: enough vehicles
+    // for the classes).
+    let train = recordings("train");
+    let copies = dir.join("copies");
+    std::fs::create_dir(&copies).unwrap();
+    for entry in std::fs::read_dir(&train).unwrap() {
+        let path = entry.unwrap().path();
+        std::fs::copy(&path, copies.join(format!("again_{}", path.file_name().unwrap().to_string_lossy()))).unwrap();
+    }
+    let (single, doubled) = (dir.join("single.jsonl"), dir.join("doubled.jsonl"));
+    ok(&["corpus", "import", s(&train), "--dataset", "d", "--licence", "l", "--dedup", "-o", s(&single)]);
+    ok(&["corpus", "import", s(&train), s(&copies), "--dataset", "d", "--licence", "l", "--dedup", "-o", s(&doubled)]);
+    let classes = |corpus: &Path| {
+        let text = ok(&["corpus", "reference", s(corpus), "-o", s(&dir.join("reference.json"))]);
+        text.lines().filter(|l| l.contains(" vehicles, ")).map(str::to_owned).collect::<Vec<_>>()
+    };
+    let (twice, once) = (classes(&doubled), classes(&single));
+    assert!(!once.is_empty() && twice == once, "{twice:?} vs {once:?}");
 }
 
 /// A CommonRoad 2020a file made here: one lanelet and `cars` cars, each driving a quarter circle
