@@ -36,8 +36,9 @@ pub struct ReferenceArgs {
     corpora: Vec<PathBuf>,
     /// Recordings (files or directories, as `import` reads them) whose vehicles turning left by at
     /// least 60° make the left-turn class, each vehicle once across the files (matched as
-    /// `import --dedup` matches them), whether or not an interaction was mined around it. Without
-    /// it the left-turn class is the actors of the corpora's mined left turns.
+    /// `import --dedup` matches them), whether or not an interaction was mined around it (a CSV
+    /// file without `timestamp_ms` is read at 10 Hz). Without it the left-turn class is the actors
+    /// of the corpora's mined left turns.
     #[arg(long = "left-turns", num_args = 1.., requires_all = ["left_turns_dataset", "left_turns_licence"])]
     left_turns: Vec<PathBuf>,
     /// What the `--left-turns` recordings are.
