@@ -141,8 +141,7 @@ impl Track {
         let mut unwrapped = vec![*first];
         let mut last = *first;
         for h in rest {
-            let d = (h - last + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
-            last += d;
+            last += v2t_model::geometry::wrap_angle(h - last);
             unwrapped.push(last);
         }
         let k = unwrapped.len().min(5);
