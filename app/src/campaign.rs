@@ -145,6 +145,7 @@ fn record(a: RecordArgs) -> anyhow::Result<()> {
             order_ok: !a.opposite_order,
             collision: a.collision,
             learned_route: false,
+            reaction_prior: false,
         },
     );
     let line = v2t_lab::campaign::case_line(case, target);

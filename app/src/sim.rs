@@ -165,6 +165,7 @@ fn regulated(
     scenario: &v2t_sim::scenario::Scenario,
     vut: &v2t_lab::vut::Vut<'_>,
 ) -> anyhow::Result<v2t_lab::campaign::RegulatedRun> {
+    use v2t_game::reaction::ReactionPosterior;
     use v2t_lab::campaign;
     let settings: v2t_game::regulator::RegulatorParams = v2t_files::load_toml(&a.regulator)?;
     let (name, world) = (vut.name(), vut.world().as_str());
@@ -188,6 +189,9 @@ fn regulated(
             )
         });
         outln!("BV {i} regulated, aiming at {:.2} s for τ {:.2} s{reach}", aim.tau_s(), scenario.target.tau_s())?;
+        if let Some(id) = run.reactions.get(i).cloned().flatten().as_ref().and_then(ReactionPosterior::identified) {
+            outln!("BV {i}'s regulator identified the VUT by the end of the run: it {id}")?;
+        }
     }
     if let (Some(m), Some(path)) = (memory.as_mut(), &a.campaign) {
         campaign::record_run(m, scenario, &run);

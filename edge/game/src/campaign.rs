@@ -50,6 +50,7 @@ use serde::{Deserialize, Serialize};
 use v2t_model::validate::{Validate, ValidationError, in_range};
 use v2t_model::{Style, Target};
 
+use crate::reaction::ReactionPosterior;
 use crate::regulator::{BelowReach, BelowReachCause};
 use crate::route_speed::RouteSpeed;
 
@@ -106,6 +107,11 @@ pub struct RunRecord {
     /// one: what a follower without it got wrong, one with it has already corrected.
     #[serde(default)]
     pub learned_route: bool,
+    /// Whether the regulator started this run from how earlier runs identified the VUT's
+    /// reaction (a [`ReactionPosterior`] prior). Like `learned_route`, the reaction model is
+    /// fitted to runs made the same way as the next one.
+    #[serde(default)]
+    pub reaction_prior: bool,
 }
 
 impl RunRecord {
@@ -142,6 +148,10 @@ pub struct CaseMemory {
     /// next run, [`crate::route_speed`]); `None` until a valid run was recorded with it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub route_speed: Option<RouteSpeed>,
+    /// How the VUT was identified to react to the BV by the end of the last run (the next run's
+    /// prior, [`crate::reaction`]); `None` until a run identified anything.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reaction: Option<ReactionPosterior>,
 }
 
 impl Default for CaseMemory {
@@ -157,6 +167,7 @@ impl Default for CaseMemory {
             below_reach: None,
             holding: false,
             route_speed: None,
+            reaction: None,
         }
     }
 }
@@ -189,8 +200,11 @@ impl CaseMemory {
     /// The valid runs `(aim, PET)` made as the next run will be: with a learned route speed when
     /// one is known, without one otherwise.
     fn valid(&self) -> impl DoubleEndedIterator<Item = (f64, f64)> + '_ {
-        let learned = self.route_speed.is_some();
-        self.runs.iter().filter(move |r| r.learned_route == learned).filter_map(|r| r.valid_pet().map(|p| (r.aim_s, p)))
+        let (learned, prior) = (self.route_speed.is_some(), self.reaction.is_some());
+        self.runs
+            .iter()
+            .filter(move |r| r.learned_route == learned && r.reaction_prior == prior)
+            .filter_map(|r| r.valid_pet().map(|p| (r.aim_s, p)))
     }
 
     /// Records a run of the test whose target is `target`, and updates what is learned.
@@ -236,6 +250,21 @@ impl CaseMemory {
                 self.route_speed = Some(RouteSpeed { runs: 1, ..route.clone() });
                 self.update(target.tau_s());
             }
+        }
+    }
+
+    /// Keeps how a run just [`Self::record`]ed identified the VUT's reaction (it started from the
+    /// posterior kept before, so it carries every earlier run): the next run's prior. A run that
+    /// taught nothing new changes nothing; a posterior that does not validate is not kept. The
+    /// first one starts the reaction model `(offset, gain)` over, as a first learned route does.
+    pub fn learn_reaction(&mut self, target: Target, posterior: &ReactionPosterior) {
+        if posterior.validate().is_err() || posterior.informative_cycles == 0 {
+            return;
+        }
+        let first = self.reaction.is_none();
+        self.reaction = Some(posterior.clone());
+        if first {
+            self.update(target.tau_s());
         }
     }
 
@@ -498,6 +527,9 @@ impl Validate for CaseEntry {
         }
         if let Some(r) = &m.route_speed {
             r.validate().map_err(|e| e.within("memory.route_speed"))?;
+        }
+        if let Some(r) = &m.reaction {
+            r.validate().map_err(|e| e.within("memory.reaction"))?;
         }
         Ok(())
     }

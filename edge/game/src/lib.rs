@@ -3,7 +3,8 @@
 //! Runs on each BV's onboard computer, every control cycle: decides how the BV moves so that its
 //! interaction with the VUT reaches a target post-encroachment time τ in a given style (rush: BV
 //! first; yield: VUT first), staying close to its reference and within its limits. The method and
-//! why it holds in closed loop are in [`regulator`]; the QP it solves in [`qp`]; how a prior and
+//! why it holds in closed loop are in [`regulator`]; the QP it solves in [`qp`]; how it predicts
+//! and identifies the VUT's reaction to the BV in [`reaction`]; how a prior and
 //! measurements become its input, the one adapter the vehicle and the lab both run, in [`regulation`].
 //!
 //! Pure: no IO, no clock, no allocation per cycle after construction (Clarabel's `solve` itself
@@ -37,6 +38,7 @@
 pub mod campaign;
 pub mod fixtures;
 pub mod qp;
+pub mod reaction;
 pub mod reference;
 pub mod regulation;
 pub mod regulator;

@@ -18,6 +18,7 @@ use v2t_model::path::ReferencePath;
 use v2t_model::validate::ValidationError;
 
 use crate::qp::QpError;
+use crate::reaction::{ReactionBelief, ReactionPosterior};
 use crate::reference::ReferenceSample;
 use crate::regulator::{
     BelowReach, CURVE_LAT_SHARE, Decision, PathState, Regulator, RegulatorInput, RegulatorParams, RegulatorStatus,
@@ -228,6 +229,18 @@ impl Regulation {
         self.regulator.set_route_speed(learned)
     }
 
+    /// The prior of the VUT's reaction from earlier runs of the test (see
+    /// [`Regulator::set_reaction_prior`]); it stays across contexts. A refused posterior is the
+    /// error and leaves the one before.
+    pub fn set_reaction_prior(&mut self, prior: Option<&ReactionPosterior>) -> Result<(), ValidationError> {
+        self.regulator.set_reaction_prior(prior)
+    }
+
+    /// How the VUT is identified to react so far this run.
+    pub fn reaction_belief(&self) -> &ReactionBelief {
+        self.regulator.reaction_belief()
+    }
+
     /// The learned route speed in use.
     pub fn route_speed(&self) -> Option<&RouteSpeed> {
         self.regulator.route_speed()
@@ -257,6 +270,7 @@ impl Regulation {
             leader_slack_m: 0.0,
             follower_slack_m: 0.0,
             below_reach: None,
+            reaction: None,
         }
     }
 

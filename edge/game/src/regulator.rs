@@ -12,6 +12,12 @@
 //!    of the test showed how this VUT drives its route ([`Regulator::set_route_speed`], kept by
 //!    the campaign memory), it tracks that speed instead, its deviation from it now fading, and
 //!    `t_V` is no earlier than that free motion gives (see [`crate::route_speed`]).
+//!    At a crossing, when the VUT is identified to react to the BV ([`crate::reaction`]: a
+//!    posterior over a grid of gap-accepting drivers, updated every decision from the VUT's
+//!    measured acceleration, its prior carried from run to run by the campaign memory), the delay
+//!    its most probable driver predicts for the BV's motion to each candidate key time is added
+//!    to `t_V`, and the key time whose PET comes nearest τ is taken — counting on that predicted
+//!    reaction for at most a fifth of τ of PET.
 //! 2. **Leader choice.** PET is `t_V − T` (rush) or `T − t_V` (yield); the adversarial term
 //!    `w_adv (PET − τ)²` plus the realism term `w_real (T − T_ref)²` is minimised in closed form,
 //!    `T* = (w_adv (t_V ∓ τ) + w_real T_ref) / (w_adv + w_real)`. `T_ref` is the prior's own time
@@ -74,6 +80,9 @@ use v2t_model::validate::{Validate, ValidationError, in_range};
 use v2t_model::{Style, Target};
 
 use crate::qp::{EventKind, LongitudinalQp, QpError, QpInput, QpShape, QpStatus};
+use crate::reaction::{
+    BvMotion, Constant, FreeSpeed, Identified, ReactionBelief, ReactionPosterior, Scene, Snapshot, rollout,
+};
 use crate::reference::{ReferenceSample, ReferenceTiming};
 use crate::route_speed::{DEVIATION_FADE_S, RouteSpeed};
 
@@ -122,6 +131,11 @@ pub struct RegulatorParams {
     /// file does not say; `docs/BENCHMARKS.md`, "What the plan's jerk weight buys").
     #[serde(default = "default_w_jerk")]
     pub w_jerk: f64,
+    /// Whether the follower reacts to the BV as the VUT is identified to while the run goes on
+    /// ([`crate::reaction`]; `true` when the file does not say). `false`: the follower drives its
+    /// free motion and keeps the order only as far as it must (the paper's follower).
+    #[serde(default = "default_reacting_follower")]
+    pub reacting_follower: bool,
     /// BV limits (from the BV's vehicle file).
     #[serde(skip, default = "default_bv_limits")]
     pub bv: Limits,
@@ -132,6 +146,10 @@ pub struct RegulatorParams {
 
 fn default_w_jerk() -> f64 {
     3.0
+}
+
+fn default_reacting_follower() -> bool {
+    true
 }
 
 fn default_bv_limits() -> Limits {
@@ -164,6 +182,7 @@ impl Default for RegulatorParams {
             fallback_decel_mps2: 2.0,
             vut_headway_s: 1.5,
             w_jerk: default_w_jerk(),
+            reacting_follower: default_reacting_follower(),
             bv: default_bv_limits(),
             vut: default_vut_limits(),
         }
@@ -340,6 +359,9 @@ pub struct Decision {
     /// τ is out of this VUT's reach (with what shows it and the bound); `None`: nothing says so.
     /// It changes nothing in the plan: a report for the operator and the campaign.
     pub below_reach: Option<BelowReach>,
+    /// How the VUT is identified to react to the BV so far this run (`None`: the follower does
+    /// not react, [`RegulatorParams::reacting_follower`]).
+    pub reaction: Option<Identified>,
 }
 
 /// The regulator of one BV: four QPs built once (follower with an upper or lower order
@@ -370,6 +392,8 @@ pub struct Regulator {
     traverse_cap_mps: f64,
     /// How this VUT drove its route in earlier runs of the test ([`Regulator::set_route_speed`]).
     route_speed: Option<RouteSpeed>,
+    /// How this VUT reacts to the BV, identified this run from the prior of earlier runs.
+    belief: ReactionBelief,
 }
 
 /// What the realism term pulls toward in one decision: the reference's remaining time to the
@@ -515,6 +539,18 @@ const HOLD_CREEP_M: f64 = 1.0;
 /// A plan that reaches the hold station this much before the VUT is predicted in its zone passes
 /// it too early, s.
 const HOLD_TOL_S: f64 = 0.05;
+/// A reacting follower's predicted PET this near τ at the non-reacting key time changes nothing, s.
+const REACT_TOL_S: f64 = 0.02;
+/// Spacing of the key times a reacting follower is simulated against, s.
+const REACT_SCAN_S: f64 = 0.25;
+/// How many of them on each side of the non-reacting key time.
+const REACT_SCAN_STEPS: usize = 8;
+/// The most PET the leader counts on the VUT's predicted reaction for, as a share of τ.
+const REACT_COUNT_SHARE: f64 = 0.2;
+/// How much worse a key time 1 s farther from the non-reacting one counts, in s of PET error.
+const REACT_SHIFT_COST: f64 = 0.05;
+/// Bisection steps where the PET error changes sign.
+const REACT_BISECT: usize = 5;
 
 impl Regulator {
     /// Builds the solvers.
@@ -545,6 +581,7 @@ impl Regulator {
             seen_below_reach: None,
             traverse_cap_mps: f64::INFINITY,
             route_speed: None,
+            belief: ReactionBelief::default(),
         })
     }
 
@@ -604,6 +641,20 @@ impl Regulator {
         self.bv_exit_t_s = None;
         self.waiting_since_t_s = None;
         self.seen_below_reach = None;
+        self.belief.reset();
+    }
+
+    /// How earlier runs of this test identified this VUT's reaction (the campaign memory's
+    /// [`crate::campaign::CaseMemory::reaction`]): the prior of this run's identification from now
+    /// on (`None`: [`crate::reaction::DEFAULT_NONE_PRIOR`] on a VUT that does not react, the rest
+    /// even). It starts the run's belief over. A refused posterior leaves the one before.
+    pub fn set_reaction_prior(&mut self, prior: Option<&ReactionPosterior>) -> Result<(), ValidationError> {
+        self.belief.set_prior(prior).map_err(|e| e.within("reaction"))
+    }
+
+    /// How this VUT is identified to react so far this run.
+    pub fn reaction_belief(&self) -> &ReactionBelief {
+        &self.belief
     }
 
     /// What earlier runs of this test against this VUT showed about reach (the campaign memory's
@@ -643,6 +694,7 @@ impl Regulator {
             leader_slack_m: 0.0,
             follower_slack_m: 0.0,
             below_reach: None,
+            reaction: None,
         }
     }
 
@@ -885,14 +937,17 @@ impl Regulator {
             leader_slack_m: qp.slack_m(),
             follower_slack_m: fslack,
             below_reach: None,
+            reaction: None,
         }
     }
 
     /// One decision.
     pub fn decide(&mut self, inp: &RegulatorInput) -> Decision {
         self.set_caps(inp, None);
+        self.observe(inp);
         let mut d = self.decide_capped(inp);
         d.below_reach = self.watch_reach(inp);
+        d.reaction = self.params.reacting_follower.then(|| self.belief.identified());
         d
     }
 
@@ -902,9 +957,34 @@ impl Regulator {
     /// conservative, and never infeasible (the cap is approached at a bounded deceleration).
     pub fn decide_on_path(&mut self, inp: &RegulatorInput, speed_limit_at: &dyn Fn(f64) -> f64) -> Decision {
         self.set_caps(inp, Some(speed_limit_at));
+        self.observe(inp);
         let mut d = self.decide_capped(inp);
         d.below_reach = self.watch_reach(inp);
+        d.reaction = self.params.reacting_follower.then(|| self.belief.identified());
         d
+    }
+
+    /// What the VUT knows of the scene, for its reaction model.
+    fn scene(&self, inp: &RegulatorInput) -> Scene {
+        Scene {
+            zone_bv: inp.zone_bv,
+            zone_vut: inp.zone_vut,
+            vut_accel_mps2: self.params.vut.max_accel_mps2,
+            vut_decel_mps2: self.params.vut.max_decel_mps2,
+        }
+    }
+
+    /// Identification: one measurement into the belief of how the VUT reacts (fresh inputs only).
+    fn observe(&mut self, inp: &RegulatorInput) {
+        let fresh = inp.bv.age_s <= self.params.max_input_age_s && inp.vut.age_s <= self.params.max_input_age_s;
+        if !self.params.reacting_follower || !fresh || inp.zone_kind != ConflictKind::Crossing {
+            return;
+        }
+        let snap =
+            Snapshot { bv_s_m: inp.bv.s_m, bv_v_mps: inp.bv.v_mps, vut_s_m: inp.vut.s_m, vut_v_mps: inp.vut.v_mps };
+        let scene = self.scene(inp);
+        let free = self.route_speed.as_ref().map(|r| r as &dyn FreeSpeed);
+        self.belief.observe(inp.t_s, snap, &scene, free);
     }
 
     /// The accelerations decision `d` (the last one this regulator made) plans, one per step of
@@ -1149,7 +1229,113 @@ impl Regulator {
                 break;
             }
         }
-        Some(KeyTime { key_t, t_vut, free_response })
+        Some(self.reacted(inp, realism, KeyTime { key_t, t_vut, free_response }))
+    }
+
+    /// Step 1 with a reacting follower: when the belief's most probable VUT reacts to the BV
+    /// ([`crate::reaction`]), the key time whose predicted PET is nearest τ once that reaction is
+    /// added to the follower's response. The reaction is simulated against the BV's motion to
+    /// each candidate key time ([`BvMotion`], through its commit station when it rushes there),
+    /// and the delay it predicts over the same free motion without reaction is added to the
+    /// follower's time. Candidates every [`REACT_SCAN_S`] within [`REACT_SCAN_STEPS`] of the
+    /// non-reacting answer (on the side that leaves the VUT less room, within
+    /// [`REACT_COUNT_SHARE`] of τ), then bisection where the error changes sign nearest to it.
+    fn reacted(&self, inp: &RegulatorInput, realism: Option<RealismPull>, kt: KeyTime) -> KeyTime {
+        if !self.params.reacting_follower
+            || inp.zone_kind != ConflictKind::Crossing
+            || inp.vut.s_m >= inp.zone_vut.enter_s_m
+        {
+            return kt;
+        }
+        let Some(t_f) = kt.t_vut else { return kt };
+        let Some(reaction) = self.belief.identified().reaction else { return kt };
+        let rush = inp.target.style() == Style::Rush;
+        let tau = inp.target.tau_s();
+        let (bv_key, probe) = if rush {
+            (inp.zone_bv.exit_s_m, inp.zone_vut.enter_s_m)
+        } else {
+            (inp.zone_bv.enter_s_m, inp.zone_vut.exit_s_m)
+        };
+        let scene = self.scene(inp);
+        let constant = Constant(inp.vut.v_mps.max(self.belief.top_speed_mps()));
+        let free: &dyn FreeSpeed = match &self.route_speed {
+            Some(r) => r,
+            None => &constant,
+        };
+        let vut = (inp.vut.s_m, inp.vut.v_mps);
+        let d_bv = bv_key - inp.bv.s_m;
+        let motion = |t: f64| match self.rush_commit(inp, bv_key, t) {
+            Some(c) => BvMotion::new(inp.bv.s_m, inp.bv.v_mps, t - c.cross_s, c.station_m, c.speed_mps),
+            None => {
+                let v_end = (2.0 * d_bv / t - inp.bv.v_mps).max(d_bv / t);
+                BvMotion::new(inp.bv.s_m, inp.bv.v_mps, t, bv_key, v_end)
+            }
+        };
+        let Some(free_t) = rollout(None, &scene, &motion(1.0), vut, free, constant.0, probe) else { return kt };
+        let base = if kt.free_response { t_f } else { free_t };
+        let t_min = (d_bv / self.params.bv.max_speed_mps).max(self.params.dt_s);
+        // The VUT's time for key time `t`, and the PET error.
+        let response = |t: f64| -> Option<(f64, f64)> {
+            let t_h = rollout(Some(&reaction), &scene, &motion(t), vut, free, constant.0, probe)?;
+            let t_v = t_f.max(base + (t_h - free_t).max(0.0));
+            let pet = if rush { t_v - t } else { t - t_v };
+            Some((t_v, pet - tau))
+        };
+        let t0 = if rush { t_f - tau } else { t_f + tau }.max(t_min);
+        let Some((tv0, e0)) = response(t0) else { return kt };
+        if e0.abs() <= REACT_TOL_S {
+            return kt;
+        }
+        // Scan outward from t0; keep the nearest sign change, else the smallest error, counting a
+        // key time farther from t0 as worse by `REACT_SHIFT_COST` per second (where the error is
+        // flat, the BV does not move its key time for nothing).
+        let cost = |t: f64, e: f64| e.abs() + REACT_SHIFT_COST * (t - t0).abs();
+        let mut best = (t0, tv0, e0);
+        let mut bracket: Option<(f64, f64, f64)> = None;
+        // The last candidate on each side: below t0, above t0 (`None` once a side is out of range).
+        // On the side that leaves the VUT less room (a rushing BV later, a yielding one earlier)
+        // the leader counts on the VUT's predicted reaction to make the PET: a VUT that does not
+        // react after all meets a PET shorter than τ by as much. It counts on it for at most
+        // `REACT_COUNT_SHARE` of τ.
+        let count_s = REACT_COUNT_SHARE * tau;
+        let mut sides = [Some((t0, e0)), Some((t0, e0))];
+        'scan: for j in 1..=REACT_SCAN_STEPS {
+            for (side, dir) in sides.iter_mut().zip([-1.0, 1.0]) {
+                let Some((t_in, e_in)) = *side else { continue };
+                let t_out = t0 + dir * j as f64 * REACT_SCAN_S;
+                let counts_on_it = if rush { t_out - t0 } else { t0 - t_out };
+                let t_out = if counts_on_it > count_s { t0 + dir * count_s } else { t_out };
+                let last = counts_on_it >= count_s;
+                let Some((tv, e)) = (t_out >= t_min).then(|| response(t_out)).flatten() else {
+                    *side = None;
+                    continue;
+                };
+                if cost(t_out, e) < cost(best.0, best.2) {
+                    best = (t_out, tv, e);
+                }
+                if e_in.signum() != e.signum() {
+                    bracket = Some((t_in, e_in, t_out));
+                    break 'scan;
+                }
+                *side = (!last).then_some((t_out, e));
+            }
+        }
+        if let Some((mut a, ea, mut b)) = bracket {
+            for _ in 0..REACT_BISECT {
+                let m = 0.5 * (a + b);
+                let Some((tv, e)) = response(m) else { break };
+                if cost(m, e) < cost(best.0, best.2) {
+                    best = (m, tv, e);
+                }
+                if e.signum() == ea.signum() { a = m } else { b = m }
+            }
+        }
+        let (t_adv, t_v, _) = best;
+        if rush {
+            KeyTime { key_t: pulled(realism, t_adv).max(0.0), t_vut: Some(t_v), free_response: kt.free_response }
+        } else {
+            KeyTime { t_vut: Some(t_v), ..kt }
+        }
     }
 
     /// Steps 3–4: the leader's plan for key time `key_t`, checked against the follower's best

@@ -5,6 +5,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)] // test code
 
 use v2t_game::qp::{EventKind, LongitudinalQp, QpInput, QpShape};
+use v2t_game::reaction::ReactionPosterior;
 use v2t_game::reference::ReferenceSample;
 use v2t_game::regulator::{Regulator, RegulatorParams};
 use v2t_game::route_speed::RouteSpeed;
@@ -62,11 +63,19 @@ fn allocations_per_decision_come_only_from_the_solver() {
     // And with a follower that knows how the VUT drives its route (slowing to 5 m/s from 60 m on).
     let route =
         RouteSpeed { step_m: 2.0, speeds_mps: (0..=100).map(|i| if i < 30 { 10.0 } else { 5.0 }).collect(), runs: 1 };
+    // And with a regulator sure that the VUT reacts to the BV (the reacting follower's search
+    // runs every decision before the zone).
+    let n = v2t_game::reaction::HYPOTHESES;
+    let mut reacting = ReactionPosterior { probabilities: vec![0.1 / (n - 1) as f64; n], informative_cycles: 10 };
+    reacting.probabilities[n - 1] = 0.9;
     let mut worst = 0;
-    for (w_real, learned) in [(0.0, None), (1.0, None), (0.0, Some(route))] {
+    for (w_real, learned, prior_reaction) in
+        [(0.0, None, None), (1.0, None, None), (0.0, Some(route.clone()), None), (1.0, Some(route), Some(&reacting))]
+    {
         let mut reg = Regulator::new(RegulatorParams { w_real, ..RegulatorParams::default() }).unwrap();
         reg.set_reference(prior.iter().copied()).unwrap();
         reg.set_route_speed(learned).unwrap();
+        reg.set_reaction_prior(prior_reaction).unwrap();
         for style in [Style::Rush, Style::Yield] {
             reg.reset();
             let mut inp = v2t_game::fixtures::left_turn_start(Target::new(2.0, style).unwrap());

@@ -94,11 +94,15 @@ impl Regulation {
             has_predicted_pet: 0,
             below_reach: 0,
             has_pet_bound: 0,
+            has_reaction: 0,
             s0_m: 0.0,
             v0_mps: bv.speed_mps.max(0.0),
             accel_mps2: -fallback,
             predicted_pet_s: 0.0,
             pet_bound_s: 0.0,
+            vut_reacts_p: 0.0,
+            vut_gap_s: 0.0,
+            vut_gap_sd_s: 0.0,
             solve_ns: 0,
         };
         self.header = plan.header;
@@ -119,6 +123,12 @@ impl Regulation {
         if let Some(pet) = d.predicted_pet_s {
             plan.has_predicted_pet = 1;
             plan.predicted_pet_s = pet;
+        }
+        if let Some(r) = d.reaction {
+            plan.has_reaction = 1;
+            plan.vut_reacts_p = r.reacts_probability;
+            plan.vut_gap_s = r.gap_mean_s;
+            plan.vut_gap_sd_s = r.gap_sd_s;
         }
         if let Some(b) = d.below_reach {
             plan.below_reach = below_reach_code(b.cause).code();
@@ -267,6 +277,10 @@ mod tests {
         let status = PlanStatus::from_code(plan.status).unwrap();
         assert!(matches!(status, PlanStatus::Regulating | PlanStatus::Degraded), "{status:?}");
         assert!(plan.accel_mps2.is_finite() && plan.s0_m.abs() < 0.5);
+        // The plan says how the VUT is identified to react (the shipped follower reacts); at the
+        // first decision, the prior: a VUT that does not react is the most probable.
+        assert_eq!(plan.has_reaction, 1);
+        assert!((0.0..=1.0).contains(&plan.vut_reacts_p) && plan.vut_gap_s > 0.0 && plan.vut_gap_sd_s >= 0.0);
         let mut nan = bv;
         nan.px_m = f64::NAN;
         let plan = reg.decide(&nan, Some(&vut), 1_020_000_000);

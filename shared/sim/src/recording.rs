@@ -99,7 +99,7 @@ fn stamp(t_s: f64) -> serde_json::Value {
     json!({"sec": n / 1_000_000_000, "nsec": n % 1_000_000_000})
 }
 
-const PLAN_SCHEMA: &str = r#"{"type":"object","title":"v2t.Plan","properties":{"t_s":{"type":"number"},"prior_id":{"type":"integer"},"status":{"type":"string"},"s_m":{"type":"number"},"v_mps":{"type":"number"},"accel_mps2":{"type":"number"},"predicted_pet_s":{"type":["number","null"]},"below_reach":{"type":["string","null"]},"pet_bound_s":{"type":["number","null"]},"solve_us":{"type":"number"}}}"#;
+const PLAN_SCHEMA: &str = r#"{"type":"object","title":"v2t.Plan","properties":{"t_s":{"type":"number"},"prior_id":{"type":"integer"},"status":{"type":"string"},"s_m":{"type":"number"},"v_mps":{"type":"number"},"accel_mps2":{"type":"number"},"predicted_pet_s":{"type":["number","null"]},"below_reach":{"type":["string","null"]},"pet_bound_s":{"type":["number","null"]},"vut_reacts_p":{"type":["number","null"]},"vut_gap_s":{"type":["number","null"]},"vut_gap_sd_s":{"type":["number","null"]},"solve_us":{"type":"number"}}}"#;
 
 /// Writes `run` as an MCAP file at `path`.
 pub fn write(run: &RunOutcome, path: &Path) -> Result<(), RecordingError> {

@@ -126,6 +126,17 @@ pub struct PlanRecord {
     /// With `below_reach`: the PET the VUT allows as far as known, s.
     #[serde(default)]
     pub pet_bound_s: Option<f64>,
+    /// How the VUT is identified to react to the BV so far this run: the probability that it
+    /// reacts at all (`None`: the regulator's follower does not react).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vut_reacts_p: Option<f64>,
+    /// With `vut_reacts_p`: the gap the VUT is identified to accept (expected over the reacting
+    /// hypotheses), s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vut_gap_s: Option<f64>,
+    /// With `vut_reacts_p`: its standard deviation, s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vut_gap_sd_s: Option<f64>,
     /// How long the decision took, µs.
     pub solve_us: f64,
 }

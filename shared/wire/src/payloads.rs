@@ -285,6 +285,8 @@ pub struct RegulatedPlan {
     pub below_reach: u8,
     /// 1 when `pet_bound_s` holds a value.
     pub has_pet_bound: u8,
+    /// 1 when the `vut_*` fields hold how the VUT is identified to react to the BV this run.
+    pub has_reaction: u8,
     /// The BV's arc length along its path at the stamp, m.
     pub s0_m: f64,
     /// Speed at the stamp, m/s.
@@ -295,6 +297,13 @@ pub struct RegulatedPlan {
     pub predicted_pet_s: f64,
     /// With `below_reach`: the PET this VUT allows as far as known, s.
     pub pet_bound_s: f64,
+    /// With `has_reaction`: probability that the VUT reacts to the BV at all.
+    pub vut_reacts_p: f64,
+    /// With `has_reaction`: the gap the VUT is identified to accept (expected over the reacting
+    /// hypotheses), s.
+    pub vut_gap_s: f64,
+    /// With `has_reaction`: its standard deviation, s.
+    pub vut_gap_sd_s: f64,
     /// CPU time of the decision, ns.
     pub solve_ns: u64,
 }

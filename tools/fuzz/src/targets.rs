@@ -501,7 +501,14 @@ fn campaign_memory() -> anyhow::Result<Vec<Seed>> {
     let mut memory = CampaignMemory::new("idm-normal", "builtin");
     let target = v2t_model::Target::new(2.0, v2t_model::Style::Rush)?;
     for (aim_s, pet_s) in [(2.0, 2.6), (1.6, 2.3), (1.3, 2.05), (1.25, 2.0)] {
-        let run = RunRecord { aim_s, pet_s: Some(pet_s), order_ok: true, collision: false, learned_route: false };
+        let run = RunRecord {
+            aim_s,
+            pet_s: Some(pet_s),
+            order_ok: true,
+            collision: false,
+            learned_route: false,
+            reaction_prior: false,
+        };
         memory.case_mut("left_turn_basic", 0, target).record(target, run);
     }
     Ok(vec![("left_turn_basic rush τ 2 s, four runs".into(), serde_json::to_vec_pretty(&memory)?)])

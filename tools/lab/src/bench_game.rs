@@ -3,7 +3,9 @@
 //! With the shipped regulator settings (`config/regulator/default.toml`, the realism weight
 //! included, around a prior), for N = 30 and N = 50, and for N = 50 with a follower that knows
 //! how the VUT drives its route (a learned route speed, [`v2t_game::route_speed`]: the VUT
-//! slowing evenly from its speed to half of it over 300 m), on one thread:
+//! slowing evenly from its speed to half of it over 300 m), and for N = 50 with a regulator sure
+//! that the VUT reacts to the BV (the reacting follower's search in every decision before the
+//! zone, [`v2t_game::reaction`]), on one thread:
 //! - *sim*: every decision of the regulated BV in the simulated proving ground — both bundled
 //!   cards, rush and yield, τ ∈ {1.5, 3, 5} s, every VUT model, one seed each;
 //! - *approaches*: a left-turn approach in both styles replayed kinematically (the BV moving as its
@@ -21,6 +23,7 @@ use std::time::Instant;
 
 use v2t_files::parse_toml;
 use v2t_game::fixtures as common;
+use v2t_game::reaction::{HYPOTHESES, Reaction, ReactionPosterior, hypothesis};
 use v2t_game::reference::ReferenceSample;
 use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams};
 use v2t_game::route_speed::RouteSpeed;
@@ -43,6 +46,9 @@ pub struct BenchFigures {
     pub horizon: usize,
     /// Whether the follower had a learned route speed.
     pub learned_route: bool,
+    /// Whether the regulator started sure that the VUT reacts to the BV (gap 2.5 s): the
+    /// reacting follower's search runs in every decision before the zone.
+    pub reacting_prior: bool,
     /// Decisions timed (approaches + random).
     pub decisions: u64,
     /// Decisions timed in the closed-loop simulations.
@@ -126,7 +132,25 @@ fn learned_route(v_mps: f64) -> RouteSpeed {
     RouteSpeed { step_m: 2.0, speeds_mps: (0..=150).map(|i| v_mps * (1.0 - f64::from(i) / 300.0)).collect(), runs: 1 }
 }
 
-fn sim_latencies(settings: RegulatorParams, learned: bool) -> Result<Vec<f64>, Box<dyn std::error::Error>> {
+/// A posterior sure (p 0.9) that the VUT accepts gaps of 2.5 s, brakes at 2 m/s² and restarts
+/// after 1 s: the bench's reacting VUT.
+fn reacting_prior() -> ReactionPosterior {
+    let truth = Reaction { gap_s: 2.5, decel_mps2: 2.0, restart_s: 1.0 };
+    let mut probabilities = vec![0.1 / (HYPOTHESES - 1) as f64; HYPOTHESES];
+    if let Some(i) = (1..HYPOTHESES).find(|&i| hypothesis(i) == Some(truth))
+        && let Some(p) = probabilities.get_mut(i)
+    {
+        *p = 0.9;
+    }
+    ReactionPosterior { probabilities, informative_cycles: 100 }
+}
+
+fn sim_latencies(
+    settings: RegulatorParams,
+    learned: bool,
+    reacting: bool,
+) -> Result<Vec<f64>, Box<dyn std::error::Error>> {
+    let prior = reacting.then(reacting_prior);
     let vut = include_str!("../../../config/vehicles/vut_sedan.toml");
     let bv = include_str!("../../../config/vehicles/bv_sedan.toml");
     let sim = include_str!("../../../config/sim/default.toml");
@@ -143,7 +167,9 @@ fn sim_latencies(settings: RegulatorParams, learned: bool) -> Result<Vec<f64>, B
                 let Ok(inner) = RegulatedBv::new(RegulatedBv::params_for(&settings, &sc, 0), &sc, 0) else {
                     continue;
                 };
-                let inner = inner.with_route_speed(learned.then(|| learned_route(sc.vut.agent.initial_speed_mps)));
+                let inner = inner
+                    .with_route_speed(learned.then(|| learned_route(sc.vut.agent.initial_speed_mps)))
+                    .with_reaction_prior(prior.as_ref());
                 let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(Timed { inner, sink: Rc::clone(&sink) })];
                 let _ = run(&sc, &mut bvs, model.driver().as_mut(), 1);
             }
@@ -157,10 +183,13 @@ pub fn run_bench(allocations: fn() -> u64) -> Result<Vec<BenchFigures>, Box<dyn 
     let mut report = Vec::new();
     // The shipped settings (the realism weight included), at each horizon.
     let shipped: RegulatorParams = parse_toml(include_str!("../../../config/regulator/default.toml"), "regulator")?;
-    for (horizon, learned) in [(30usize, false), (50, false), (50, true)] {
+    for (horizon, learned, reacting) in
+        [(30usize, false, false), (50, false, false), (50, true, false), (50, false, true)]
+    {
         let params = RegulatorParams { horizon, ..shipped };
         let mut reg = Regulator::new(params)?;
         reg.set_route_speed(learned.then(|| learned_route(8.0)))?;
+        reg.set_reaction_prior(reacting.then(reacting_prior).as_ref())?;
         // The left turn's prior for the realism term: the BV at its start speed, easing off before
         // the zone and back (set once, as a BV does when a prior arrives).
         reg.set_reference((0..400).map(|k| {
@@ -219,7 +248,7 @@ pub fn run_bench(allocations: fn() -> u64) -> Result<Vec<BenchFigures>, Box<dyn 
             reg.reset();
             decide(&mut reg, &inp, true, &mut random_us);
         }
-        let mut sim_us = sim_latencies(params, learned)?;
+        let mut sim_us = sim_latencies(params, learned, reacting)?;
         sim_us.sort_by(f64::total_cmp);
         lat_us.extend_from_slice(&approach_us);
         lat_us.extend_from_slice(&random_us);
@@ -228,6 +257,7 @@ pub fn run_bench(allocations: fn() -> u64) -> Result<Vec<BenchFigures>, Box<dyn 
         report.push(BenchFigures {
             horizon,
             learned_route: learned,
+            reacting_prior: reacting,
             decisions: counted,
             sim_decisions: sim_us.len(),
             sim_p50_us: percentile(&sim_us, 0.5),
@@ -255,7 +285,7 @@ pub fn table(figures: &[BenchFigures]) -> String {
         out.push_str(&format!(
             "| {}{} | {} | {:.0} µs | {:.0} µs | {:.0} µs | {:.0} µs | {:.0} µs | {:.0} µs | {:.2} | {} |\n",
             f.horizon,
-            if f.learned_route { ", learned route" } else { "" },
+            variant(f),
             f.sim_decisions,
             f.sim_p50_us,
             f.sim_p99_us,
@@ -268,8 +298,17 @@ pub fn table(figures: &[BenchFigures]) -> String {
         ));
     }
     for f in figures {
-        let learned = if f.learned_route { ", learned route" } else { "" };
-        out.push_str(&format!("statuses (N = {}{learned}): {:?}\n", f.horizon, f.statuses));
+        out.push_str(&format!("statuses (N = {}{}): {:?}\n", f.horizon, variant(f), f.statuses));
     }
     out
+}
+
+/// What a row's follower knew besides the shipped settings.
+fn variant(f: &BenchFigures) -> &'static str {
+    match (f.learned_route, f.reacting_prior) {
+        (true, true) => ", learned route, reacting VUT",
+        (true, false) => ", learned route",
+        (false, true) => ", reacting VUT",
+        (false, false) => "",
+    }
 }

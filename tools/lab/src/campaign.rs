@@ -22,6 +22,7 @@ mod view;
 
 use serde::Serialize;
 use v2t_game::campaign::{CampaignMemory, CaseMemory, RunRecord};
+use v2t_game::reaction::ReactionPosterior;
 use v2t_game::regulator::{BelowReach, BelowReachCause, RegulatorParams};
 use v2t_game::route_speed::RouteSpeed;
 use v2t_model::{Style, Target};
@@ -193,6 +194,11 @@ pub struct RegulatedRun {
     pub decisions: Vec<Vec<crate::controllers::LoggedDecision>>,
     /// Whether each BV's follower knew how the VUT drives its route (a learned route speed).
     pub learned_routes: Vec<bool>,
+    /// Whether each BV's regulator started from how earlier runs identified the VUT's reaction.
+    pub reaction_priors: Vec<bool>,
+    /// How each BV's regulator identified the VUT's reaction by the end of the run (`None`: its
+    /// follower does not react).
+    pub reactions: Vec<Option<ReactionPosterior>>,
 }
 
 impl RegulatedRun {
@@ -226,17 +232,22 @@ pub fn regulated_run(
     let mut logs = Vec::new();
     let mut aims = Vec::with_capacity(scenario.bvs.len());
     let mut learned_routes = Vec::with_capacity(scenario.bvs.len());
+    let mut reaction_priors = Vec::with_capacity(scenario.bvs.len());
+    let mut reaction_reports = Vec::with_capacity(scenario.bvs.len());
     let mut bvs: Vec<Box<dyn BvController>> = Vec::with_capacity(scenario.bvs.len());
     for i in 0..scenario.bvs.len() {
         let case = memory.and_then(|m| m.case(&scenario.name, i, target));
         let aim = case.map_or(target, |c| c.aim(target));
         let r = RegulatedBv::new(RegulatedBv::params_for(settings, scenario, i), scenario, i)?
             .aiming(aim, case.and_then(|c| c.below_reach))
-            .with_route_speed(case.and_then(|c| c.route_speed.clone()));
+            .with_route_speed(case.and_then(|c| c.route_speed.clone()))
+            .with_reaction_prior(case.and_then(|c| c.reaction.as_ref()));
         reports.push(r.below_reach_report());
         logs.push(r.decision_log());
         aims.push(aim);
         learned_routes.push(r.knows_route());
+        reaction_priors.push(r.has_reaction_prior());
+        reaction_reports.push(r.reaction_report());
         bvs.push(Box::new(r));
     }
     let outcome = vut.run(scenario, &mut bvs, seed)?;
@@ -247,6 +258,8 @@ pub fn regulated_run(
         below_reach: reports.iter().map(|r| r.get()).collect(),
         decisions: logs.iter().map(|l| l.take()).collect(),
         learned_routes,
+        reaction_priors,
+        reactions: reaction_reports.iter().map(|r| r.get().map(ReactionPosterior::from)).collect(),
     })
 }
 
@@ -258,9 +271,16 @@ pub fn record_run(memory: &mut CampaignMemory, scenario: &Scenario, run: &Regula
         let id = scenario.bvs.get(i).map(|b| b.agent.id.as_str());
         let case = memory.case_mut(&scenario.name, i, target);
         let learned_route = run.learned_routes.get(i).copied().unwrap_or(false);
-        case.record(target, RunRecord { learned_route, ..bv_record(&run.outcome.result, id, aim.tau_s()) });
+        let reaction_prior = run.reaction_priors.get(i).copied().unwrap_or(false);
+        case.record(
+            target,
+            RunRecord { learned_route, reaction_prior, ..bv_record(&run.outcome.result, id, aim.tau_s()) },
+        );
         if let Some(route) = vut_route_speed(&run.outcome, i) {
             case.learn_route(target, &route);
+        }
+        if let Some(Some(reaction)) = run.reactions.get(i) {
+            case.learn_reaction(target, reaction);
         }
     }
 }
@@ -331,6 +351,7 @@ pub fn bv_record(r: &RunResult, bv_id: Option<&str>, aim_s: f64) -> RunRecord {
         ),
         collision: r.collision.is_some(),
         learned_route: false,
+        reaction_prior: false,
     }
 }
 
@@ -658,6 +679,9 @@ pub fn case_line(memory: &CaseMemory, target: Target) -> String {
         if let Some((at, v)) = r.slowest() {
             s.push_str(&format!(", slowest {v:.1} m/s at {at:.0} m"));
         }
+    }
+    if let Some(id) = memory.reaction.as_ref().and_then(ReactionPosterior::identified) {
+        s.push_str(&format!("; the VUT {id}"));
     }
     s
 }

@@ -517,6 +517,9 @@ fn plan_record(t_s: f64, p: &RegulatedPlan) -> PlanRecord {
                 .map_or_else(|_| format!("code {}", p.below_reach), |c| format!("{c:?}"))
         }),
         pet_bound_s: (p.below_reach != 0 && p.has_pet_bound != 0 && p.pet_bound_s.is_finite()).then_some(p.pet_bound_s),
+        vut_reacts_p: (p.has_reaction != 0 && p.vut_reacts_p.is_finite()).then_some(p.vut_reacts_p),
+        vut_gap_s: (p.has_reaction != 0 && p.vut_gap_s.is_finite()).then_some(p.vut_gap_s),
+        vut_gap_sd_s: (p.has_reaction != 0 && p.vut_gap_sd_s.is_finite()).then_some(p.vut_gap_sd_s),
         solve_us: p.solve_ns as f64 * 1e-3,
     }
 }

@@ -9,7 +9,14 @@ fn rush(tau: f64) -> Target {
 }
 
 fn run(aim: Target, pet: f64) -> RunRecord {
-    RunRecord { aim_s: aim.tau_s(), pet_s: Some(pet), order_ok: true, collision: false, learned_route: false }
+    RunRecord {
+        aim_s: aim.tau_s(),
+        pet_s: Some(pet),
+        order_ok: true,
+        collision: false,
+        learned_route: false,
+        reaction_prior: false,
+    }
 }
 
 /// Runs `n` runs of a test against a VUT whose PET is `vut(aim, run index)`; returns the aims.
@@ -108,7 +115,14 @@ fn a_learned_bias_that_predicts_worse_than_none_is_dropped() {
 fn two_runs_without_a_pet_in_the_asked_order_refuse_the_order() {
     let mut m = CaseMemory::default();
     let t = Target::new(2.0, Style::Yield).unwrap();
-    let none = RunRecord { aim_s: 2.0, pet_s: None, order_ok: false, collision: false, learned_route: false };
+    let none = RunRecord {
+        aim_s: 2.0,
+        pet_s: None,
+        order_ok: false,
+        collision: false,
+        learned_route: false,
+        reaction_prior: false,
+    };
     m.record(t, none);
     assert!(m.below_reach.is_none());
     m.record(t, none);
@@ -122,7 +136,17 @@ fn two_runs_without_a_pet_in_the_asked_order_refuse_the_order() {
 fn runs_with_a_collision_teach_nothing() {
     let mut m = CaseMemory::default();
     let t = rush(2.0);
-    m.record(t, RunRecord { aim_s: 2.0, pet_s: Some(0.2), order_ok: true, collision: true, learned_route: false });
+    m.record(
+        t,
+        RunRecord {
+            aim_s: 2.0,
+            pet_s: Some(0.2),
+            order_ok: true,
+            collision: true,
+            learned_route: false,
+            reaction_prior: false,
+        },
+    );
     assert_eq!(m.offset_s, 0.0);
     assert_eq!(m.aim(t), t);
 }
@@ -207,7 +231,7 @@ proptest! {
             let aim = m.aim(t);
             prop_assert!(aim.tau_s() >= AIM_MIN_SHARE * tau - 1e-9 && aim.tau_s() <= AIM_MAX_SHARE * tau + 1e-9);
             prop_assert_eq!(aim.style(), t.style());
-            m.record(t, RunRecord { aim_s: aim.tau_s(), pet_s: pet, order_ok, collision, learned_route: false });
+            m.record(t, RunRecord { aim_s: aim.tau_s(), pet_s: pet, order_ok, collision, learned_route: false, reaction_prior: false });
             prop_assert!(m.offset_s.is_finite() && m.gain.is_finite());
         }
     }
@@ -299,4 +323,55 @@ fn a_memory_with_a_learned_route_is_read_back_and_an_older_file_without_one_too(
     let bad = json.replacen("[8.0,", "[-8.0,", 1);
     let e = serde_json::from_str::<CampaignMemory>(&bad).unwrap().validate().unwrap_err().to_string();
     assert!(e.contains("cases[0].memory.route_speed.speeds_mps[0]"), "{e}");
+}
+
+fn posterior(reacting: f64, informative: u32) -> ReactionPosterior {
+    let n = crate::reaction::HYPOTHESES;
+    let mut probabilities = vec![reacting / (n - 1) as f64; n];
+    probabilities[0] = 1.0 - reacting;
+    ReactionPosterior { probabilities, informative_cycles: informative }
+}
+
+#[test]
+fn the_first_identified_reaction_starts_the_reaction_model_over_and_later_ones_replace_it() {
+    let mut m = CaseMemory::default();
+    let t = rush(2.0);
+    m.record(t, run(t, 2.6));
+    assert!((m.offset_s - 0.6).abs() < 1e-12);
+    // A run that saw no conflict taught nothing: nothing is kept, the model stays.
+    m.learn_reaction(t, &posterior(0.7, 0));
+    assert!(m.reaction.is_none() && (m.offset_s - 0.6).abs() < 1e-12);
+    m.learn_reaction(t, &posterior(0.9, 12));
+    assert_eq!(m.reaction.as_ref().unwrap().informative_cycles, 12);
+    assert_eq!(m.aim(t), t, "the next run starts from the identified reaction: nothing is known of how it errs");
+    // Run 2, made with it: the model is fitted to it alone, and a later posterior keeps it.
+    m.record(t, RunRecord { reaction_prior: true, ..run(t, 2.2) });
+    assert!((m.offset_s - 0.2).abs() < 1e-12, "{}", m.offset_s);
+    m.learn_reaction(t, &posterior(0.95, 30));
+    assert_eq!(m.reaction.as_ref().unwrap().informative_cycles, 30);
+    assert!((m.offset_s - 0.2).abs() < 1e-12);
+    // A posterior that is not one is not kept.
+    let mut bad = posterior(0.5, 40);
+    bad.probabilities[0] = 2.0;
+    m.learn_reaction(t, &bad);
+    assert_eq!(m.reaction.as_ref().unwrap().informative_cycles, 30);
+}
+
+#[test]
+fn a_memory_with_an_identified_reaction_is_read_back_and_a_bad_one_is_refused_by_name() {
+    let mut mem = CampaignMemory::new("sumo-idm", "sumo");
+    let t = rush(2.0);
+    let case = mem.case_mut("left_turn_basic", 0, t);
+    case.record(t, run(t, 2.9));
+    case.learn_reaction(t, &posterior(0.8, 5));
+    let json = serde_json::to_string(&mem).unwrap();
+    let back: CampaignMemory = serde_json::from_str(&json).unwrap();
+    assert_eq!(back, mem);
+    assert!(back.validate().is_ok());
+    let mut bad = back.clone();
+    if let Some(r) = bad.cases[0].memory.reaction.as_mut() {
+        r.probabilities[3] = -0.1;
+    }
+    let e = bad.validate().unwrap_err().to_string();
+    assert!(e.contains("cases[0].memory.reaction.probabilities[3]"), "{e}");
 }

@@ -26,6 +26,10 @@ pub struct RegulatedBv {
     below_reach: Rc<Cell<Option<BelowReach>>>,
     /// Every decision of the run (shared with whoever asked).
     log: Rc<RefCell<Vec<LoggedDecision>>>,
+    /// The identification of the VUT's reaction as of the last decision (shared with whoever asked).
+    reaction: Rc<Cell<Option<v2t_game::reaction::BeliefSnapshot>>>,
+    /// Whether the regulator started from earlier runs' identification.
+    reaction_prior: bool,
 }
 
 /// One decision of an in-process regulated BV, kept as it was made (no allocation in the control
@@ -58,6 +62,9 @@ impl LoggedDecision {
             predicted_pet_s: d.predicted_pet_s,
             below_reach: d.below_reach.map(|b| format!("{:?}", b.cause)),
             pet_bound_s: d.below_reach.and_then(|b| b.pet_bound_s),
+            vut_reacts_p: d.reaction.map(|r| r.reacts_probability),
+            vut_gap_s: d.reaction.map(|r| r.gap_mean_s),
+            vut_gap_sd_s: d.reaction.map(|r| r.gap_sd_s),
             solve_us: self.solve_us,
         }
     }
@@ -83,6 +90,8 @@ impl RegulatedBv {
             last: None,
             below_reach: Rc::default(),
             log: Rc::default(),
+            reaction: Rc::default(),
+            reaction_prior: false,
         })
     }
 
@@ -103,6 +112,26 @@ impl RegulatedBv {
         // Refused: the one before stays, and a new BV has none.
         let _ = self.regulation.set_route_speed(learned);
         self
+    }
+
+    /// This BV's regulator identifying the VUT's reaction from how earlier runs of the test
+    /// identified it (the campaign memory's, [`v2t_game::reaction`]). A posterior the regulator
+    /// refuses leaves the default prior: [`Self::has_reaction_prior`] says so.
+    #[must_use]
+    pub fn with_reaction_prior(mut self, prior: Option<&v2t_game::reaction::ReactionPosterior>) -> Self {
+        self.reaction_prior = prior.is_some() && self.regulation.set_reaction_prior(prior).is_ok();
+        self
+    }
+
+    /// Whether the regulator started from earlier runs' identification of the VUT's reaction.
+    pub fn has_reaction_prior(&self) -> bool {
+        self.reaction_prior
+    }
+
+    /// Where the regulator's identification of the VUT's reaction will be, as of its last
+    /// decision (`None` while it made none, or when its follower does not react).
+    pub fn reaction_report(&self) -> Rc<Cell<Option<v2t_game::reaction::BeliefSnapshot>>> {
+        Rc::clone(&self.reaction)
     }
 
     /// Whether the follower predicts the VUT's free motion from a learned route speed.
@@ -187,6 +216,9 @@ impl BvController for RegulatedBv {
         self.last = Some(d);
         if d.below_reach.is_some() {
             self.below_reach.set(d.below_reach);
+        }
+        if self.regulation.params().reacting_follower {
+            self.reaction.set(Some(self.regulation.reaction_belief().snapshot()));
         }
         ActuationRequest {
             accel_mps2: d.accel_mps2,
