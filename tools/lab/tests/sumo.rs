@@ -231,8 +231,9 @@ fn a_campaign_learns_how_sumos_vut_drives_its_turn_and_the_next_run_lands_on_tau
     // The VUT turns left in front of the oncoming BV, which goes first, τ 2 s. SUMO's IDM slows
     // from 8 to about 4 m/s as it enters the junction whatever the BV does (the same slowdown at
     // τ 5 s, with the BV long gone): a follower that keeps the VUT's speed predicts it a second
-    // early and the PET comes out near 2.9 s. The first run's record of how it drove its route is
-    // the second run's follower, which then lands on τ while still aiming at τ itself.
+    // early and the PET comes out near 2.9 s (2.6 s with the shipped reacting follower, measured).
+    // The first run's record of how it drove its route is the second run's follower, which then
+    // lands on τ while still aiming at τ.
     let Some(world) = world() else { return };
     let settings: RegulatorParams = v2t_files::load_toml(&root().join("config/regulator/default.toml")).unwrap();
     let sc = card("left_turn_vut");
@@ -245,7 +246,7 @@ fn a_campaign_learns_how_sumos_vut_drives_its_turn_and_the_next_run_lands_on_tau
         assert!(!r.failed && !r.collision && !r.zone_overlap && r.order_ok, "{r:?}");
     }
     let (first, second) = (runs[0].pet_s.unwrap(), runs[1].pet_s.unwrap());
-    assert!(first > 2.6, "without the learned route the PET comes out long: {first:.2} s");
+    assert!(first > 2.4, "without the learned route the PET comes out long: {first:.2} s");
     let learned = memory.case("left_turn_vut", 0, target).unwrap().route_speed.clone().unwrap();
     let (at, slowest) = learned.slowest().unwrap();
     assert!(slowest < 5.0 && (60.0..72.0).contains(&at), "slowest {slowest:.1} m/s at {at:.0} m");
