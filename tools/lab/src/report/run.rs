@@ -508,7 +508,32 @@ fn plots(run: &RunFile, trace: &Trace, t_range: (f64, f64)) -> String {
         pet.series.push(Series { dashed: true, ..Series::line(format!("regulator, {who}"), pts, colour(b + 1)) });
     }
     out.push_str(&pet.svg("pet"));
+    out.push_str(&reaction_plot(run, &bv_ids, t_range));
     out
+}
+
+/// How each BV's regulator identified the VUT's reaction over the run (its plans'
+/// `vut_reacts_p` and `vut_gap_s`, [`v2t_game::reaction`]); empty when no plan carries it.
+fn reaction_plot(run: &RunFile, bv_ids: &[&str], t_range: (f64, f64)) -> String {
+    let mut plot = LinePlot::over_time(
+        "The VUT's reaction to the BV, as the regulator identified it",
+        "probability; gap (s)",
+        t_range,
+    );
+    plot.y_range = Some((0.0, 3.5));
+    for (b, plans) in run.regulator.iter().flatten().enumerate() {
+        if plans.iter().all(|p| p.vut_reacts_p.is_none()) {
+            continue;
+        }
+        let who = bv_ids.get(b).copied().unwrap_or("BV");
+        let finite = |v: Option<f64>| v.filter(|x| x.is_finite()).unwrap_or(f64::NAN);
+        let p: Vec<(f64, f64)> = plans.iter().map(|q| (q.t_s, finite(q.vut_reacts_p))).collect();
+        let gap: Vec<(f64, f64)> = plans.iter().map(|q| (q.t_s, finite(q.vut_gap_s))).collect();
+        plot.series.push(Series::line(format!("probability that it reacts, {who}"), p, colour(b + 1)));
+        plot.series
+            .push(Series { dashed: true, ..Series::line(format!("accepted gap (s), {who}"), gap, colour(b + 1)) });
+    }
+    if plot.series.is_empty() { String::new() } else { plot.svg("reaction") }
 }
 
 fn status_colour(s: &str) -> &'static str {
@@ -777,5 +802,23 @@ mod tests {
         assert!(h.contains("Regulator: its decisions are not in this run file."));
         assert!(h.contains("– (fewer than two vehicles)") && !h.contains("closest approach ("));
         assert!(!h.contains("NaN") && !full.contains("NaN"));
+        assert!(!full.contains("class=\"plot reaction\""), "no regulator, no identification");
+    }
+
+    /// A regulated run's plans carry how the VUT was identified to react: the page draws it.
+    #[test]
+    fn a_regulated_run_draws_what_its_regulator_identified_of_the_vut() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+        let scenario = v2t_sim::files::load_scenario(&root.join("config/scenarios/left_turn_basic.toml")).unwrap();
+        let vut = crate::vut::Vut::Builtin(scenario.vut.default_model);
+        let settings: v2t_game::regulator::RegulatorParams =
+            v2t_files::load_toml(&root.join("config/regulator/default.toml")).unwrap();
+        let run = crate::campaign::regulated_run(&settings, &scenario, &vut, 1, None).unwrap();
+        let plans = run.plans();
+        assert!(plans[0].iter().all(|p| p.vut_reacts_p.is_some_and(|x| (0.0..=1.0).contains(&x))));
+        let file = RunFile { regulator: Some(plans), ..RunFile::of(&run.outcome) };
+        let html = section_of(&file);
+        assert!(html.contains("class=\"plot reaction\"") && html.contains("probability that it reacts"), "drawn");
+        assert!(!html.contains("NaN"));
     }
 }
