@@ -49,7 +49,16 @@ fn the_regulated_bv_lands_on_the_target_pet() {
         assert_eq!(c.stats.unmeasured, 0, "{tag}");
         let err = c.error_rel.unwrap();
         assert!(err <= bound, "{tag}: mean PET_min {:?} s, error {:.1} %", c.stats.mean_pet_min_s, 100.0 * err);
+        // Every run says how the regulator identified the VUT by its end (the shipped follower reacts).
+        let id = c.identified;
+        assert_eq!(id.runs + id.uninformed, 2, "{tag}");
+        assert!(id.reacting <= id.runs && (0.0..=1.0).contains(&id.reacts_p_mean), "{tag}: {id:?}");
     }
+    // The paper's follower identifies nothing.
+    let paper = RegulatorParams { reacting_follower: false, ..settings };
+    let target = v2t_model::Target::new(2.0, Style::Rush).unwrap();
+    let c = steer_case(&paper, &left, target, &v2t_lab::vut::Vut::Builtin(VutModel::IdmNormal), 1..=1);
+    assert_eq!(c.identified.runs + c.identified.uninformed, 0);
 }
 
 /// A campaign learns what one run cannot: against the cautious IDM driver the left turn's rush at

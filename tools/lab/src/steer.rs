@@ -52,6 +52,47 @@ pub struct SteerCase {
     /// profile of [`crate::reach`]'s grid did, or these regulated runs did on average (safely, in
     /// the asked order: they are a BV too). `None` when the grid was not run.
     pub reachable: Option<bool>,
+    /// How the first BV's regulator identified the VUT's reaction by the end of each run.
+    pub identified: IdentifiedRuns,
+}
+
+/// How a case's regulator identified the VUT's reaction by the end of its runs
+/// ([`v2t_game::reaction`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct IdentifiedRuns {
+    /// Runs whose regulator learnt something of the VUT's reaction (it saw a conflict).
+    pub runs: usize,
+    /// Runs whose regulator saw no conflict to learn from (merges are not modelled: always these).
+    pub uninformed: usize,
+    /// Of those, the runs that ended with a reacting driver most probable.
+    pub reacting: usize,
+    /// Mean over those runs of the final probability that the VUT reacts.
+    pub reacts_p_mean: f64,
+}
+
+impl IdentifiedRuns {
+    fn add(&mut self, id: &v2t_game::reaction::Identified) {
+        if id.informative_cycles == 0 {
+            self.uninformed += 1;
+            return;
+        }
+        let n = self.runs as f64;
+        self.reacts_p_mean = (self.reacts_p_mean * n + id.reacts_probability) / (n + 1.0);
+        self.runs += 1;
+        self.reacting += usize::from(id.reaction.is_some());
+    }
+
+    /// One line for the table of missed runs.
+    fn line(&self) -> String {
+        let quiet = match self.uninformed {
+            0 => String::new(),
+            n => format!("; {n} run(s) saw no conflict to learn from"),
+        };
+        if self.runs == 0 {
+            return if self.uninformed == 0 { "—".to_owned() } else { quiet.trim_start_matches("; ").to_owned() };
+        }
+        format!("{}/{} runs (mean p {:.2}){quiet}", self.reacting, self.runs, self.reacts_p_mean)
+    }
 }
 
 /// The whole experiment.
@@ -124,13 +165,19 @@ pub fn steer_case(
 ) -> SteerCase {
     let mut tally = Tally::default();
     let mut misses = Misses::default();
+    let mut identified = IdentifiedRuns::default();
     let mut sc = scenario.clone();
     sc.target = target;
     for seed in seeds {
+        let mut report = None;
         let bvs: Result<Vec<Box<dyn BvController>>, _> = (0..sc.bvs.len())
             .map(|i| {
-                RegulatedBv::new(RegulatedBv::params_for(settings, &sc, i), &sc, i)
-                    .map(|r| Box::new(r) as Box<dyn BvController>)
+                RegulatedBv::new(RegulatedBv::params_for(settings, &sc, i), &sc, i).map(|r| {
+                    if i == 0 {
+                        report = Some(r.reaction_report());
+                    }
+                    Box::new(r) as Box<dyn BvController>
+                })
             })
             .collect();
         let Ok(mut bvs) = bvs else {
@@ -141,6 +188,10 @@ pub fn steer_case(
             Ok(out) => {
                 tally.add(&out.result);
                 misses.add(&sc, &out, target);
+                let last = report.and_then(|r| r.get()).map(v2t_game::reaction::ReactionPosterior::from);
+                if let Some(id) = last.as_ref().and_then(v2t_game::reaction::ReactionPosterior::identified) {
+                    identified.add(&id);
+                }
             }
             Err(_) => tally.add_failed(),
         }
@@ -157,6 +208,7 @@ pub fn steer_case(
         misses,
         stats,
         reachable: None,
+        identified,
     }
 }
 
@@ -296,15 +348,16 @@ pub fn steer_markdown(r: &SteerReport) -> String {
     }
     let missed: Vec<&SteerCase> = r.cases.iter().filter(|c| c.misses.runs > 0).collect();
     if !missed.is_empty() {
-        out.push_str("\nWhy single runs missed τ by more than 10 % (each missed run counted once, by the first reason that holds: no PET; the VUT stood ≥ 1 s before the zone; the VUT slowed below a quarter of its start speed; the BV at its acceleration limits ≥ 1 s; else the regulator):\n\n| scenario | style | VUT | τ (s) | missed runs |\n|---|---|---|---|---|\n");
+        out.push_str("\nWhy single runs missed τ by more than 10 % (each missed run counted once, by the first reason that holds: no PET; the VUT stood ≥ 1 s before the zone; the VUT slowed below a quarter of its start speed; the BV at its acceleration limits ≥ 1 s; else the regulator), and in how many of the case's runs the regulator ended identifying the VUT as reacting to the BV (its final probability that it does, averaged; — : the follower does not react):\n\n| scenario | style | VUT | τ (s) | missed runs | VUT identified as reacting |\n|---|---|---|---|---|---|\n");
         for c in missed {
             out.push_str(&format!(
-                "| {} | {} | {} | {:.1} | {} |\n",
+                "| {} | {} | {} | {:.1} | {} | {} |\n",
                 c.scenario,
                 c.style,
                 c.vut,
                 c.tau_s,
-                c.misses.line()
+                c.misses.line(),
+                c.identified.line()
             ));
         }
     }
@@ -347,5 +400,44 @@ impl crate::report::experiment::ExperimentView for SteerReport {
                 )
             })
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+
+    use super::*;
+    use v2t_game::reaction::{HYPOTHESES, ReactionPosterior};
+
+    fn posterior(reacting: f64) -> ReactionPosterior {
+        let mut probabilities = vec![reacting / (HYPOTHESES - 1) as f64; HYPOTHESES];
+        probabilities[0] = 1.0 - reacting;
+        // A reacting driver most probable when `reacting` is large: lift one above the rest.
+        if reacting > 0.5 {
+            probabilities[1] += 0.4 * probabilities[0];
+            probabilities[0] *= 0.6;
+        }
+        ReactionPosterior { probabilities, informative_cycles: 3 }
+    }
+
+    #[test]
+    fn the_identification_of_a_cases_runs_is_counted_and_said_in_one_line() {
+        let mut runs = IdentifiedRuns::default();
+        assert_eq!(runs.line(), "—", "a follower that does not react identifies nothing");
+        let (calm, reacting) = (posterior(0.2).identified().unwrap(), posterior(0.99).identified().unwrap());
+        assert!(calm.reaction.is_none() && reacting.reaction.is_some());
+        runs.add(&calm);
+        runs.add(&reacting);
+        assert_eq!((runs.runs, runs.reacting), (2, 1));
+        let mean = (calm.reacts_probability + reacting.reacts_probability) / 2.0;
+        assert!((runs.reacts_p_mean - mean).abs() < 1e-9, "{runs:?}");
+        assert_eq!(runs.line(), format!("1/2 runs (mean p {mean:.2})"));
+        runs.add(&ReactionPosterior { informative_cycles: 0, ..posterior(0.9) }.identified().unwrap());
+        assert_eq!(runs.runs, 2, "a run that saw no conflict teaches nothing");
+        assert!(runs.line().ends_with("; 1 run(s) saw no conflict to learn from"), "{}", runs.line());
+        let mut merge = IdentifiedRuns::default();
+        merge.add(&ReactionPosterior { informative_cycles: 0, ..posterior(0.2) }.identified().unwrap());
+        assert_eq!(merge.line(), "1 run(s) saw no conflict to learn from");
     }
 }
