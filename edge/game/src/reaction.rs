@@ -40,6 +40,7 @@
 //! [`ROLLOUT_MAX_S`] of steps of [`ROLLOUT_DT_S`].
 
 use serde::{Deserialize, Serialize};
+use v2t_model::driving::{Idm, Obstacle, travel_time};
 use v2t_model::metrics::OccupancyInterval;
 use v2t_model::validate::{Validate, ValidationError, in_range};
 
@@ -125,20 +126,6 @@ pub struct Snapshot {
     pub vut_v_mps: f64,
 }
 
-/// Time to cover `d` from speed `v`, accelerating at `a` up to `v_max` (then constant); infinite
-/// when it never arrives.
-fn travel_time(d: f64, v: f64, a: f64, v_max: f64) -> f64 {
-    if d <= 0.0 {
-        return 0.0;
-    }
-    let v = v.max(0.0);
-    if v >= v_max || a <= 0.0 {
-        return if v > 1e-6 { d / v } else { f64::INFINITY };
-    }
-    let d_acc = (v_max * v_max - v * v) / (2.0 * a);
-    if d <= d_acc { ((v * v + 2.0 * a * d).sqrt() - v) / a } else { (v_max - v) / a + (d - d_acc) / v_max }
-}
-
 impl Reaction {
     /// Whether this driver, at `snap`, yields to the BV (its gap is too short and it can still stop).
     #[must_use]
@@ -169,21 +156,20 @@ impl Reaction {
     /// This driver's acceleration while it yields: the IDM toward a standing obstacle just
     /// before its zone, with free speed `free_mps`.
     fn yield_accel(&self, scene: &Scene, snap: &Snapshot, free_mps: f64) -> f64 {
-        let v = snap.vut_v_mps.max(0.0);
-        let a = scene.vut_accel_mps2;
-        let gap = (scene.zone_vut.enter_s_m - STOP_MARGIN_M - snap.vut_s_m).max(0.1);
-        let wanted = IDM_MIN_GAP_M + v * IDM_TIME_GAP_S + v * v / (2.0 * (a * self.decel_mps2).sqrt());
-        let interaction = a * (wanted / gap).powi(2);
-        (free_accel(a, v, free_mps) - interaction).max(-MAX_REACT_DECEL_MPS2.min(scene.vut_decel_mps2))
+        let stop = Obstacle { gap_m: scene.zone_vut.enter_s_m - STOP_MARGIN_M - snap.vut_s_m, speed_mps: 0.0 };
+        idm(scene, self.decel_mps2).accel(snap.vut_v_mps, free_mps, Some(stop))
     }
 }
 
-/// The IDM's free term: `a (1 − (v / v0)⁴)`, at most the deceleration limit.
-fn free_accel(a: f64, v: f64, v0: f64) -> f64 {
-    if v0 <= 1e-3 {
-        return if v > 0.0 { -a } else { 0.0 };
+/// The IDM of a driver of `scene` with comfortable deceleration `decel_mps2` (δ = 4).
+fn idm(scene: &Scene, decel_mps2: f64) -> Idm {
+    Idm {
+        time_gap_s: IDM_TIME_GAP_S,
+        min_gap_m: IDM_MIN_GAP_M,
+        max_accel_mps2: scene.vut_accel_mps2,
+        comfort_decel_mps2: decel_mps2,
+        accel_exponent: 4.0,
     }
-    (a * (1.0 - (v / v0).powi(4))).max(-MAX_REACT_DECEL_MPS2)
 }
 
 /// What the VUT's free speed is along its route: `speed_at(s)`, or the fallback where it says nothing.
@@ -300,11 +286,12 @@ impl Driver {
     /// its acceleration limit, and never below the deceleration that stops it within the step.
     pub fn accel(&mut self, t: f64, dt: f64, scene: &Scene, snap: &Snapshot, free_mps: f64) -> f64 {
         let v = snap.vut_v_mps.max(0.0);
-        let free_a = free_accel(scene.vut_accel_mps2, v, free_mps).min(scene.vut_accel_mps2);
+        // The IDM's free term (its comfortable deceleration plays no part in it).
+        let free_a = idm(scene, 1.0).accel(v, free_mps, None);
         let a = match &self.reaction {
             Some(r) if r.yields(scene, snap, free_mps) => {
                 self.open_since = None;
-                r.yield_accel(scene, snap, free_mps).min(free_a)
+                r.yield_accel(scene, snap, free_mps)
             }
             Some(r) if v <= STANDING_MPS && r.restart_s > 0.0 => {
                 let since = *self.open_since.get_or_insert(t);
@@ -312,7 +299,7 @@ impl Driver {
             }
             _ => free_a,
         };
-        a.max(-scene.vut_decel_mps2)
+        a.max(-MAX_REACT_DECEL_MPS2.min(scene.vut_decel_mps2))
     }
 }
 
@@ -561,7 +548,32 @@ impl ReactionBelief {
     }
 }
 
+/// Index of `driver` in the grid ([`hypothesis`]; `None`, the driver that does not react, is 0);
+/// `None` when it is not on the grid.
+#[must_use]
+pub fn hypothesis_index(driver: Option<Reaction>) -> Option<usize> {
+    match driver {
+        None => Some(0),
+        Some(r) => (1..HYPOTHESES).find(|&i| hypothesis(i) == Some(r)),
+    }
+}
+
 impl ReactionPosterior {
+    /// A posterior that puts `p` on `driver` (`None`: the one that does not react) and the rest
+    /// evenly on the other hypotheses, resting on `informative_cycles`: what an operator who
+    /// knows the VUT gives as a prior, and the fixtures of tests and benches. `None` when the
+    /// driver is not on the grid or `p` is not in [0, 1].
+    #[must_use]
+    pub fn sure_of(driver: Option<Reaction>, p: f64, informative_cycles: u32) -> Option<Self> {
+        let i = hypothesis_index(driver)?;
+        if !(0.0..=1.0).contains(&p) {
+            return None;
+        }
+        let mut probabilities = vec![(1.0 - p) / (HYPOTHESES - 1) as f64; HYPOTHESES];
+        *probabilities.get_mut(i)? = p;
+        Some(Self { probabilities, informative_cycles })
+    }
+
     /// The most probable driver and the summary of the posterior (`None` when it does not
     /// validate).
     #[must_use]

@@ -65,9 +65,8 @@ fn allocations_per_decision_come_only_from_the_solver() {
         RouteSpeed { step_m: 2.0, speeds_mps: (0..=100).map(|i| if i < 30 { 10.0 } else { 5.0 }).collect(), runs: 1 };
     // And with a regulator sure that the VUT reacts to the BV (the reacting follower's search
     // runs every decision before the zone).
-    let n = v2t_game::reaction::HYPOTHESES;
-    let mut reacting = ReactionPosterior { probabilities: vec![0.1 / (n - 1) as f64; n], informative_cycles: 10 };
-    reacting.probabilities[n - 1] = 0.9;
+    let last = v2t_game::reaction::hypothesis(v2t_game::reaction::HYPOTHESES - 1);
+    let reacting = ReactionPosterior::sure_of(last, 0.9, 10).unwrap();
     let mut worst = 0;
     for (w_real, learned, prior_reaction) in
         [(0.0, None, None), (1.0, None, None), (0.0, Some(route.clone()), None), (1.0, Some(route), Some(&reacting))]

@@ -2,7 +2,7 @@
 //! driver, [`v2t_game::reaction::Driver`]): a case whose answer is known.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)]
 
-use v2t_game::reaction::{Driver, HYPOTHESES, Reaction, ReactionPosterior, Scene, Snapshot, hypothesis};
+use v2t_game::reaction::{Driver, Reaction, ReactionPosterior, Scene, Snapshot};
 use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams};
 use v2t_model::metrics::{ConflictKind, OccupancyInterval};
 use v2t_model::{Style, Target};
@@ -12,10 +12,19 @@ const ZONE_VUT: OccupancyInterval = OccupancyInterval { enter_s_m: 60.0, exit_s_
 
 /// A posterior that puts `p` on the driver `truth` and the rest evenly on the others.
 fn sure_of(truth: Reaction, p: f64) -> ReactionPosterior {
-    let i = (1..HYPOTHESES).find(|&i| hypothesis(i) == Some(truth)).unwrap();
-    let mut probabilities = vec![(1.0 - p) / (HYPOTHESES - 1) as f64; HYPOTHESES];
-    probabilities[i] = p;
-    ReactionPosterior { probabilities, informative_cycles: 100 }
+    ReactionPosterior::sure_of(Some(truth), p, 100).unwrap()
+}
+
+/// The regulator with the paper's follower (it does not react).
+fn paper() -> Regulator {
+    Regulator::new(RegulatorParams { reacting_follower: false, ..RegulatorParams::default() }).unwrap()
+}
+
+/// The shipped regulator, sure (0.9) that the VUT reacts as `truth`.
+fn knowing(truth: Reaction) -> Regulator {
+    let mut reg = Regulator::new(RegulatorParams::default()).unwrap();
+    reg.set_reaction_prior(Some(&sure_of(truth, 0.9))).unwrap();
+    reg
 }
 
 /// One run: the regulator's BV against the VUT `truth`, both at 10 m/s from the start of their
@@ -86,7 +95,7 @@ fn a_rushing_bv_that_knows_the_vut_brakes_for_it_plans_against_the_braking_withi
     // it, counting on the braking for at most a fifth of τ.
     let target = Target::new(2.5, Style::Rush).unwrap();
     let truth = Reaction { gap_s: 2.0, decel_mps2: 2.0, restart_s: 0.0 };
-    let mut paper = Regulator::new(RegulatorParams { reacting_follower: false, ..RegulatorParams::default() }).unwrap();
+    let mut paper = paper();
     let d0 = paper.decide(&input(target));
     assert!(d0.reaction.is_none());
     assert!((d0.key_time_s.unwrap() - 3.5).abs() < 0.05, "{d0:?}");
@@ -94,16 +103,14 @@ fn a_rushing_bv_that_knows_the_vut_brakes_for_it_plans_against_the_braking_withi
     let mut fresh = Regulator::new(RegulatorParams::default()).unwrap();
     let d1 = fresh.decide(&input(target));
     assert_eq!(d1.key_time_s, d0.key_time_s, "the default prior: a VUT that does not react is most probable");
-    let mut knows = Regulator::new(RegulatorParams::default()).unwrap();
-    knows.set_reaction_prior(Some(&sure_of(truth, 0.9))).unwrap();
+    let mut knows = knowing(truth);
     let d2 = knows.decide(&input(target));
     assert_eq!(d2.reaction.unwrap().reaction, Some(truth));
     let key = d2.key_time_s.unwrap();
     assert!(key > 3.5 + 0.05 && key <= 3.5 + 0.2 * 2.5 + 0.01, "{d2:?}");
     assert!((d2.predicted_pet_s.unwrap() - 2.5).abs() < 0.05, "{d2:?}");
     // A VUT that accepts 0.5 s sees no conflict: nothing changes.
-    let mut easy = Regulator::new(RegulatorParams::default()).unwrap();
-    easy.set_reaction_prior(Some(&sure_of(Reaction { gap_s: 0.5, ..truth }, 0.9))).unwrap();
+    let mut easy = knowing(Reaction { gap_s: 0.5, ..truth });
     let d3 = easy.decide(&input(target));
     assert_eq!((d3.key_time_s, d3.predicted_pet_s), (d0.key_time_s, d0.predicted_pet_s));
 }
@@ -114,10 +121,9 @@ fn a_yielding_bv_waits_longer_for_a_vut_known_to_wait_for_a_gap() {
     // gap sees the BV coming 2 s after it leaves and slows down: the BV plans to come later.
     let target = Target::new(2.0, Style::Yield).unwrap();
     let truth = Reaction { gap_s: 3.0, decel_mps2: 2.0, restart_s: 0.0 };
-    let mut paper = Regulator::new(RegulatorParams { reacting_follower: false, ..RegulatorParams::default() }).unwrap();
+    let mut paper = paper();
     let d0 = paper.decide(&input(target));
-    let mut knows = Regulator::new(RegulatorParams::default()).unwrap();
-    knows.set_reaction_prior(Some(&sure_of(truth, 0.9))).unwrap();
+    let mut knows = knowing(truth);
     let d2 = knows.decide(&input(target));
     assert!(d2.key_time_s.unwrap() > d0.key_time_s.unwrap() + 0.1, "{d0:?} {d2:?}");
     assert!((d2.predicted_pet_s.unwrap() - 2.0).abs() <= 0.1, "{d2:?}");

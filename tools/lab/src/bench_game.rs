@@ -23,7 +23,7 @@ use std::time::Instant;
 
 use v2t_files::parse_toml;
 use v2t_game::fixtures as common;
-use v2t_game::reaction::{HYPOTHESES, Reaction, ReactionPosterior, hypothesis};
+use v2t_game::reaction::{Reaction, ReactionPosterior};
 use v2t_game::reference::ReferenceSample;
 use v2t_game::regulator::{PathState, Regulator, RegulatorInput, RegulatorParams};
 use v2t_game::route_speed::RouteSpeed;
@@ -134,15 +134,8 @@ fn learned_route(v_mps: f64) -> RouteSpeed {
 
 /// A posterior sure (p 0.9) that the VUT accepts gaps of 2.5 s, brakes at 2 m/s² and restarts
 /// after 1 s: the bench's reacting VUT.
-fn reacting_prior() -> ReactionPosterior {
-    let truth = Reaction { gap_s: 2.5, decel_mps2: 2.0, restart_s: 1.0 };
-    let mut probabilities = vec![0.1 / (HYPOTHESES - 1) as f64; HYPOTHESES];
-    if let Some(i) = (1..HYPOTHESES).find(|&i| hypothesis(i) == Some(truth))
-        && let Some(p) = probabilities.get_mut(i)
-    {
-        *p = 0.9;
-    }
-    ReactionPosterior { probabilities, informative_cycles: 100 }
+fn reacting_prior() -> Option<ReactionPosterior> {
+    ReactionPosterior::sure_of(Some(Reaction { gap_s: 2.5, decel_mps2: 2.0, restart_s: 1.0 }), 0.9, 100)
 }
 
 fn sim_latencies(
@@ -150,7 +143,7 @@ fn sim_latencies(
     learned: bool,
     reacting: bool,
 ) -> Result<Vec<f64>, Box<dyn std::error::Error>> {
-    let prior = reacting.then(reacting_prior);
+    let prior = reacting.then(reacting_prior).flatten();
     let vut = include_str!("../../../config/vehicles/vut_sedan.toml");
     let bv = include_str!("../../../config/vehicles/bv_sedan.toml");
     let sim = include_str!("../../../config/sim/default.toml");
@@ -189,7 +182,7 @@ pub fn run_bench(allocations: fn() -> u64) -> Result<Vec<BenchFigures>, Box<dyn 
         let params = RegulatorParams { horizon, ..shipped };
         let mut reg = Regulator::new(params)?;
         reg.set_route_speed(learned.then(|| learned_route(8.0)))?;
-        reg.set_reaction_prior(reacting.then(reacting_prior).as_ref())?;
+        reg.set_reaction_prior(reacting.then(reacting_prior).flatten().as_ref())?;
         // The left turn's prior for the realism term: the BV at its start speed, easing off before
         // the zone and back (set once, as a BV does when a prior arrives).
         reg.set_reference((0..400).map(|k| {

@@ -408,17 +408,16 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
 
     use super::*;
-    use v2t_game::reaction::{HYPOTHESES, ReactionPosterior};
+    use v2t_game::reaction::{ReactionPosterior, hypothesis};
 
+    /// A posterior with probability `reacting` that the VUT reacts: a reacting driver the most
+    /// probable when it is above one half, the driver that does not react otherwise.
     fn posterior(reacting: f64) -> ReactionPosterior {
-        let mut probabilities = vec![reacting / (HYPOTHESES - 1) as f64; HYPOTHESES];
-        probabilities[0] = 1.0 - reacting;
-        // A reacting driver most probable when `reacting` is large: lift one above the rest.
         if reacting > 0.5 {
-            probabilities[1] += 0.4 * probabilities[0];
-            probabilities[0] *= 0.6;
+            ReactionPosterior::sure_of(hypothesis(1), reacting, 3).unwrap()
+        } else {
+            ReactionPosterior::sure_of(None, 1.0 - reacting, 3).unwrap()
         }
-        ReactionPosterior { probabilities, informative_cycles: 3 }
     }
 
     #[test]

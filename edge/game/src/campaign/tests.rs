@@ -326,10 +326,7 @@ fn a_memory_with_a_learned_route_is_read_back_and_an_older_file_without_one_too(
 }
 
 fn posterior(reacting: f64, informative: u32) -> ReactionPosterior {
-    let n = crate::reaction::HYPOTHESES;
-    let mut probabilities = vec![reacting / (n - 1) as f64; n];
-    probabilities[0] = 1.0 - reacting;
-    ReactionPosterior { probabilities, informative_cycles: informative }
+    ReactionPosterior::sure_of(None, 1.0 - reacting, informative).unwrap()
 }
 
 #[test]

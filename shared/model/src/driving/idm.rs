@@ -76,6 +76,27 @@ impl Idm {
     }
 }
 
+/// Time to cover `d_m` from `v_mps`, accelerating at `a_mps2` up to `vmax_mps` (then constant);
+/// constant speed when already at or above `vmax_mps` or without acceleration. Infinite when it
+/// never arrives, 0 when already there. How a driver judging a gap times its own way to a zone
+/// (the simulated IDM VUT, the regulator's model of a VUT that reacts to the BV).
+#[must_use]
+pub fn travel_time(d_m: f64, v_mps: f64, a_mps2: f64, vmax_mps: f64) -> f64 {
+    if d_m <= 0.0 {
+        return 0.0;
+    }
+    let v = v_mps.max(0.0);
+    if a_mps2 <= 0.0 || v >= vmax_mps {
+        return if v > 1e-6 { d_m / v } else { f64::INFINITY };
+    }
+    let d_accel = (vmax_mps * vmax_mps - v * v) / (2.0 * a_mps2);
+    if d_m <= d_accel {
+        ((v * v + 2.0 * a_mps2 * d_m).sqrt() - v) / a_mps2
+    } else {
+        (vmax_mps - v) / a_mps2 + (d_m - d_accel) / vmax_mps
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

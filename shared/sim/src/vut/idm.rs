@@ -24,7 +24,7 @@
 //! flip-flopping. Lateral control is pure pursuit on the route.
 //!
 
-use v2t_model::driving::{Idm, Obstacle};
+use v2t_model::driving::{Idm, Obstacle, travel_time};
 use v2t_model::metrics::{ConflictKind, ConflictZone};
 
 use super::VutDriver;
@@ -223,24 +223,6 @@ fn gap_accepted(p: &IdmParams, zone: &ConflictZone, bv: &Perceived, s: f64, v: f
     let t_out_v = travel_time(zone.vut.exit_s_m - s, v, p.max_accel_mps2, v0);
     let relief = if was_going { GAP_HYSTERESIS_S } else { 0.0 };
     t_in_b - t_out_v >= p.critical_gap_s - relief || t_in_v - t_out_b >= p.commit_margin_s - relief
-}
-
-/// Time to cover `d_m` from speed `v_mps`, accelerating at `a_mps2` up to `vmax_mps` (then
-/// constant); constant speed when already at or above `vmax_mps`. Infinite when it never arrives.
-fn travel_time(d_m: f64, v_mps: f64, a_mps2: f64, vmax_mps: f64) -> f64 {
-    if d_m <= 0.0 {
-        return 0.0;
-    }
-    let v = v_mps.max(0.0);
-    if a_mps2 <= 0.0 || v >= vmax_mps {
-        return if v > 1e-6 { d_m / v } else { f64::INFINITY };
-    }
-    let d_accel = (vmax_mps * vmax_mps - v * v) / (2.0 * a_mps2);
-    if d_m <= d_accel {
-        ((v * v + 2.0 * a_mps2 * d_m).sqrt() - v) / a_mps2
-    } else {
-        (vmax_mps - v) / a_mps2 + (d_m - d_accel) / vmax_mps
-    }
 }
 
 impl VutDriver for IdmDriver {
