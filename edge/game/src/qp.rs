@@ -48,7 +48,9 @@ pub struct QpShape {
     pub w_speed: f64,
     /// Weight on `a²`.
     pub w_accel: f64,
-    /// Weight on `(a_k − a_{k−1})²`.
+    /// Weight on `(a_k − a_{k−1} − (r_k − r_{k−1}))²`: the plan's jerk beyond its acceleration
+    /// shape `r`'s own (`r` 0 unless [`LongitudinalQp::a_ref_mut`] sets it; for `k = 0` against
+    /// the acceleration applied last, all of it).
     pub w_jerk: f64,
     /// Exact penalty per metre of event violation.
     pub w_slack: f64,
@@ -122,6 +124,8 @@ pub struct LongitudinalQp {
     n_eq: usize,
     /// References over the horizon (filled by the caller), `k = 1..N`.
     v_ref: Vec<f64>,
+    /// Acceleration shape over the horizon (filled by the caller, 0 by default), `k = 0..N−1`.
+    a_ref: Vec<f64>,
     v_cap: Vec<f64>,
     out_s: Vec<f64>,
     out_v: Vec<f64>,
@@ -255,6 +259,7 @@ impl LongitudinalQp {
             event_row,
             n_eq,
             v_ref: vec![0.0; n],
+            a_ref: vec![0.0; n],
             v_cap: vec![f64::INFINITY; n],
             out_s: vec![0.0; n + 1],
             out_v: vec![0.0; n + 1],
@@ -287,6 +292,14 @@ impl LongitudinalQp {
         &self.v_ref
     }
 
+    /// The acceleration shape for steps `0..N` (write before [`Self::solve`]; 0 unless set): the
+    /// plan's jerk is counted beyond this shape's own, so a shape taken from a human's motion is
+    /// kept (easing off and pressing on where it does) wherever the other terms allow, at
+    /// whatever offset the event and the speed reference ask.
+    pub fn a_ref_mut(&mut self) -> &mut [f64] {
+        &mut self.a_ref
+    }
+
     /// Solves for `input`; the plan is then in [`Self::station`], [`Self::speed`], [`Self::accel`].
     pub fn solve(&mut self, input: &QpInput) -> QpStatus {
         let n = self.shape.horizon;
@@ -298,9 +311,17 @@ impl LongitudinalQp {
                 *q = -2.0 * sh.w_speed * vr;
             }
         }
+        // The shape's own jerk per step: none at k = 0 (the first step keeps to the acceleration
+        // applied last), then a_ref,k − a_ref,k−1.
+        let a_ref = &self.a_ref;
+        let d = |k: usize| match (k.checked_sub(1).and_then(|j| a_ref.get(j)), a_ref.get(k)) {
+            (Some(before), Some(now)) => now - before,
+            _ => 0.0,
+        };
         for k in 0..n {
             if let Some(q) = self.q.get_mut(2 * n + k) {
-                *q = if k == 0 { -2.0 * sh.w_jerk * input.a_prev_mps2 } else { 0.0 };
+                let prev = if k == 0 { -2.0 * sh.w_jerk * input.a_prev_mps2 } else { 0.0 };
+                *q = prev - 2.0 * sh.w_jerk * (d(k) - d(k + 1));
             }
         }
         if let Some(q) = self.q.get_mut(3 * n) {

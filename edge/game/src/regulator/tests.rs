@@ -691,3 +691,38 @@ fn the_plans_jerk_weight_is_a_setting_that_smooths_the_plan() {
     };
     assert!(first_jerk(30.0) < first_jerk(3.0), "{} {}", first_jerk(30.0), first_jerk(3.0));
 }
+
+#[test]
+fn the_plan_keeps_the_priors_acceleration_shape_as_asked_and_lands_where_the_game_says() {
+    // A file written before the setting reads as 0; more than 1 is refused by name.
+    let text = r#"{"horizon": 50, "dt_s": 0.1, "w_adv": 1.0, "w_real": 0.1, "safety_margin_s": 0.5,
+                   "max_input_age_s": 0.5, "fallback_decel_mps2": 2.0, "vut_headway_s": 2.0}"#;
+    let p: RegulatorParams = serde_json::from_str(text).unwrap();
+    assert_eq!(p.shape_share, 0.0);
+    let e = RegulatorParams { shape_share: 1.5, ..p }.validate().unwrap_err().to_string();
+    assert!(e.contains("shape_share"), "{e}");
+    // A prior that eases off and presses on every 2 s around 12 m/s, at the shipped jerk weight.
+    let wavy = reference_of(|t| 12.0 + 1.2 * (std::f64::consts::PI * t).sin());
+    let plan = |shape_share: f64, w_real: f64| {
+        let params = RegulatorParams { w_jerk: 30.0, w_real, shape_share, ..RegulatorParams::default() };
+        let mut r = Regulator::new(params).unwrap();
+        r.set_reference(wavy.iter().copied()).unwrap();
+        let mut inp = input(Style::Rush, 2.0);
+        inp.bv.v_mps = 12.0;
+        let d = r.decide(&inp);
+        (d, r.planned_accels(&d).unwrap().to_vec())
+    };
+    // How much the plan's acceleration swings over its first 3 s (before the shape fades).
+    let swing = |a: &[f64]| {
+        let first = &a[..30];
+        first.iter().fold(f64::NEG_INFINITY, |m, x| m.max(*x)) - first.iter().fold(f64::INFINITY, |m, x| m.min(*x))
+    };
+    let ((d_flat, flat), (d_shaped, shaped)) = (plan(0.0, 0.1), plan(1.0, 0.1));
+    assert!(swing(&shaped) > 2.0 * swing(&flat), "swing {:.2} shaped vs {:.2}", swing(&shaped), swing(&flat));
+    // The key time and the PET are the game's either way.
+    assert_eq!(d_shaped.status, RegulatorStatus::Regulating, "{d_shaped:?}");
+    let (k_flat, k_shaped) = (d_flat.key_time_s.unwrap(), d_shaped.key_time_s.unwrap());
+    assert!((k_flat - k_shaped).abs() < 0.05, "{k_flat} vs {k_shaped}");
+    // Without the realism term there is no prior to take a shape from: the same plan bit for bit.
+    assert_eq!(plan(1.0, 0.0), plan(0.0, 0.0));
+}
