@@ -139,7 +139,7 @@ pub struct RegulatorParams {
     /// Share of the prior's *acceleration shape* the BV's plan keeps, in [0, 1]: with the realism
     /// term (`w_real` > 0) the plan's jerk is counted beyond this share of the prior's own jerk,
     /// the prior time-warped to the key time the game chose, fading out over the last
-    /// [`SHAPE_FADE_S`] before the plan's event (the key point, or the commit station of a rushing
+    /// 1.5 s before the plan's event (the key point, or the commit station of a rushing
     /// BV that slows before it commits: there the plan is about landing on τ). The plan then
     /// eases off and presses on where the prior does, instead of smoothing the prior's motion away;
     /// the game still sets when it gets there. 0 (also when the file does not say): every bit of
