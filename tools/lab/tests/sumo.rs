@@ -152,6 +152,31 @@ fn sumos_turning_vut_reads_the_imposed_oncoming_bv_as_a_driver_would() {
     }
 }
 
+/// A free road, the known answer: with the oncoming BV parked far away, how SUMO's turning VUT
+/// drives its turn is its own, the same whether the BV stands 100 m or 200 m from the crossing.
+/// And that own way is slow for SUMO's IDM and EIDM: they slow from 8 m/s to under 4.5 m/s as they
+/// turn (Krauss and impatient Krauss stay above 5.5 m/s), which is why a rushing BV that takes
+/// their speed on approach for their speed through the turn lands long in the first run.
+#[test]
+fn on_a_free_road_sumos_turning_vut_drives_its_own_turn_and_idm_slows_deep_in_it() {
+    let Some(world) = world() else { return };
+    for (name, slow) in [("idm", true), ("eidm", true), ("krauss", false), ("impatient", false)] {
+        let d = driver(name);
+        let (near, first_near, _) = turn_against(&world, &d, 0.0, 100.0);
+        let (far, first_far, _) = turn_against(&world, &d, 0.0, 200.0);
+        assert_eq!((first_near, first_far), (Some(FirstThrough::Vut), Some(FirstThrough::Vut)), "{name}");
+        assert!(
+            (near - far).abs() < 1e-6,
+            "{name}: slowest {near:.3} m/s with the BV 100 m away, {far:.3} m/s at 200 m"
+        );
+        if slow {
+            assert!(near < 4.5, "{name}: slowest {near:.2} m/s in its turn");
+        } else {
+            assert!(near > 5.5, "{name}: slowest {near:.2} m/s in its turn");
+        }
+    }
+}
+
 #[test]
 fn a_card_off_the_maps_lanes_is_refused_by_name() {
     let Some(world) = world() else { return };
