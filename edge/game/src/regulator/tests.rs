@@ -671,12 +671,17 @@ fn a_refused_route_speed_names_its_field_and_keeps_the_one_before() {
     assert_eq!(r.route_speed(), Some(&slowing_route()));
 }
 
+/// Settings as a file written before the jerk weight and the prior's shape were settings.
+fn written_before_the_later_settings() -> RegulatorParams {
+    let text = r#"{"horizon": 50, "dt_s": 0.1, "w_adv": 1.0, "w_real": 0.1, "safety_margin_s": 0.5,
+                   "max_input_age_s": 0.5, "fallback_decel_mps2": 2.0, "vut_headway_s": 2.0}"#;
+    serde_json::from_str(text).unwrap()
+}
+
 #[test]
 fn the_plans_jerk_weight_is_a_setting_that_smooths_the_plan() {
     // A file written before the setting reads as the weight the plans always had.
-    let text = r#"{"horizon": 50, "dt_s": 0.1, "w_adv": 1.0, "w_real": 0.1, "safety_margin_s": 0.5,
-                   "max_input_age_s": 0.5, "fallback_decel_mps2": 2.0, "vut_headway_s": 2.0}"#;
-    let p: RegulatorParams = serde_json::from_str(text).unwrap();
+    let p = written_before_the_later_settings();
     assert_eq!(p.w_jerk, 3.0);
     let e = RegulatorParams { w_jerk: 0.0, ..p }.validate().unwrap_err().to_string();
     assert!(e.contains("w_jerk"), "{e}");
@@ -695,9 +700,7 @@ fn the_plans_jerk_weight_is_a_setting_that_smooths_the_plan() {
 #[test]
 fn the_plan_keeps_the_priors_acceleration_shape_as_asked_and_lands_where_the_game_says() {
     // A file written before the setting reads as 0; more than 1 is refused by name.
-    let text = r#"{"horizon": 50, "dt_s": 0.1, "w_adv": 1.0, "w_real": 0.1, "safety_margin_s": 0.5,
-                   "max_input_age_s": 0.5, "fallback_decel_mps2": 2.0, "vut_headway_s": 2.0}"#;
-    let p: RegulatorParams = serde_json::from_str(text).unwrap();
+    let p = written_before_the_later_settings();
     assert_eq!(p.shape_share, 0.0);
     let e = RegulatorParams { shape_share: 1.5, ..p }.validate().unwrap_err().to_string();
     assert!(e.contains("shape_share"), "{e}");
