@@ -551,7 +551,7 @@ const VUT_STANDING_MPS: f64 = 0.5;
 /// How far behind the zone entry a BV already past its hold station stops when it must give way, m.
 const HOLD_BACK_M: f64 = 0.5;
 /// A BV this far past its hold station (a stop tracked late or noisily) still holds there, m.
-const HOLD_CREEP_M: f64 = 1.0;
+pub const HOLD_CREEP_M: f64 = 1.0;
 /// A plan that reaches the hold station this much before the VUT is predicted in its zone passes
 /// it too early, s.
 const HOLD_TOL_S: f64 = 0.05;

@@ -738,6 +738,7 @@ mod tests {
             rush_pets_s: vec![0.9, 2.05, 3.1],
             yield_pets_s: vec![],
             collisions: 0,
+            unreadable_yields: 0,
             failed: 0,
         };
         assert_eq!(nearest_reached(&reach, Target::new(1.5, Style::Rush).unwrap()), Some(2.05));

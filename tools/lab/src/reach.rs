@@ -2,7 +2,14 @@
 //! `a1` for `t1` seconds, then `a2` until the BV has left its conflict zone, then its reference
 //! speed — each run once against the VUT, with the scenario's sensor noise and delays. Runs where
 //! the BV passed first without collision or zone overlap give the PETs a rushing BV can reach; runs
-//! where the VUT passed first give those of a yielding one.
+//! where the VUT passed first give those of a yielding one — at a crossing with a stop line, only
+//! when the BV gave way as the regulator's BV must ([`YieldRule`]): behind its stop line until the
+//! VUT was in its zone, and [`HOLD_CLEARANCE_M`] before its zone until the VUT had left it. A
+//! profile that creeps into the junction while the VUT turns reaches yield PETs that no BV we put
+//! on a track may aim at (a near miss, and a yield an ADS that judges gaps cannot read); the grid
+//! counts those runs apart ([`Reach::unreadable_yields`]), and runs every profile once more
+//! keeping the rule (its BV waits at its line until the VUT is in its zone, then drives its
+//! profile on), so that what a BV that gives way properly can reach is measured, not assumed.
 //!
 //! It bounds what any regulator can achieve against that VUT: where no profile lands within ±10 %
 //! of a target τ, a miss there is the VUT's rule, not the regulator's. It is an oracle for scoring
@@ -10,6 +17,9 @@
 //! drivers), through [`crate::vut::Vut::run`].
 
 use serde::Serialize;
+use v2t_game::qp::CAP_DECEL_SHARE;
+use v2t_game::regulator::{HOLD_CLEARANCE_M, HOLD_CREEP_M, stop_line_station};
+use v2t_model::metrics::ConflictKind;
 use v2t_model::{Style, Target};
 use v2t_sim::bv::BvController;
 use v2t_sim::control::pure_pursuit;
@@ -19,6 +29,11 @@ use v2t_sim::runner::FirstThrough;
 use v2t_sim::scenario::Scenario;
 
 use crate::vut::Vut;
+
+/// A BV keeping the yield rule that is this near its station and this slow stands until it may
+/// go, m and m/s.
+const KEEP_STAND_M: f64 = 3.0;
+const KEEP_STAND_MPS: f64 = 0.5;
 
 /// One open-loop speed profile of the grid.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -48,11 +63,17 @@ pub fn grid() -> Vec<Profile> {
     out
 }
 
-/// A BV that drives one [`Profile`] and follows its route laterally.
+/// A BV that drives one [`Profile`] and follows its route laterally. With `keep`, it gives way
+/// as [`YieldRule`] asks whatever its profile says: it never drives faster than it can stop at
+/// (at [`CAP_DECEL_SHARE`] of its largest deceleration) before its hold station until the VUT is
+/// in its zone, nor before the clearance station until the VUT has left it; then its profile
+/// goes on.
 #[derive(Debug, Clone, Copy)]
 pub struct OpenLoop {
     /// The profile.
     pub profile: Profile,
+    /// Give way as the rule asks.
+    pub keep: Option<YieldRule>,
 }
 
 impl BvController for OpenLoop {
@@ -66,13 +87,38 @@ impl BvController for OpenLoop {
         let exit_s_m = sc.conflict_of(obs.bv_index).map_or(f64::INFINITY, |c| c.zone.bv.exit_s_m);
         let v = obs.own.state.speed_mps;
         let lim = &bv.agent.vehicle.limits;
-        let wanted = if obs.own.s_m >= exit_s_m {
+        let mut wanted = if obs.own.s_m >= exit_s_m {
             0.5 * (bv.reference.speed_at(obs.t_s) - v)
         } else if obs.t_s < self.profile.t1_s {
             self.profile.a1_mps2
         } else {
             self.profile.a2_mps2
         };
+        if let (Some(rule), Some(c)) = (self.keep, sc.conflict_of(obs.bv_index)) {
+            let station = if obs.vut.s_m < c.zone.vut.enter_s_m {
+                rule.hold_s_m
+            } else if obs.vut.s_m < c.zone.vut.exit_s_m {
+                rule.clear_s_m
+            } else {
+                f64::INFINITY
+            };
+            // The speed it can still stop from: the distance it covers before a request takes
+            // effect (its actuator's delay and lag, and one control period) comes off its room,
+            // and the speed it may still gain in that time off the speed.
+            // Once it stands near the station it stays (no creeping up to it).
+            let act = &bv.agent.vehicle.actuator;
+            let room = station - obs.own.s_m;
+            if room < KEEP_STAND_M && v < KEEP_STAND_MPS {
+                wanted = wanted.min(-v / obs.dt_s);
+            } else {
+                // Over that time it may still be speeding up, at most at its largest acceleration.
+                let lag_s = act.delay_s + act.accel_time_constant_s + obs.dt_s;
+                let lag_m = v * lag_s + 0.5 * lim.max_accel_mps2 * lag_s * lag_s;
+                let stop = (2.0 * CAP_DECEL_SHARE * lim.max_decel_mps2 * (room - lag_m).max(0.0)).sqrt();
+                let allowed = (stop - lim.max_accel_mps2 * lag_s).max(0.0);
+                wanted = wanted.min((allowed - v) / obs.dt_s);
+            }
+        }
         // Neither below standstill nor above the top speed within one period.
         let accel = wanted.clamp(-v / obs.dt_s, (lim.max_speed_mps - v) / obs.dt_s);
         ActuationRequest {
@@ -91,7 +137,8 @@ pub struct Reach {
     pub vut: String,
     /// The seed of every run.
     pub seed: u64,
-    /// Profiles run.
+    /// Runs of the grid: its profiles, and where a yield must keep [`YieldRule`], each profile once
+    /// more keeping it.
     pub profiles: usize,
     /// PETs of the safe runs where the BV passed first, s (sorted).
     pub rush_pets_s: Vec<f64>,
@@ -99,6 +146,9 @@ pub struct Reach {
     pub yield_pets_s: Vec<f64>,
     /// Runs that ended in a collision.
     pub collisions: usize,
+    /// Runs where the VUT passed first but the BV did not give way as [`YieldRule`] asks (left
+    /// out of `yield_pets_s`).
+    pub unreadable_yields: usize,
     /// Runs the world could not run (an external simulator's error).
     pub failed: usize,
 }
@@ -137,11 +187,19 @@ pub fn reach(scenario: &Scenario, vut: &Vut<'_>, seed: u64) -> Reach {
         rush_pets_s: Vec::new(),
         yield_pets_s: Vec::new(),
         collisions: 0,
+        unreadable_yields: 0,
         failed: 0,
     };
-    for profile in profiles {
+    let rule = YieldRule::of(scenario, 0);
+    // Where a yield must keep the rule, every profile also runs once keeping it (those runs can
+    // only give way: the BV waits behind its line until the VUT is in its zone).
+    let keeping = rule.map(|r| profiles.iter().map(move |&profile| (profile, Some(r))));
+    let runs: Vec<(Profile, Option<YieldRule>)> =
+        profiles.iter().map(|&p| (p, None)).chain(keeping.into_iter().flatten()).collect();
+    out.profiles = runs.len();
+    for (profile, keep) in runs {
         let mut bvs: Vec<Box<dyn BvController>> =
-            (0..scenario.bvs.len()).map(|_| Box::new(OpenLoop { profile }) as Box<dyn BvController>).collect();
+            (0..scenario.bvs.len()).map(|_| Box::new(OpenLoop { profile, keep }) as Box<dyn BvController>).collect();
         let Ok(run) = vut.run(scenario, &mut bvs, seed) else {
             out.failed += 1;
             continue;
@@ -154,11 +212,125 @@ pub fn reach(scenario: &Scenario, vut: &Vut<'_>, seed: u64) -> Reach {
         let Some(c) = r.conflicts.first() else { continue };
         match (c.first, c.pet.pet_s(), r.zone_overlap) {
             (Some(FirstThrough::Bv), Some(pet), false) => out.rush_pets_s.push(pet),
-            (Some(FirstThrough::Vut), Some(pet), false) => out.yield_pets_s.push(pet),
+            (Some(FirstThrough::Vut), Some(pet), false) => {
+                let bv_s = run.trace.iter().filter_map(|x| x.agents.get(1).map(|a| (x.t_s, a.s_m)));
+                match (rule, c.vut_passage) {
+                    (Some(rule), Some(vut))
+                        if !rule.kept(bv_s, vut.enter_t_s, vut.exit_t_s.unwrap_or(f64::INFINITY)) =>
+                    {
+                        out.unreadable_yields += 1;
+                    }
+                    _ => out.yield_pets_s.push(pet),
+                }
+            }
             _ => {}
         }
     }
     out.rush_pets_s.sort_by(f64::total_cmp);
     out.yield_pets_s.sort_by(f64::total_cmp);
     out
+}
+
+/// How a BV gives way at a crossing with a stop line, as the regulator's BV does
+/// (`v2t_game::regulator`, "A yield the VUT can read"): its centre no further than its hold
+/// station (its stop line, never nearer the zone than [`HOLD_CLEARANCE_M`]) until the VUT enters
+/// its zone, and no nearer than [`HOLD_CLEARANCE_M`] to its zone until the VUT has left it — each
+/// with the regulator's own tolerance for a stop tracked late, [`HOLD_CREEP_M`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct YieldRule {
+    /// Where the BV's centre waits until the VUT is in its zone, m along its path.
+    pub hold_s_m: f64,
+    /// Where it stays behind while the VUT is in the zone, m along its path.
+    pub clear_s_m: f64,
+}
+
+impl YieldRule {
+    /// The rule for BV `bv_index`: `None` unless its conflict is a crossing and its card (or
+    /// grounding) gives its junction entry.
+    pub fn of(scenario: &Scenario, bv_index: usize) -> Option<Self> {
+        let conflict = scenario.conflict_of(bv_index)?;
+        if conflict.zone.kind != ConflictKind::Crossing {
+            return None;
+        }
+        let bv = scenario.bvs.get(bv_index)?;
+        let enter = conflict.zone.bv.enter_s_m;
+        let line = stop_line_station(bv.junction_entry_m?, bv.agent.vehicle.geometry.length_m, enter)?;
+        let clear_s_m = enter - HOLD_CLEARANCE_M;
+        Some(Self { hold_s_m: line.min(clear_s_m), clear_s_m })
+    }
+
+    /// Whether the BV's arc lengths `bv_s` (time, m) kept the rule against a VUT that was in its
+    /// zone from `vut_enter_t_s` to `vut_exit_t_s`.
+    pub fn kept(&self, mut bv_s: impl Iterator<Item = (f64, f64)>, vut_enter_t_s: f64, vut_exit_t_s: f64) -> bool {
+        bv_s.all(|(t, s)| {
+            if t < vut_enter_t_s {
+                s <= self.hold_s_m + HOLD_CREEP_M
+            } else if t <= vut_exit_t_s {
+                s <= self.clear_s_m + HOLD_CREEP_M
+            } else {
+                true
+            }
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use v2t_sim::vut::VutModel;
+
+    #[test]
+    fn a_yield_counts_only_when_the_bv_waited_behind_its_line_and_kept_clear_while_the_vut_passed() {
+        let rule = YieldRule { hold_s_m: 29.0, clear_s_m: 44.0 };
+        // Stands at its line, goes once the VUT is in its zone, keeps back until it has left.
+        let waited = [(0.0, 0.0), (5.0, 29.4), (9.9, 29.9), (10.5, 38.0), (11.4, 44.8), (12.0, 47.0)];
+        assert!(rule.kept(waited.into_iter(), 10.0, 11.5));
+        // Rolls past its line before the VUT has committed.
+        let early = [(0.0, 0.0), (9.0, 31.0), (10.5, 38.0)];
+        assert!(!rule.kept(early.into_iter(), 10.0, 11.5));
+        // Creeps up to the zone while the VUT is in it.
+        let crept = [(0.0, 0.0), (9.9, 29.0), (11.0, 45.5)];
+        assert!(!rule.kept(crept.into_iter(), 10.0, 11.5));
+        // The regulator's own tolerance for a stop tracked late holds here too.
+        assert!(rule.kept([(9.0, 29.0 + HOLD_CREEP_M)].into_iter(), 10.0, 11.5));
+    }
+
+    #[test]
+    fn a_profile_run_keeping_the_rule_waits_at_its_line_and_gives_way() {
+        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../../config/scenarios/left_turn_vut.toml");
+        let scenario = v2t_sim::files::load_scenario(std::path::Path::new(root)).unwrap();
+        let rule = YieldRule::of(&scenario, 0).unwrap();
+        // Full throttle from the start: without the rule it runs through the junction first.
+        let profile = Profile { a1_mps2: 3.0, t1_s: 0.0, a2_mps2: 3.0 };
+        let vut = Vut::Builtin(VutModel::IdmNormal);
+        for (keep, bv_first) in [(None, true), (Some(rule), false)] {
+            let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(OpenLoop { profile, keep })];
+            let run = vut.run(&scenario, &mut bvs, 1).unwrap();
+            let c = &run.result.conflicts[0];
+            assert!(run.result.collision.is_none());
+            assert_eq!(c.first == Some(FirstThrough::Bv), bv_first, "{keep:?}: {:?}", c.first);
+            if keep.is_some() {
+                let p = c.vut_passage.unwrap();
+                let bv_s = run.trace.iter().map(|x| (x.t_s, x.agents[1].s_m));
+                assert!(rule.kept(bv_s, p.enter_t_s, p.exit_t_s.unwrap()), "{p:?}");
+                // It stood at its line: within the 3 m it stands in, not further back.
+                let waited = run.trace.iter().filter(|x| x.t_s < p.enter_t_s).map(|x| x.agents[1].s_m);
+                assert!(waited.fold(0.0, f64::max) > rule.hold_s_m - KEEP_STAND_M);
+            }
+        }
+    }
+
+    #[test]
+    fn the_rule_is_the_cards_stop_line_and_only_at_a_crossing() {
+        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../../config/scenarios/");
+        let card = |name: &str| v2t_sim::files::load_scenario(std::path::Path::new(&format!("{root}{name}"))).unwrap();
+        let vut_turning = card("left_turn_vut.toml");
+        let rule = YieldRule::of(&vut_turning, 0).expect("a crossing with its junction entry");
+        let bv = &vut_turning.bvs[0];
+        let enter = vut_turning.conflict_of(0).unwrap().zone.bv.enter_s_m;
+        let line = bv.junction_entry_m.unwrap() - 0.5 * bv.agent.vehicle.geometry.length_m - 2.0;
+        assert!((rule.hold_s_m - line).abs() < 1e-9 && line < enter - HOLD_CLEARANCE_M, "{rule:?}");
+        assert!((rule.clear_s_m - (enter - HOLD_CLEARANCE_M)).abs() < 1e-9);
+        assert_eq!(YieldRule::of(&card("cut_in_basic.toml"), 0), None, "a merge has no stop line");
+    }
 }
