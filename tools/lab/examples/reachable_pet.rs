@@ -51,7 +51,7 @@ fn main() {
     for model in VutModel::ALL {
         let mut row = Vec::with_capacity(profiles.len());
         for p in &profiles {
-            let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(OpenLoop { profile: *p })];
+            let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(OpenLoop { profile: *p, keep: None })];
             let mut driver = model.driver();
             let pet = run(&scenario, &mut bvs, driver.as_mut(), 1).ok().and_then(|out| {
                 let r = out.result;
