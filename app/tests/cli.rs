@@ -694,10 +694,12 @@ fn steerability_writes_the_documented_json() {
         assert!(cases[0].get(key).is_some(), "missing {key}");
     }
     assert!(v["mean_error_rel"].is_number() && v["max_error_rel"].is_number());
-    // The open-loop grid ran against the VUT on the card and marked each case.
+    // The open-loop grid ran against the VUT on the card and marked each case: at this crossing
+    // with a stop line, its 250 profiles twice (once keeping the yield rule).
     let reach = v["reach"].as_array().unwrap();
     assert_eq!(reach.len(), 1);
-    assert_eq!((reach[0]["profiles"].as_u64(), reach[0]["vut"].as_str()), (Some(250), Some("sampling")));
+    assert_eq!((reach[0]["profiles"].as_u64(), reach[0]["vut"].as_str()), (Some(500), Some("sampling")));
+    assert!(reach[0]["unreadable_yields"].is_u64(), "{:?}", reach[0]);
     assert!(cases.iter().all(|c| c["reachable"].is_boolean() && c["world"] == "builtin"), "{cases:?}");
     assert!(v["reachable_errors"].is_array() && out.contains("τ reachable"), "{out}");
 }
