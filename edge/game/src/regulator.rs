@@ -285,6 +285,15 @@ pub fn stop_line_station(junction_entry_m: f64, length_m: f64, zone_enter_s_m: f
     (line < zone_enter_s_m).then_some(line)
 }
 
+/// Where a BV that gives way at a crossing waits until the VUT is in its zone: its stop line
+/// (`stop_line_s_m`, [`stop_line_station`]) when the map gives one, never nearer its zone (which
+/// begins at `zone_enter_s_m`) than [`HOLD_CLEARANCE_M`].
+#[must_use]
+pub fn hold_station(stop_line_s_m: Option<f64>, zone_enter_s_m: f64) -> f64 {
+    let clear = zone_enter_s_m - HOLD_CLEARANCE_M;
+    stop_line_s_m.map_or(clear, |l| l.min(clear))
+}
+
 /// The inverse of [`stop_line_station`]: where the path enters the junction, for a BV of
 /// `length_m` whose stop line is `stop_line_s_m`.
 #[must_use]
@@ -902,12 +911,10 @@ impl Regulator {
         (t_commit > self.params.dt_s && !slow).then_some(Commit { station_m, cross_s, speed_mps })
     }
 
-    /// Where the BV stands when it gives way: at its stop line when the map gives one, never
-    /// nearer the zone than [`HOLD_CLEARANCE_M`] ([`Self::within_reach`] of it).
+    /// Where the BV stands when it gives way: [`hold_station`], when it is
+    /// [`Self::within_reach`].
     fn hold_station(&self, inp: &RegulatorInput) -> f64 {
-        let enter = inp.zone_bv.enter_s_m;
-        let hold = inp.stop_line_s_m.map_or(enter - HOLD_CLEARANCE_M, |l| l.min(enter - HOLD_CLEARANCE_M));
-        self.within_reach(inp, hold)
+        self.within_reach(inp, hold_station(inp.stop_line_s_m, inp.zone_bv.enter_s_m))
     }
 
     /// `station`, when the BV can still stop there at the share [`crate::qp::CAP_DECEL_SHARE`]

@@ -18,7 +18,7 @@
 
 use serde::Serialize;
 use v2t_game::qp::CAP_DECEL_SHARE;
-use v2t_game::regulator::{HOLD_CLEARANCE_M, HOLD_CREEP_M, stop_line_station};
+use v2t_game::regulator::{HOLD_CLEARANCE_M, HOLD_CREEP_M, hold_station, stop_line_station};
 use v2t_model::metrics::ConflictKind;
 use v2t_model::{Style, Target};
 use v2t_sim::bv::BvController;
@@ -84,7 +84,8 @@ impl BvController for OpenLoop {
     fn control(&mut self, obs: &BvObservation<'_>) -> ActuationRequest {
         let sc = obs.scenario;
         let Some(bv) = sc.bvs.get(obs.bv_index) else { return ActuationRequest::default() };
-        let exit_s_m = sc.conflict_of(obs.bv_index).map_or(f64::INFINITY, |c| c.zone.bv.exit_s_m);
+        let conflict = sc.conflict_of(obs.bv_index);
+        let exit_s_m = conflict.map_or(f64::INFINITY, |c| c.zone.bv.exit_s_m);
         let v = obs.own.state.speed_mps;
         let lim = &bv.agent.vehicle.limits;
         let mut wanted = if obs.own.s_m >= exit_s_m {
@@ -94,7 +95,7 @@ impl BvController for OpenLoop {
         } else {
             self.profile.a2_mps2
         };
-        if let (Some(rule), Some(c)) = (self.keep, sc.conflict_of(obs.bv_index)) {
+        if let (Some(rule), Some(c)) = (self.keep, conflict) {
             let station = if obs.vut.s_m < c.zone.vut.enter_s_m {
                 rule.hold_s_m
             } else if obs.vut.s_m < c.zone.vut.exit_s_m {
@@ -193,11 +194,9 @@ pub fn reach(scenario: &Scenario, vut: &Vut<'_>, seed: u64) -> Reach {
     let rule = YieldRule::of(scenario, 0);
     // Where a yield must keep the rule, every profile also runs once keeping it (those runs can
     // only give way: the BV waits behind its line until the VUT is in its zone).
-    let keeping = rule.map(|r| profiles.iter().map(move |&profile| (profile, Some(r))));
-    let runs: Vec<(Profile, Option<YieldRule>)> =
-        profiles.iter().map(|&p| (p, None)).chain(keeping.into_iter().flatten()).collect();
-    out.profiles = runs.len();
-    for (profile, keep) in runs {
+    let keeps: &[Option<YieldRule>] = if rule.is_some() { &[None, rule] } else { &[None] };
+    out.profiles = keeps.len() * profiles.len();
+    for (keep, &profile) in keeps.iter().flat_map(|&k| profiles.iter().map(move |p| (k, p))) {
         let mut bvs: Vec<Box<dyn BvController>> =
             (0..scenario.bvs.len()).map(|_| Box::new(OpenLoop { profile, keep }) as Box<dyn BvController>).collect();
         let Ok(run) = vut.run(scenario, &mut bvs, seed) else {
@@ -255,8 +254,7 @@ impl YieldRule {
         let bv = scenario.bvs.get(bv_index)?;
         let enter = conflict.zone.bv.enter_s_m;
         let line = stop_line_station(bv.junction_entry_m?, bv.agent.vehicle.geometry.length_m, enter)?;
-        let clear_s_m = enter - HOLD_CLEARANCE_M;
-        Some(Self { hold_s_m: line.min(clear_s_m), clear_s_m })
+        Some(Self { hold_s_m: hold_station(Some(line), enter), clear_s_m: enter - HOLD_CLEARANCE_M })
     }
 
     /// Whether the BV's arc lengths `bv_s` (time, m) kept the rule against a VUT that was in its
