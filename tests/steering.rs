@@ -189,3 +189,19 @@ fn a_rushing_bv_that_slows_before_the_junction_never_meets_a_vut_that_slowed_for
         assert_eq!(s.order_ok_frac, 1.0, "{tag}");
     }
 }
+
+/// The experiments hold the regulated BV's yields to the rule the reach grid holds its profiles
+/// to: against every builtin VUT model, the VUT-turning yield at τ 1.5 s (out of reach of a BV
+/// that waits behind its line) is given way to from behind the line, and counted so.
+#[test]
+fn the_experiments_read_whether_the_regulated_bv_kept_the_yield_rule() {
+    let sc = load_scenario(&repo_root().join("config/scenarios/left_turn_vut.toml")).unwrap();
+    let settings: RegulatorParams = load_toml(&repo_root().join("config/regulator/default.toml")).unwrap();
+    let target = v2t_model::Target::new(1.5, Style::Yield).unwrap();
+    for model in VutModel::ALL {
+        let case = steer_case(&settings, &sc, target, &v2t_lab::vut::Vut::Builtin(model), 1..=1);
+        assert_eq!(case.stats.order_ok_frac, 1.0, "{model}: {case:?}");
+        assert_eq!(case.yields_not_kept, 0, "{model}: {case:?}");
+        assert!(!case.landed_safely(), "{model}: τ 1.5 s is out of reach of a BV that keeps the rule");
+    }
+}

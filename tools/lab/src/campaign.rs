@@ -70,6 +70,9 @@ pub struct CampaignRun {
     pub below_reach: Option<BelowReach>,
     /// The world could not run it.
     pub failed: bool,
+    /// Where the VUT went first at a crossing with a stop line: whether the first BV gave way as
+    /// the regulator's BV must ([`crate::reach::YieldRule`]); `None` elsewhere.
+    pub yield_kept: Option<bool>,
 }
 
 /// What run index `k` gave over the campaigns of one case.
@@ -95,6 +98,8 @@ pub struct RunIndexStats {
     pub order_ok_frac: f64,
     /// Share of the runs in which the regulator reported τ out of reach.
     pub below_reach_frac: f64,
+    /// Runs whose BV did not give way as the rule asks ([`CampaignRun::yield_kept`]).
+    pub yields_not_kept: usize,
 }
 
 /// One case: a test against one VUT, every campaign.
@@ -149,6 +154,8 @@ pub struct VutSummary {
     pub calibrated_vs_bound: Option<f64>,
     /// Runs, collisions, runs out of the asked order, runs without a PET.
     pub runs: (usize, usize, usize, usize),
+    /// Runs whose BV did not give way as the rule asks ([`CampaignRun::yield_kept`]).
+    pub yields_not_kept: usize,
 }
 
 /// The whole experiment.
@@ -319,6 +326,7 @@ pub fn run_once(
             zone_overlap: false,
             below_reach: None,
             failed: true,
+            yield_kept: None,
         };
     };
     record_run(memory, &sc, &run);
@@ -335,6 +343,7 @@ pub fn run_once(
         zone_overlap: r.zone_overlap,
         below_reach,
         failed: false,
+        yield_kept: crate::reach::YieldRule::of(&sc, 0).and_then(|rule| rule.kept_in(&run.outcome)),
     }
 }
 
@@ -371,6 +380,7 @@ fn index_stats(k: usize, tau: f64, bound: Option<f64>, runs: &[&CampaignRun]) ->
         zone_overlaps: runs.iter().filter(|r| r.zone_overlap).count(),
         order_ok_frac: runs.iter().filter(|r| r.order_ok).count() as f64 / n,
         below_reach_frac: runs.iter().filter(|r| r.below_reach.is_some()).count() as f64 / n,
+        yields_not_kept: runs.iter().filter(|r| r.yield_kept == Some(false)).count(),
     }
 }
 
@@ -461,6 +471,7 @@ pub fn campaigns(
         let stats = per_run(None);
         let landed = stats.iter().any(|s| {
             s.error_rel <= 0.10
+                && s.yields_not_kept == 0
                 && s.collisions == 0
                 && s.zone_overlaps == 0
                 && s.unmeasured == 0
@@ -540,6 +551,7 @@ fn summarize(cases: &[CampaignCase], runs: usize) -> Vec<VutSummary> {
                     all_runs.iter().filter(|r| !r.order_ok && r.pet_s.is_some()).count(),
                     all_runs.iter().filter(|r| r.pet_s.is_none()).count(),
                 ),
+                yields_not_kept: all_runs.iter().filter(|r| r.yield_kept == Some(false)).count(),
             }
         })
         .collect()
@@ -575,10 +587,10 @@ pub fn markdown(r: &CampaignReport) -> String {
         r.runs_per_campaign
     );
     out.push_str("Errors \"of the mean\" are those of the mean PET over the campaigns at one run index (overshoot and undershoot of single runs cancel in them); \"single runs\" scores every calibrated run on its own.\n\n");
-    out.push_str("| VUT | reachable cases | run 1 mean / max (of the mean) | calibrated mean / max (of the mean) | calibrated single runs: mean error / within 10 % | reachable within 10 % at every calibrated run | below reach: cases / reported | reachable reported below reach | below reach: calibrated error vs bound | runs | collisions | out of order | no PET |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    out.push_str("| VUT | reachable cases | run 1 mean / max (of the mean) | calibrated mean / max (of the mean) | calibrated single runs: mean error / within 10 % | reachable within 10 % at every calibrated run | below reach: cases / reported | reachable reported below reach | below reach: calibrated error vs bound | runs | collisions | out of order | no PET | yields not kept |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for v in &r.per_vut {
         out.push_str(&format!(
-            "| {} | {} | {} / {} | {} / {} | {} / {:.0} % | {} / {} | {} / {} | {} | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {} / {} | {} / {} | {} / {:.0} % | {} / {} | {} / {} | {} | {} | {} | {} | {} | {} | {} |\n",
             v.vut,
             v.reachable_cases,
             pct(v.run1.0),
@@ -596,7 +608,8 @@ pub fn markdown(r: &CampaignReport) -> String {
             v.runs.0,
             v.runs.1,
             v.runs.2,
-            v.runs.3
+            v.runs.3,
+            v.yields_not_kept
         ));
     }
     out.push_str("\n| VUT | scenario | style | τ (s) | τ reachable | run 1 PET (error) | run 2 PET (error) | calibrated mean PET | calibrated mean / max error | mean aim, last run (s) | reported below reach (calibrated runs) |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
@@ -704,6 +717,7 @@ mod tests {
             zone_overlap: false,
             below_reach: below.then_some(BelowReach { cause: BelowReachCause::Campaign, pet_bound_s: Some(2.5) }),
             failed: false,
+            yield_kept: None,
         }
     }
 

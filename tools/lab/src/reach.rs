@@ -25,7 +25,7 @@ use v2t_sim::bv::BvController;
 use v2t_sim::control::pure_pursuit;
 use v2t_sim::observation::BvObservation;
 use v2t_sim::plant::ActuationRequest;
-use v2t_sim::runner::FirstThrough;
+use v2t_sim::runner::{FirstThrough, RunOutcome};
 use v2t_sim::scenario::Scenario;
 
 use crate::vut::Vut;
@@ -203,7 +203,7 @@ pub fn reach(scenario: &Scenario, vut: &Vut<'_>, seed: u64) -> Reach {
             out.failed += 1;
             continue;
         };
-        let r = run.result;
+        let r = &run.result;
         if r.collision.is_some() {
             out.collisions += 1;
             continue;
@@ -211,17 +211,10 @@ pub fn reach(scenario: &Scenario, vut: &Vut<'_>, seed: u64) -> Reach {
         let Some(c) = r.conflicts.first() else { continue };
         match (c.first, c.pet.pet_s(), r.zone_overlap) {
             (Some(FirstThrough::Bv), Some(pet), false) => out.rush_pets_s.push(pet),
-            (Some(FirstThrough::Vut), Some(pet), false) => {
-                let bv_s = run.trace.iter().filter_map(|x| x.agents.get(1).map(|a| (x.t_s, a.s_m)));
-                match (rule, c.vut_passage) {
-                    (Some(rule), Some(vut))
-                        if !rule.kept(bv_s, vut.enter_t_s, vut.exit_t_s.unwrap_or(f64::INFINITY)) =>
-                    {
-                        out.unreadable_yields += 1;
-                    }
-                    _ => out.yield_pets_s.push(pet),
-                }
-            }
+            (Some(FirstThrough::Vut), Some(pet), false) => match rule.and_then(|rule| rule.kept_in(&run)) {
+                Some(false) => out.unreadable_yields += 1,
+                _ => out.yield_pets_s.push(pet),
+            },
             _ => {}
         }
     }
@@ -255,6 +248,16 @@ impl YieldRule {
         let enter = conflict.zone.bv.enter_s_m;
         let line = stop_line_station(bv.junction_entry_m?, bv.agent.vehicle.geometry.length_m, enter)?;
         Some(Self { hold_s_m: hold_station(Some(line), enter), clear_s_m: enter - HOLD_CLEARANCE_M })
+    }
+
+    /// Whether the first BV of `run` kept the rule, when the VUT went through its zone first
+    /// (`None`: the BV went first, or no one went through). The regulated runs of the experiments
+    /// are held to it as the grid's are: a yield that broke it is no yield a BV may aim at.
+    pub fn kept_in(&self, run: &RunOutcome) -> Option<bool> {
+        let c = run.result.conflicts.first()?;
+        let vut = c.vut_passage.filter(|_| c.first == Some(FirstThrough::Vut))?;
+        let bv_s = run.trace.iter().filter_map(|x| x.agents.get(1).map(|a| (x.t_s, a.s_m)));
+        Some(self.kept(bv_s, vut.enter_t_s, vut.exit_t_s.unwrap_or(f64::INFINITY)))
     }
 
     /// Whether the BV's arc lengths `bv_s` (time, m) kept the rule against a VUT that was in its
@@ -307,6 +310,7 @@ mod tests {
             let c = &run.result.conflicts[0];
             assert!(run.result.collision.is_none());
             assert_eq!(c.first == Some(FirstThrough::Bv), bv_first, "{keep:?}: {:?}", c.first);
+            assert_eq!(rule.kept_in(&run), keep.map(|_| true), "{keep:?}: a BV that went first gave no yield");
             if keep.is_some() {
                 let p = c.vut_passage.unwrap();
                 let bv_s = run.trace.iter().map(|x| (x.t_s, x.agents[1].s_m));
@@ -315,6 +319,25 @@ mod tests {
                 let waited = run.trace.iter().filter(|x| x.t_s < p.enter_t_s).map(|x| x.agents[1].s_m);
                 assert!(waited.fold(0.0, f64::max) > rule.hold_s_m - KEEP_STAND_M);
             }
+        }
+    }
+
+    /// A BV that brakes hard, then rolls on into the junction while the VUT turns, gives way to
+    /// the VUT, but not from behind its line: the rule read from its run says so, and the same
+    /// profile keeping the rule gives way from behind it.
+    #[test]
+    fn a_yield_rolled_into_the_junction_is_read_from_the_run_as_not_kept() {
+        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../../config/scenarios/left_turn_vut.toml");
+        let scenario = v2t_sim::files::load_scenario(std::path::Path::new(root)).unwrap();
+        let rule = YieldRule::of(&scenario, 0).unwrap();
+        let vut = Vut::Builtin(VutModel::IdmNormal);
+        let profile = Profile { a1_mps2: -3.0, t1_s: 5.0, a2_mps2: 1.5 };
+        for (keep, kept) in [(None, false), (Some(rule), true)] {
+            let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(OpenLoop { profile, keep })];
+            let run = vut.run(&scenario, &mut bvs, 1).unwrap();
+            assert!(run.result.collision.is_none() && !run.result.zone_overlap, "{keep:?}");
+            assert_eq!(run.result.conflicts[0].first, Some(FirstThrough::Vut), "{keep:?}");
+            assert_eq!(rule.kept_in(&run), Some(kept), "{keep:?}");
         }
     }
 

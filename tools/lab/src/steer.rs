@@ -14,7 +14,7 @@ use v2t_sim::scenario::Scenario;
 
 use crate::controllers::RegulatedBv;
 use crate::miss::Misses;
-use crate::reach::{Reach, reach};
+use crate::reach::{Reach, YieldRule, reach};
 use crate::stats::{RunStats, SingleRuns, Tally};
 use crate::vut::{Vut, World};
 
@@ -54,6 +54,11 @@ pub struct SteerCase {
     pub reachable: Option<bool>,
     /// How the first BV's regulator identified the VUT's reaction by the end of each run.
     pub identified: IdentifiedRuns,
+    /// Runs in which the VUT went first but the first BV did not give way as the regulator's BV
+    /// must ([`YieldRule`]: behind its stop line until the VUT was in its zone, clear of the zone
+    /// until it had left); 0 where the card has no stop line. Such a run is a near miss, not a
+    /// yield: the case is not counted as reached by its own runs.
+    pub yields_not_kept: usize,
 }
 
 /// How a case's regulator identified the VUT's reaction by the end of its runs
@@ -134,6 +139,7 @@ impl SteerCase {
     pub fn landed_safely(&self) -> bool {
         let s = &self.stats;
         self.error_rel.is_some_and(|e| e <= 0.10)
+            && self.yields_not_kept == 0
             && s.collisions == 0
             && s.zone_overlaps == 0
             && s.unmeasured == 0
@@ -166,8 +172,10 @@ pub fn steer_case(
     let mut tally = Tally::default();
     let mut misses = Misses::default();
     let mut identified = IdentifiedRuns::default();
+    let mut yields_not_kept = 0;
     let mut sc = scenario.clone();
     sc.target = target;
+    let rule = YieldRule::of(&sc, 0);
     for seed in seeds {
         let mut report = None;
         let bvs: Result<Vec<Box<dyn BvController>>, _> = (0..sc.bvs.len())
@@ -188,6 +196,9 @@ pub fn steer_case(
             Ok(out) => {
                 tally.add(&out.result);
                 misses.add(&sc, &out, target);
+                if rule.and_then(|r| r.kept_in(&out)) == Some(false) {
+                    yields_not_kept += 1;
+                }
                 let last = report.and_then(|r| r.get()).map(v2t_game::reaction::ReactionPosterior::from);
                 if let Some(id) = last.as_ref().and_then(v2t_game::reaction::ReactionPosterior::identified) {
                     identified.add(&id);
@@ -209,6 +220,7 @@ pub fn steer_case(
         stats,
         reachable: None,
         identified,
+        yields_not_kept,
     }
 }
 
@@ -281,7 +293,7 @@ pub fn steerability(
 /// A markdown table of the report.
 pub fn steer_markdown(r: &SteerReport) -> String {
     let mut out = String::from(
-        "| scenario | style | VUT | τ (s) | mean PET_min (s) | PET^min_track (s) | error of the mean | single-run error | single runs within 10 % | collisions | overlaps | order ok | no PET | τ reachable |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| scenario | style | VUT | τ (s) | mean PET_min (s) | PET^min_track (s) | error of the mean | single-run error | single runs within 10 % | collisions | overlaps | order ok | no PET | yields not kept | τ reachable |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let f = |x: Option<f64>| x.map_or_else(|| "—".to_owned(), |v| format!("{v:.2}"));
     for c in &r.cases {
@@ -291,7 +303,7 @@ pub fn steer_markdown(r: &SteerReport) -> String {
             None => "not measured",
         };
         out.push_str(&format!(
-            "| {} | {} | {} | {:.1} | {} | {} | {} | {} | {} | {} | {} | {:.2} | {} | {reachable} |\n",
+            "| {} | {} | {} | {:.1} | {} | {} | {} | {} | {} | {} | {} | {:.2} | {} | {} | {reachable} |\n",
             c.scenario,
             c.style,
             c.vut,
@@ -304,19 +316,21 @@ pub fn steer_markdown(r: &SteerReport) -> String {
             c.stats.collisions,
             c.stats.zone_overlaps,
             c.stats.order_ok_frac,
-            c.stats.unmeasured
+            c.stats.unmeasured,
+            c.yields_not_kept
         ));
     }
     let runs: usize = r.cases.iter().map(|c| c.stats.repeats).sum();
     let total = |f: fn(&SteerCase) -> usize| r.cases.iter().map(f).sum::<usize>();
     out.push_str(&format!(
-        "\nmean error {:.1} %, max error {:.1} %; {} runs: {} collisions, {} zone overlaps, {} without a measured PET\n",
+        "\nmean error {:.1} %, max error {:.1} %; {} runs: {} collisions, {} zone overlaps, {} without a measured PET, {} yields not kept back (the BV past its stop line before the VUT was in its zone, or near the zone while it was)\n",
         100.0 * r.mean_error_rel,
         100.0 * r.max_error_rel,
         runs,
         total(|c| c.stats.collisions),
         total(|c| c.stats.zone_overlaps),
-        total(|c| c.stats.unmeasured)
+        total(|c| c.stats.unmeasured),
+        total(|c| c.yields_not_kept)
     ));
     if let Some((mean, max)) = r.reachable_errors {
         let n = r.cases.iter().filter(|c| c.reachable == Some(true)).count();
