@@ -204,4 +204,10 @@ fn the_experiments_read_whether_the_regulated_bv_kept_the_yield_rule() {
         assert_eq!(case.yields_not_kept, 0, "{model}: {case:?}");
         assert!(!case.landed_safely(), "{model}: τ 1.5 s is out of reach of a BV that keeps the rule");
     }
+    // A case its own runs landed on counts as reached only while none of them broke the rule.
+    let four = v2t_model::Target::new(4.0, Style::Yield).unwrap();
+    let mut case = steer_case(&settings, &sc, four, &v2t_lab::vut::Vut::Builtin(VutModel::IdmNormal), 1..=1);
+    assert!(case.yields_not_kept == 0 && case.landed_safely(), "{case:?}");
+    case.yields_not_kept = 1;
+    assert!(!case.landed_safely(), "a yield given from inside the junction is no landing");
 }
