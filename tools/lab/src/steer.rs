@@ -135,7 +135,8 @@ pub struct VutErrors {
 
 impl SteerCase {
     /// The regulated runs themselves landed within ±10 % of τ on average, every run in the asked
-    /// order, without a collision or zone overlap.
+    /// order, without a collision or zone overlap, and every yield given as the rule asks
+    /// ([`Self::yields_not_kept`]).
     pub fn landed_safely(&self) -> bool {
         let s = &self.stats;
         self.error_rel.is_some_and(|e| e <= 0.10)
