@@ -343,7 +343,7 @@ pub fn run_once(
         zone_overlap: r.zone_overlap,
         below_reach,
         failed: false,
-        yield_kept: crate::reach::YieldRule::of(&sc, 0).and_then(|rule| rule.kept_in(&run.outcome)),
+        yield_kept: crate::reach::YieldRule::kept_in(&sc, 0, &run.outcome),
     }
 }
 

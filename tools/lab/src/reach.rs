@@ -211,7 +211,7 @@ pub fn reach(scenario: &Scenario, vut: &Vut<'_>, seed: u64) -> Reach {
         let Some(c) = r.conflicts.first() else { continue };
         match (c.first, c.pet.pet_s(), r.zone_overlap) {
             (Some(FirstThrough::Bv), Some(pet), false) => out.rush_pets_s.push(pet),
-            (Some(FirstThrough::Vut), Some(pet), false) => match rule.and_then(|rule| rule.kept_in(&run)) {
+            (Some(FirstThrough::Vut), Some(pet), false) => match YieldRule::kept_in(scenario, 0, &run) {
                 Some(false) => out.unreadable_yields += 1,
                 _ => out.yield_pets_s.push(pet),
             },
@@ -250,14 +250,19 @@ impl YieldRule {
         Some(Self { hold_s_m: hold_station(Some(line), enter), clear_s_m: enter - HOLD_CLEARANCE_M })
     }
 
-    /// Whether the first BV of `run` kept the rule, when the VUT went through its zone first
-    /// (`None`: the BV went first, or no one went through). The regulated runs of the experiments
-    /// are held to it as the grid's are: a yield that broke it is no yield a BV may aim at.
-    pub fn kept_in(&self, run: &RunOutcome) -> Option<bool> {
-        let c = run.result.conflicts.first()?;
+    /// Whether BV `bv_index` of `scenario` kept its rule in `run` (a run of that scenario), where
+    /// the VUT went through that BV's zone first; `None` where there is no rule (no crossing with
+    /// a stop line), the BV went first, or no one went through. The grid's runs and the
+    /// experiments' regulated runs are read by this one check: a yield that broke the rule is no
+    /// yield a BV may aim at.
+    pub fn kept_in(scenario: &Scenario, bv_index: usize, run: &RunOutcome) -> Option<bool> {
+        let rule = Self::of(scenario, bv_index)?;
+        let id = &scenario.bvs.get(bv_index)?.agent.id;
+        let c = run.result.conflicts.iter().find(|c| &c.bv_id == id)?;
         let vut = c.vut_passage.filter(|_| c.first == Some(FirstThrough::Vut))?;
-        let bv_s = run.trace.iter().filter_map(|x| x.agents.get(1).map(|a| (x.t_s, a.s_m)));
-        Some(self.kept(bv_s, vut.enter_t_s, vut.exit_t_s.unwrap_or(f64::INFINITY)))
+        // Agent 0 is the VUT, the BVs follow in the scenario's order.
+        let bv_s = run.trace.iter().filter_map(|x| x.agents.get(bv_index + 1).map(|a| (x.t_s, a.s_m)));
+        Some(rule.kept(bv_s, vut.enter_t_s, vut.exit_t_s.unwrap_or(f64::INFINITY)))
     }
 
     /// Whether the BV's arc lengths `bv_s` (time, m) kept the rule against a VUT that was in its
@@ -310,7 +315,11 @@ mod tests {
             let c = &run.result.conflicts[0];
             assert!(run.result.collision.is_none());
             assert_eq!(c.first == Some(FirstThrough::Bv), bv_first, "{keep:?}: {:?}", c.first);
-            assert_eq!(rule.kept_in(&run), keep.map(|_| true), "{keep:?}: a BV that went first gave no yield");
+            assert_eq!(
+                YieldRule::kept_in(&scenario, 0, &run),
+                keep.map(|_| true),
+                "{keep:?}: a BV that went first gave no yield"
+            );
             if keep.is_some() {
                 let p = c.vut_passage.unwrap();
                 let bv_s = run.trace.iter().map(|x| (x.t_s, x.agents[1].s_m));
@@ -337,7 +346,7 @@ mod tests {
             let run = vut.run(&scenario, &mut bvs, 1).unwrap();
             assert!(run.result.collision.is_none() && !run.result.zone_overlap, "{keep:?}");
             assert_eq!(run.result.conflicts[0].first, Some(FirstThrough::Vut), "{keep:?}");
-            assert_eq!(rule.kept_in(&run), Some(kept), "{keep:?}");
+            assert_eq!(YieldRule::kept_in(&scenario, 0, &run), Some(kept), "{keep:?}");
         }
     }
 

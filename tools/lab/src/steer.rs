@@ -176,7 +176,6 @@ pub fn steer_case(
     let mut yields_not_kept = 0;
     let mut sc = scenario.clone();
     sc.target = target;
-    let rule = YieldRule::of(&sc, 0);
     for seed in seeds {
         let mut report = None;
         let bvs: Result<Vec<Box<dyn BvController>>, _> = (0..sc.bvs.len())
@@ -197,7 +196,7 @@ pub fn steer_case(
             Ok(out) => {
                 tally.add(&out.result);
                 misses.add(&sc, &out, target);
-                if rule.and_then(|r| r.kept_in(&out)) == Some(false) {
+                if YieldRule::kept_in(&sc, 0, &out) == Some(false) {
                     yields_not_kept += 1;
                 }
                 let last = report.and_then(|r| r.get()).map(v2t_game::reaction::ReactionPosterior::from);
