@@ -211,3 +211,30 @@ fn the_experiments_read_whether_the_regulated_bv_kept_the_yield_rule() {
     case.yields_not_kept = 1;
     assert!(!case.landed_safely(), "a yield given from inside the junction is no landing");
 }
+
+/// A free drive: the VUT drives the test alone, every BV parked where it starts, and what it shows
+/// (how the VUT drives its route up to the BV's zone) is what the regulator of the runs it prepares
+/// knows. This project's IDM keeps its speed through the turn; the runs still land.
+#[test]
+fn a_free_drive_shows_how_the_vut_drives_its_route_alone() {
+    use v2t_lab::campaign::{Parked, free_drive, free_drive_scenario};
+    let sc = load_scenario(&repo_root().join("config/scenarios/left_turn_vut.toml")).unwrap();
+    let settings: RegulatorParams = load_toml(&repo_root().join("config/regulator/default.toml")).unwrap();
+    let vut = v2t_lab::vut::Vut::Builtin(VutModel::IdmNormal);
+    let mut bvs: Vec<Box<dyn v2t_sim::bv::BvController>> = vec![Box::new(Parked)];
+    let out = vut.run(&free_drive_scenario(&sc), &mut bvs, 7).unwrap();
+    let bv_s: Vec<f64> = out.trace.iter().map(|t| t.agents[1].s_m).collect();
+    let moved = bv_s.iter().fold(0.0_f64, |m, s| m.max((s - bv_s[0]).abs()));
+    assert!(moved < 0.05, "the parked BV moved {moved:.3} m");
+    let c = &out.result.conflicts[0];
+    assert!(c.vut_passage.is_some() && c.bv_passage.is_none(), "the VUT passed the zone alone: {c:?}");
+    let routes = free_drive(&sc, &vut, 7).unwrap();
+    let route = routes[0].as_ref().expect("a route up to the zone");
+    let exit = out.layout.zones[0].zone.vut.exit_s_m;
+    assert!(route.end_m() + v2t_game::route_speed::ROUTE_STEP_M >= exit, "{} m of {exit:.1} m", route.end_m());
+    let (_, slowest) = route.slowest().unwrap();
+    assert!(slowest > 7.5, "idm-normal slowed to {slowest:.2} m/s on its own");
+    let four = v2t_model::Target::new(4.0, Style::Rush).unwrap();
+    let case = v2t_lab::steer::steer_case_with(&settings, &sc, four, &vut, 1..=2, true);
+    assert!(case.landed_safely(), "{case:?}");
+}

@@ -156,6 +156,11 @@ struct SteerabilityArgs {
     /// default: all; repeat the option).
     #[arg(long = "scenario", requires = "methods", value_parser = clap::builder::PossibleValuesParser::new(v2t_lab::demo::SCENARIOS.map(|s| s.name)))]
     scenarios: Vec<String>,
+    /// Prepare every regulated run by a free drive: the VUT drives the test once alone (every BV
+    /// parked where it starts, another seed), and the regulator knows how it drove its route, as
+    /// after a first run of a campaign.
+    #[arg(long, conflicts_with = "methods")]
+    free_drive: bool,
     #[command(flatten)]
     cards: CardArgs,
     #[command(flatten)]
@@ -574,9 +579,19 @@ fn regulator_on_cards(a: &SteerabilityArgs) -> anyhow::Result<()> {
     let vuts = cards.vuts(&a.run.shared)?;
     let seeds = a.run.seeds.range(1, 20);
     let reach_seed = (!a.cards.no_reach).then_some(*seeds.start());
-    let report =
-        steer::steerability(&cards.settings, &cards.scenarios, &cards.targets, &vuts, seeds.clone(), reach_seed);
-    let provenance_line = cards.provenance(&a.cards, &seeds, "the regulator's settings")?;
+    let report = steer::steerability(
+        &cards.settings,
+        &cards.scenarios,
+        &cards.targets,
+        &vuts,
+        seeds.clone(),
+        reach_seed,
+        a.free_drive,
+    );
+    let mut provenance_line = cards.provenance(&a.cards, &seeds, "the regulator's settings")?;
+    if a.free_drive {
+        provenance_line.push_str("; every run prepared by a free drive of the VUT (BVs parked)");
+    }
     outln!("{provenance_line}")?;
     let md = steer::steer_markdown(&report);
     out!("{md}")?;

@@ -41,9 +41,15 @@ pub struct SimArgs {
     regulator: PathBuf,
     /// With --regulated: one run of a test campaign. The memory of this VUT (JSON; made when
     /// missing) gives each BV its aim and what earlier runs showed about reach; the run's outcome
-    /// is recorded in it afterwards.
-    #[arg(long, requires = "regulated")]
+    /// is recorded in it afterwards. With --free-drive: how the VUT drove its route is recorded in
+    /// it for this test, for the regulated runs that follow.
+    #[arg(long)]
     campaign: Option<PathBuf>,
+    /// A free drive: every BV stands where it starts and the VUT drives the test alone, as a test
+    /// engineer drives the ADS through the test before it. Prints how the VUT drove its route up
+    /// to each BV's zone; with --campaign, records it for this test.
+    #[arg(long, conflicts_with = "regulated")]
+    free_drive: bool,
     /// With --regulated: the regulator runs in the cloud, across this simulated network (TOML, as
     /// in config/network): the BV reports its state and the VUT's, follows the plans that reach it.
     #[arg(long, requires = "regulated", conflicts_with_all = ["campaign", "cloud_broker"])]
@@ -116,7 +122,12 @@ pub fn run(a: SimArgs) -> anyhow::Result<()> {
         },
         None => v2t_lab::vut::Vut::Builtin(model.unwrap_or(scenario.vut.default_model)),
     };
-    let (outcome, plans) = if a.regulated && (a.network.is_some() || a.cloud_broker.is_some()) {
+    if a.campaign.is_some() && !a.regulated && !a.free_drive {
+        return Err(crate::Usage("--campaign needs --regulated or --free-drive".to_owned()).into());
+    }
+    let (outcome, plans) = if a.free_drive {
+        (free_drive(&a, &scenario, &vut)?, None)
+    } else if a.regulated && (a.network.is_some() || a.cloud_broker.is_some()) {
         (crate::regulate::cloud_regulated_run(&a.cloud(), &scenario, &vut, a.seed)?, None)
     } else if a.regulated {
         let run = regulated(&a, &scenario, &vut)?;
@@ -157,6 +168,50 @@ pub fn run(a: SimArgs) -> anyhow::Result<()> {
         outln!("wrote {}", path.display())?;
     }
     Ok(())
+}
+
+/// A free drive of the test ([`v2t_lab::campaign::free_drive`]): prints how the VUT drove its
+/// route up to each BV's zone and, with `--campaign`, records it in the memory for this test.
+fn free_drive(
+    a: &SimArgs,
+    scenario: &v2t_sim::scenario::Scenario,
+    vut: &v2t_lab::vut::Vut<'_>,
+) -> anyhow::Result<v2t_sim::runner::RunOutcome> {
+    use v2t_lab::campaign;
+    let mut memory = a
+        .campaign
+        .as_deref()
+        .map(|path| crate::campaign::load_for(path, &vut.name(), vut.world().as_str()))
+        .transpose()?;
+    let sc = campaign::free_drive_scenario(scenario);
+    let mut bvs: Vec<Box<dyn v2t_sim::bv::BvController>> =
+        sc.bvs.iter().map(|_| Box::new(campaign::Parked) as Box<dyn v2t_sim::bv::BvController>).collect();
+    let outcome = vut.run(&sc, &mut bvs, a.seed)?;
+    outln!("free drive: every BV parked where it starts, the VUT alone")?;
+    for i in 0..sc.bvs.len() {
+        match campaign::vut_route_speed(&outcome, i) {
+            Some(route) => {
+                let slowest =
+                    route.slowest().map_or_else(String::new, |(at, v)| format!(", slowest {v:.1} m/s at {at:.0} m"));
+                outln!("  BV {i}: the VUT's route learned to {:.0} m{slowest}", route.end_m())?;
+                if let Some(m) = memory.as_mut() {
+                    m.case_mut(&scenario.name, i, scenario.target).learn_free_drive(scenario.target, &route);
+                }
+            }
+            None => outln!("  BV {i}: the VUT never passed this BV's zone: nothing learned")?,
+        }
+    }
+    if let (Some(m), Some(path)) = (memory.as_ref(), &a.campaign) {
+        crate::campaign::save(path, m)?;
+        outln!(
+            "recorded in {} for {} {} τ {:.2} s",
+            path.display(),
+            scenario.name,
+            scenario.target.style(),
+            scenario.target.tau_s()
+        )?;
+    }
+    Ok(outcome)
 }
 
 /// One run with regulated BVs, as one run of a campaign when asked.

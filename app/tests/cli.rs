@@ -613,6 +613,31 @@ fn sim_runs_one_run_of_a_campaign_and_keeps_its_memory_in_a_file() {
     }
 }
 
+/// A free drive: the BVs parked, the VUT alone; what it showed is recorded for the test and the
+/// first regulated run knows it without being a second run; the options that make no sense with
+/// it are refused with exit 2.
+#[test]
+fn sim_drives_the_test_freely_and_the_first_regulated_run_knows_the_route() {
+    let scratch = tempdir("free-drive");
+    let memory = scratch.path().join("idm.json");
+    let card = "config/scenarios/left_turn_vut.toml";
+    let free = ok(&["sim", card, "--vut", "idm-normal", "--free-drive", "--campaign", s(&memory)]);
+    assert!(free.contains("free drive: every BV parked where it starts"), "{free}");
+    assert!(free.contains("BV 0: the VUT's route learned to 84 m"), "{free}");
+    assert!(free.contains("BV parked"), "{free}");
+    let first = ok(&["sim", card, "--vut", "idm-normal", "--regulated", "--campaign", s(&memory)]);
+    assert!(first.contains("before the run: 0 runs before") && first.contains("learned over 1 run(s)"), "{first}");
+    assert!(first.contains("aiming at 2.00 s for τ 2.00 s"), "{first}");
+    for args in [
+        vec!["sim", card, "--free-drive", "--regulated"],
+        vec!["sim", card, "--campaign", s(&memory)],
+        vec!["sim", card, "--vut", "reactive", "--free-drive", "--campaign", s(&memory)],
+    ] {
+        let o = video2track(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", text(&o).1);
+    }
+}
+
 #[test]
 fn a_campaign_experiment_reports_per_vut_and_writes_the_memories() {
     let scratch = tempdir("campaign-exp");

@@ -241,7 +241,16 @@ impl CaseMemory {
     /// The first learned route starts the reaction model over: the runs made without one no
     /// longer describe how the next run's follower errs.
     pub fn learn_route(&mut self, target: Target, route: &RouteSpeed) {
-        if self.runs.last().and_then(RunRecord::valid_pet).is_none() || route.validate().is_err() {
+        if self.runs.last().and_then(RunRecord::valid_pet).is_some() {
+            self.learn_free_drive(target, route);
+        }
+    }
+
+    /// Learns how the VUT drove its route in a *free drive* (the test driven with every BV
+    /// parked: no PET, no run to record), merged with what is known as [`Self::learn_route`]
+    /// merges. A record that does not validate is not kept.
+    pub fn learn_free_drive(&mut self, target: Target, route: &RouteSpeed) {
+        if route.validate().is_err() {
             return;
         }
         match &mut self.route_speed {

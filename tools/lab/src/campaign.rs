@@ -301,6 +301,48 @@ pub fn vut_route_speed(outcome: &RunOutcome, bv_index: usize) -> Option<RouteSpe
     RouteSpeed::from_samples(samples, zone.zone.vut.exit_s_m)
 }
 
+/// A free drive's seed is the regulated run's plus this: another drive of the same VUT, not the
+/// run it prepares (a noisy VUT model drives it differently).
+pub const FREE_DRIVE_SEED_OFFSET: u64 = 1_000_000;
+
+/// A BV that stands where it starts: every control period it brakes as hard as it can, wheels
+/// straight.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Parked;
+
+impl BvController for Parked {
+    fn name(&self) -> &str {
+        "parked"
+    }
+
+    fn control(&mut self, obs: &v2t_sim::observation::BvObservation<'_>) -> v2t_sim::plant::ActuationRequest {
+        let decel = obs.scenario.bvs.get(obs.bv_index).map_or(3.0, |b| b.agent.vehicle.limits.max_decel_mps2);
+        v2t_sim::plant::ActuationRequest { accel_mps2: -decel, steer_rad: 0.0 }
+    }
+}
+
+/// The scenario of a free drive: every BV stands where it starts ([`Parked`]), so the VUT drives
+/// its route on its own.
+pub fn free_drive_scenario(scenario: &Scenario) -> Scenario {
+    let mut sc = scenario.clone();
+    for bv in &mut sc.bvs {
+        bv.agent.initial_speed_mps = 0.0;
+    }
+    sc
+}
+
+/// A *free drive*: the VUT drives the test's route once with every BV parked where it starts, as a
+/// test engineer drives the ADS through the test alone before the test. Per BV, how the VUT drove
+/// its route up to that BV's zone ([`vut_route_speed`]): what the campaign memory would have
+/// learned from a first run, without a first regulated run. `seed` is the free drive's own.
+pub fn free_drive(scenario: &Scenario, vut: &Vut<'_>, seed: u64) -> Result<Vec<Option<RouteSpeed>>, RunError> {
+    let sc = free_drive_scenario(scenario);
+    let mut bvs: Vec<Box<dyn BvController>> =
+        sc.bvs.iter().map(|_| Box::new(Parked) as Box<dyn BvController>).collect();
+    let out = vut.run(&sc, &mut bvs, seed)?;
+    Ok((0..sc.bvs.len()).map(|i| vut_route_speed(&out, i)).collect())
+}
+
 /// One run of a campaign: the aim and what is known from the memory, the run, the memory updated.
 pub fn run_once(
     settings: &RegulatorParams,

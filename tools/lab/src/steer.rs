@@ -103,6 +103,9 @@ impl IdentifiedRuns {
 /// The whole experiment.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SteerReport {
+    /// Whether every regulated run was prepared by a free drive of the VUT
+    /// ([`steer_case_with`]): the regulator knew how this VUT drives the route alone.
+    pub free_drive: bool,
     /// Every case.
     pub cases: Vec<SteerCase>,
     /// Mean of the per-case steering errors (a case without a measured PET counts as 1).
@@ -170,6 +173,21 @@ pub fn steer_case(
     vut: &Vut<'_>,
     seeds: std::ops::RangeInclusive<u64>,
 ) -> SteerCase {
+    steer_case_with(settings, scenario, target, vut, seeds, false)
+}
+
+/// [`steer_case`], and with `free_drive` every run prepared by a free drive of its own: the VUT
+/// drives the test alone first ([`crate::campaign::free_drive`], seed `seed +`
+/// [`crate::campaign::FREE_DRIVE_SEED_OFFSET`]), and each BV's regulator knows how it drove its
+/// route, as after a first run of a campaign. A free drive that fails counts its run as failed.
+pub fn steer_case_with(
+    settings: &RegulatorParams,
+    scenario: &Scenario,
+    target: Target,
+    vut: &Vut<'_>,
+    seeds: std::ops::RangeInclusive<u64>,
+    free_drive: bool,
+) -> SteerCase {
     let mut tally = Tally::default();
     let mut misses = Misses::default();
     let mut identified = IdentifiedRuns::default();
@@ -177,10 +195,22 @@ pub fn steer_case(
     let mut sc = scenario.clone();
     sc.target = target;
     for seed in seeds {
+        let routes = if free_drive {
+            match crate::campaign::free_drive(&sc, vut, seed + crate::campaign::FREE_DRIVE_SEED_OFFSET) {
+                Ok(r) => r,
+                Err(_) => {
+                    tally.add_failed();
+                    continue;
+                }
+            }
+        } else {
+            Vec::new()
+        };
         let mut report = None;
         let bvs: Result<Vec<Box<dyn BvController>>, _> = (0..sc.bvs.len())
             .map(|i| {
                 RegulatedBv::new(RegulatedBv::params_for(settings, &sc, i), &sc, i).map(|r| {
+                    let r = r.with_route_speed(routes.get(i).cloned().flatten());
                     if i == 0 {
                         report = Some(r.reaction_report());
                     }
@@ -227,6 +257,8 @@ pub fn steer_case(
 /// Runs every case (scenario × target × VUT) on the available cores. With `reach_seed`, first runs
 /// the open-loop grid of [`crate::reach`] for every scenario and VUT on that seed and marks each
 /// case reachable or not.
+/// With `free_drive`, every regulated run is prepared by a free drive of its own
+/// ([`steer_case_with`]).
 pub fn steerability(
     settings: &RegulatorParams,
     scenarios: &[Scenario],
@@ -234,6 +266,7 @@ pub fn steerability(
     vuts: &[Vut<'_>],
     seeds: std::ops::RangeInclusive<u64>,
     reach_seed: Option<u64>,
+    free_drive: bool,
 ) -> SteerReport {
     let mut reaches = Vec::new();
     if let Some(seed) = reach_seed {
@@ -249,7 +282,9 @@ pub fn steerability(
             }
         }
     }
-    let mut cases = crate::parallel_map(&jobs, |(sc, target, v)| steer_case(settings, sc, *target, v, seeds.clone()));
+    let mut cases = crate::parallel_map(&jobs, |(sc, target, v)| {
+        steer_case_with(settings, sc, *target, v, seeds.clone(), free_drive)
+    });
     for c in &mut cases {
         let target = Target::new(c.tau_s, c.style).ok();
         c.reachable = reaches
@@ -287,12 +322,16 @@ pub fn steerability(
             }
         })
         .collect();
-    SteerReport { mean_error_rel, max_error_rel, reach: reaches, reachable_errors, per_vut, cases }
+    SteerReport { free_drive, mean_error_rel, max_error_rel, reach: reaches, reachable_errors, per_vut, cases }
 }
 
 /// A markdown table of the report.
 pub fn steer_markdown(r: &SteerReport) -> String {
-    let mut out = String::from(
+    let mut out = String::new();
+    if r.free_drive {
+        out.push_str("Every regulated run was prepared by a free drive: the VUT drove the test once with every BV parked, and the regulator knew how it drove its route (another seed than the run's).\n\n");
+    }
+    out.push_str(
         "| scenario | style | VUT | τ (s) | mean PET_min (s) | PET^min_track (s) | error of the mean | single-run error | single runs within 10 % | collisions | overlaps | order ok | no PET | yields not kept | τ reachable |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let f = |x: Option<f64>| x.map_or_else(|| "—".to_owned(), |v| format!("{v:.2}"));

@@ -278,3 +278,29 @@ fn a_campaign_learns_how_sumos_vut_drives_its_turn_and_the_next_run_lands_on_tau
     assert_eq!(runs[1].aim_s, 2.0, "the second run aims at τ: its follower knows the route");
     assert!((second - 2.0).abs() <= 0.2, "the second run lands on τ: {second:.2} s");
 }
+
+/// A free drive (the VUT alone through the test, the BV parked where it starts) shows the regulator
+/// how SUMO's IDM drives its turn before the first regulated run: the slowdown that made the first
+/// run of a campaign land about a second long (the test above) is known from the start, and a
+/// single run lands on τ. The free drive has its own seed, not the run's.
+#[test]
+fn a_free_drive_shows_the_first_run_how_sumos_vut_drives_its_turn() {
+    let Some(world) = world() else { return };
+    let settings: RegulatorParams = v2t_files::load_toml(&root().join("config/regulator/default.toml")).unwrap();
+    let sc = card("left_turn_vut");
+    let target = Target::new(2.0, Style::Rush).unwrap();
+    let d = driver("idm");
+    let vut = Vut::Sumo { world: &world, driver: &d };
+    let routes = v2t_lab::campaign::free_drive(&sc, &vut, 1 + v2t_lab::campaign::FREE_DRIVE_SEED_OFFSET).unwrap();
+    let route = routes[0].as_ref().expect("the free drive passed the BV's zone");
+    let (at, slowest) = route.slowest().unwrap();
+    assert!(slowest < 5.0 && (60.0..72.0).contains(&at), "slowest {slowest:.1} m/s at {at:.0} m");
+    let pet = |c: &v2t_lab::steer::SteerCase| {
+        assert!(c.stats.collisions == 0 && c.stats.zone_overlaps == 0 && c.stats.order_ok_frac == 1.0, "{c:?}");
+        c.stats.pets_s[0]
+    };
+    let without = pet(&steer_case(&settings, &sc, target, &vut, 1..=1));
+    let with = pet(&v2t_lab::steer::steer_case_with(&settings, &sc, target, &vut, 1..=1, true));
+    assert!(without > 2.4, "without a free drive the PET comes out long: {without:.2} s");
+    assert!((with - 2.0).abs() <= 0.2, "after a free drive the run lands on τ: {with:.2} s");
+}

@@ -286,6 +286,24 @@ fn the_first_learned_route_starts_the_reaction_model_over() {
 }
 
 #[test]
+fn a_free_drive_teaches_the_route_before_any_run() {
+    let mut m = CaseMemory::default();
+    let t = rush(2.0);
+    m.learn_free_drive(t, &RouteSpeed { speeds_mps: vec![f64::NAN; 3], ..route(8.0) });
+    assert!(m.route_speed.is_none(), "a record that is not one");
+    m.learn_free_drive(t, &route(6.0));
+    assert_eq!(m.route_speed.as_ref().map(|r| r.runs), Some(1), "no run needed: a free drive has no PET");
+    assert!(m.runs.is_empty() && m.aim(t) == t, "a free drive is no run of the test: run 1 aims at τ");
+    // The first run is made with the route known, and counts for the model.
+    m.record(t, RunRecord { learned_route: true, ..run(t, 2.3) });
+    assert!((m.offset_s - 0.3).abs() < 1e-12, "{}", m.offset_s);
+    // A second free drive merges as a run's route does (the faster at each point).
+    m.learn_free_drive(t, &route(7.0));
+    let learned = m.route_speed.as_ref().unwrap();
+    assert_eq!((learned.runs, learned.speeds_mps[0]), (2, 7.0));
+}
+
+#[test]
 fn a_run_that_went_wrong_teaches_no_route() {
     let mut m = CaseMemory::default();
     let t = rush(2.0);
