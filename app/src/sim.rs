@@ -183,12 +183,9 @@ fn free_drive(
         .as_deref()
         .map(|path| crate::campaign::load_for(path, &vut.name(), vut.world().as_str()))
         .transpose()?;
-    let sc = campaign::free_drive_scenario(scenario);
-    let mut bvs: Vec<Box<dyn v2t_sim::bv::BvController>> =
-        sc.bvs.iter().map(|_| Box::new(campaign::Parked) as Box<dyn v2t_sim::bv::BvController>).collect();
-    let outcome = vut.run(&sc, &mut bvs, a.seed)?;
+    let outcome = campaign::free_drive_run(scenario, vut, a.seed)?;
     outln!("free drive: every BV parked where it starts, the VUT alone")?;
-    for i in 0..sc.bvs.len() {
+    for i in 0..scenario.bvs.len() {
         match campaign::vut_route_speed(&outcome, i) {
             Some(route) => {
                 let slowest =

@@ -336,11 +336,16 @@ pub fn free_drive_scenario(scenario: &Scenario) -> Scenario {
 /// its route up to that BV's zone ([`vut_route_speed`]): what the campaign memory would have
 /// learned from a first run, without a first regulated run. `seed` is the free drive's own.
 pub fn free_drive(scenario: &Scenario, vut: &Vut<'_>, seed: u64) -> Result<Vec<Option<RouteSpeed>>, RunError> {
+    let out = free_drive_run(scenario, vut, seed)?;
+    Ok((0..scenario.bvs.len()).map(|i| vut_route_speed(&out, i)).collect())
+}
+
+/// The run of a free drive of `scenario` ([`free_drive_scenario`], every BV [`Parked`]).
+pub fn free_drive_run(scenario: &Scenario, vut: &Vut<'_>, seed: u64) -> Result<RunOutcome, RunError> {
     let sc = free_drive_scenario(scenario);
     let mut bvs: Vec<Box<dyn BvController>> =
         sc.bvs.iter().map(|_| Box::new(Parked) as Box<dyn BvController>).collect();
-    let out = vut.run(&sc, &mut bvs, seed)?;
-    Ok((0..sc.bvs.len()).map(|i| vut_route_speed(&out, i)).collect())
+    vut.run(&sc, &mut bvs, seed)
 }
 
 /// One run of a campaign: the aim and what is known from the memory, the run, the memory updated.
