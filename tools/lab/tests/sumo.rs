@@ -295,6 +295,10 @@ fn a_free_drive_shows_the_first_run_how_sumos_vut_drives_its_turn() {
     let route = routes[0].as_ref().expect("the free drive passed the BV's zone");
     let (at, slowest) = route.slowest().unwrap();
     assert!(slowest < 5.0 && (60.0..72.0).contains(&at), "slowest {slowest:.1} m/s at {at:.0} m");
+    // The BV parked where it starts is no BV to SUMO's VUT: it turns as on a free road, the BV
+    // parked 200 m away (the known answer above; the record is on a 2 m grid, so within 0.2 m/s).
+    let (free_road, _, _) = turn_against(&world, &d, 0.0, 200.0);
+    assert!((slowest - free_road).abs() < 0.2, "free drive {slowest:.2} m/s, free road {free_road:.2} m/s");
     let pet = |c: &v2t_lab::steer::SteerCase| {
         assert!(c.stats.collisions == 0 && c.stats.zone_overlaps == 0 && c.stats.order_ok_frac == 1.0, "{c:?}");
         c.stats.pets_s[0]
