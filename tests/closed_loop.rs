@@ -105,6 +105,7 @@ fn two_bvs_each_get_their_own_conflict_and_regulator() {
         target,
         &v2t_lab::vut::Vut::Builtin(VutModel::IdmNormal),
         1..=1,
+        None,
     );
     let s = &c.stats;
     assert_eq!((s.collisions, s.zone_overlaps, s.unmeasured), (0, 0, 0), "{c:?}");

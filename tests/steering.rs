@@ -41,6 +41,7 @@ fn the_regulated_bv_lands_on_the_target_pet() {
             v2t_model::Target::new(tau, style).unwrap(),
             &v2t_lab::vut::Vut::Builtin(model),
             1..=2,
+            None,
         );
         let tag = format!("{} {style} τ={tau} {model}", scenario.name);
         assert_eq!(c.stats.collisions, 0, "{tag}");
@@ -57,7 +58,7 @@ fn the_regulated_bv_lands_on_the_target_pet() {
     // The paper's follower identifies nothing.
     let paper = RegulatorParams { reacting_follower: false, ..settings };
     let target = v2t_model::Target::new(2.0, Style::Rush).unwrap();
-    let c = steer_case(&paper, &left, target, &v2t_lab::vut::Vut::Builtin(VutModel::IdmNormal), 1..=1);
+    let c = steer_case(&paper, &left, target, &v2t_lab::vut::Vut::Builtin(VutModel::IdmNormal), 1..=1, None);
     assert_eq!(c.identified.runs + c.identified.uninformed, 0);
 }
 
@@ -199,14 +200,14 @@ fn the_experiments_read_whether_the_regulated_bv_kept_the_yield_rule() {
     let settings: RegulatorParams = load_toml(&repo_root().join("config/regulator/default.toml")).unwrap();
     let target = v2t_model::Target::new(1.5, Style::Yield).unwrap();
     for model in VutModel::ALL {
-        let case = steer_case(&settings, &sc, target, &v2t_lab::vut::Vut::Builtin(model), 1..=1);
+        let case = steer_case(&settings, &sc, target, &v2t_lab::vut::Vut::Builtin(model), 1..=1, None);
         assert_eq!(case.stats.order_ok_frac, 1.0, "{model}: {case:?}");
         assert_eq!(case.yields_not_kept, 0, "{model}: {case:?}");
         assert!(!case.landed_safely(), "{model}: τ 1.5 s is out of reach of a BV that keeps the rule");
     }
     // A case its own runs landed on counts as reached only while none of them broke the rule.
     let four = v2t_model::Target::new(4.0, Style::Yield).unwrap();
-    let mut case = steer_case(&settings, &sc, four, &v2t_lab::vut::Vut::Builtin(VutModel::IdmNormal), 1..=1);
+    let mut case = steer_case(&settings, &sc, four, &v2t_lab::vut::Vut::Builtin(VutModel::IdmNormal), 1..=1, None);
     assert!(case.yields_not_kept == 0 && case.landed_safely(), "{case:?}");
     case.yields_not_kept = 1;
     assert!(!case.landed_safely(), "a yield given from inside the junction is no landing");
@@ -217,24 +218,23 @@ fn the_experiments_read_whether_the_regulated_bv_kept_the_yield_rule() {
 /// knows. This project's IDM keeps its speed through the turn; the runs still land.
 #[test]
 fn a_free_drive_shows_how_the_vut_drives_its_route_alone() {
-    use v2t_lab::campaign::{Parked, free_drive, free_drive_scenario};
+    use v2t_lab::campaign::{FreeDrives, free_drive_run, vut_route_speed};
     let sc = load_scenario(&repo_root().join("config/scenarios/left_turn_vut.toml")).unwrap();
     let settings: RegulatorParams = load_toml(&repo_root().join("config/regulator/default.toml")).unwrap();
     let vut = v2t_lab::vut::Vut::Builtin(VutModel::IdmNormal);
-    let mut bvs: Vec<Box<dyn v2t_sim::bv::BvController>> = vec![Box::new(Parked)];
-    let out = vut.run(&free_drive_scenario(&sc), &mut bvs, 7).unwrap();
+    let out = free_drive_run(&sc, &vut, 7).unwrap();
     let bv_s: Vec<f64> = out.trace.iter().map(|t| t.agents[1].s_m).collect();
     let moved = bv_s.iter().fold(0.0_f64, |m, s| m.max((s - bv_s[0]).abs()));
     assert!(moved < 0.05, "the parked BV moved {moved:.3} m");
     let c = &out.result.conflicts[0];
     assert!(c.vut_passage.is_some() && c.bv_passage.is_none(), "the VUT passed the zone alone: {c:?}");
-    let routes = free_drive(&sc, &vut, 7).unwrap();
-    let route = routes[0].as_ref().expect("a route up to the zone");
+    let route = vut_route_speed(&out, 0).expect("a route up to the zone");
     let exit = out.layout.zones[0].zone.vut.exit_s_m;
     assert!(route.end_m() + v2t_game::route_speed::ROUTE_STEP_M >= exit, "{} m of {exit:.1} m", route.end_m());
     let (_, slowest) = route.slowest().unwrap();
     assert!(slowest > 7.5, "idm-normal slowed to {slowest:.2} m/s on its own");
     let four = v2t_model::Target::new(4.0, Style::Rush).unwrap();
-    let case = v2t_lab::steer::steer_case_with(&settings, &sc, four, &vut, 1..=2, true);
+    let drives = FreeDrives::drive(&sc, &vut, 1..=2);
+    let case = steer_case(&settings, &sc, four, &vut, 1..=2, Some(&drives));
     assert!(case.landed_safely(), "{case:?}");
 }

@@ -170,7 +170,7 @@ pub fn run(a: SimArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A free drive of the test ([`v2t_lab::campaign::free_drive`]): prints how the VUT drove its
+/// A free drive of the test ([`v2t_lab::campaign::free_drive_run`]): prints how the VUT drove its
 /// route up to each BV's zone and, with `--campaign`, records it in the memory for this test.
 fn free_drive(
     a: &SimArgs,

@@ -308,7 +308,7 @@ pub const FREE_DRIVE_SEED_OFFSET: u64 = 1_000_000;
 /// A BV that stands where it starts: every control period it brakes as hard as it can, wheels
 /// straight.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct Parked;
+struct Parked;
 
 impl BvController for Parked {
     fn name(&self) -> &str {
@@ -321,31 +321,44 @@ impl BvController for Parked {
     }
 }
 
-/// The scenario of a free drive: every BV stands where it starts ([`Parked`]), so the VUT drives
-/// its route on its own.
-pub fn free_drive_scenario(scenario: &Scenario) -> Scenario {
+/// A *free drive*: `scenario` run once with every BV parked where it starts (braking at its limit
+/// from a standstill), the VUT driving its route on its own, as a test engineer drives the ADS
+/// through the test alone before the test. What it shows per BV is [`vut_route_speed`] of its run: what the
+/// campaign memory would have learned from a first run, without a first regulated run.
+pub fn free_drive_run(scenario: &Scenario, vut: &Vut<'_>, seed: u64) -> Result<RunOutcome, RunError> {
     let mut sc = scenario.clone();
     for bv in &mut sc.bvs {
         bv.agent.initial_speed_mps = 0.0;
     }
-    sc
-}
-
-/// A *free drive*: the VUT drives the test's route once with every BV parked where it starts, as a
-/// test engineer drives the ADS through the test alone before the test. Per BV, how the VUT drove
-/// its route up to that BV's zone ([`vut_route_speed`]): what the campaign memory would have
-/// learned from a first run, without a first regulated run. `seed` is the free drive's own.
-pub fn free_drive(scenario: &Scenario, vut: &Vut<'_>, seed: u64) -> Result<Vec<Option<RouteSpeed>>, RunError> {
-    let out = free_drive_run(scenario, vut, seed)?;
-    Ok((0..scenario.bvs.len()).map(|i| vut_route_speed(&out, i)).collect())
-}
-
-/// The run of a free drive of `scenario` ([`free_drive_scenario`], every BV [`Parked`]).
-pub fn free_drive_run(scenario: &Scenario, vut: &Vut<'_>, seed: u64) -> Result<RunOutcome, RunError> {
-    let sc = free_drive_scenario(scenario);
     let mut bvs: Vec<Box<dyn BvController>> =
         sc.bvs.iter().map(|_| Box::new(Parked) as Box<dyn BvController>).collect();
     vut.run(&sc, &mut bvs, seed)
+}
+
+/// The free drives ([`free_drive_run`]) of one scenario against one VUT, one per seed of the runs
+/// they prepare (each on its seed plus [`FREE_DRIVE_SEED_OFFSET`]): what a free drive shows does
+/// not depend on the test's target, so one drive prepares that seed's run of every target. A drive
+/// the world could not run is kept as `None`.
+#[derive(Debug, Clone, Default)]
+pub struct FreeDrives {
+    drives: Vec<(u64, Option<Vec<Option<RouteSpeed>>>)>,
+}
+
+impl FreeDrives {
+    /// Drives `scenario` freely once for every seed of `seeds`.
+    pub fn drive(scenario: &Scenario, vut: &Vut<'_>, seeds: std::ops::RangeInclusive<u64>) -> Self {
+        let routes = |out: RunOutcome| (0..scenario.bvs.len()).map(|i| vut_route_speed(&out, i)).collect();
+        let drives = seeds
+            .map(|seed| (seed, free_drive_run(scenario, vut, seed + FREE_DRIVE_SEED_OFFSET).ok().map(routes)))
+            .collect();
+        Self { drives }
+    }
+
+    /// What the free drive for the run of `seed` showed, per BV; `None` when it was not driven or
+    /// failed.
+    pub fn routes(&self, seed: u64) -> Option<&[Option<RouteSpeed>]> {
+        self.drives.iter().find(|(s, _)| *s == seed).and_then(|(_, r)| r.as_deref())
+    }
 }
 
 /// One run of a campaign: the aim and what is known from the memory, the run, the memory updated.

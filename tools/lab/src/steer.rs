@@ -12,6 +12,7 @@ use v2t_model::{Style, Target};
 use v2t_sim::bv::BvController;
 use v2t_sim::scenario::Scenario;
 
+use crate::campaign::FreeDrives;
 use crate::controllers::RegulatedBv;
 use crate::miss::Misses;
 use crate::reach::{Reach, YieldRule, reach};
@@ -103,8 +104,8 @@ impl IdentifiedRuns {
 /// The whole experiment.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SteerReport {
-    /// Whether every regulated run was prepared by a free drive of the VUT
-    /// ([`steer_case_with`]): the regulator knew how this VUT drives the route alone.
+    /// Whether every regulated run was prepared by a free drive of the VUT ([`FreeDrives`]): the
+    /// regulator knew how this VUT drives the route alone.
     pub free_drive: bool,
     /// Every case.
     pub cases: Vec<SteerCase>,
@@ -165,28 +166,16 @@ fn single_runs<'a>(cases: impl Iterator<Item = &'a SteerCase>) -> SingleRuns {
 }
 
 /// One case: one run per seed, every BV regulated by `settings` (with the
-/// scenario's vehicle limits) towards `target`.
+/// scenario's vehicle limits) towards `target`. With `free_drives`, every run is prepared by the
+/// free drive of its seed ([`FreeDrives`]): each BV's regulator knows how the VUT drove its route
+/// alone, as after a first run of a campaign; a run whose free drive failed counts as failed.
 pub fn steer_case(
     settings: &RegulatorParams,
     scenario: &Scenario,
     target: Target,
     vut: &Vut<'_>,
     seeds: std::ops::RangeInclusive<u64>,
-) -> SteerCase {
-    steer_case_with(settings, scenario, target, vut, seeds, false)
-}
-
-/// [`steer_case`], and with `free_drive` every run prepared by a free drive of its own: the VUT
-/// drives the test alone first ([`crate::campaign::free_drive`], seed `seed +`
-/// [`crate::campaign::FREE_DRIVE_SEED_OFFSET`]), and each BV's regulator knows how it drove its
-/// route, as after a first run of a campaign. A free drive that fails counts its run as failed.
-pub fn steer_case_with(
-    settings: &RegulatorParams,
-    scenario: &Scenario,
-    target: Target,
-    vut: &Vut<'_>,
-    seeds: std::ops::RangeInclusive<u64>,
-    free_drive: bool,
+    free_drives: Option<&FreeDrives>,
 ) -> SteerCase {
     let mut tally = Tally::default();
     let mut misses = Misses::default();
@@ -195,16 +184,13 @@ pub fn steer_case_with(
     let mut sc = scenario.clone();
     sc.target = target;
     for seed in seeds {
-        let routes = if free_drive {
-            match crate::campaign::free_drive(&sc, vut, seed + crate::campaign::FREE_DRIVE_SEED_OFFSET) {
-                Ok(r) => r,
-                Err(_) => {
-                    tally.add_failed();
-                    continue;
-                }
+        let routes = match free_drives.map(|d| d.routes(seed)) {
+            None => &[][..],
+            Some(Some(r)) => r,
+            Some(None) => {
+                tally.add_failed();
+                continue;
             }
-        } else {
-            Vec::new()
         };
         let mut report = None;
         let bvs: Result<Vec<Box<dyn BvController>>, _> = (0..sc.bvs.len())
@@ -257,8 +243,8 @@ pub fn steer_case_with(
 /// Runs every case (scenario × target × VUT) on the available cores. With `reach_seed`, first runs
 /// the open-loop grid of [`crate::reach`] for every scenario and VUT on that seed and marks each
 /// case reachable or not.
-/// With `free_drive`, every regulated run is prepared by a free drive of its own
-/// ([`steer_case_with`]).
+/// With `free_drive`, every regulated run is prepared by a free drive ([`FreeDrives`], driven
+/// once per scenario, VUT and seed).
 pub fn steerability(
     settings: &RegulatorParams,
     scenarios: &[Scenario],
@@ -268,22 +254,27 @@ pub fn steerability(
     reach_seed: Option<u64>,
     free_drive: bool,
 ) -> SteerReport {
-    let mut reaches = Vec::new();
-    if let Some(seed) = reach_seed {
-        let pairs: Vec<(&Scenario, &Vut<'_>)> =
-            scenarios.iter().flat_map(|sc| vuts.iter().map(move |v| (sc, v))).collect();
-        reaches = crate::parallel_map(&pairs, |(sc, v)| reach(sc, v, seed));
-    }
+    // Per scenario and VUT (pair `i · vuts.len() + j`): the open-loop grid and the free drives.
+    let pairs: Vec<(&Scenario, &Vut<'_>)> = scenarios.iter().flat_map(|sc| vuts.iter().map(move |v| (sc, v))).collect();
+    let reaches = match reach_seed {
+        Some(seed) => crate::parallel_map(&pairs, |(sc, v)| reach(sc, v, seed)),
+        None => Vec::new(),
+    };
+    let drives: Vec<FreeDrives> = if free_drive {
+        crate::parallel_map(&pairs, |(sc, v)| FreeDrives::drive(sc, v, seeds.clone()))
+    } else {
+        Vec::new()
+    };
     let mut jobs = Vec::new();
-    for sc in scenarios {
+    for (i, sc) in scenarios.iter().enumerate() {
         for &target in targets {
-            for v in vuts {
-                jobs.push((sc, target, v));
+            for (j, v) in vuts.iter().enumerate() {
+                jobs.push((sc, target, v, drives.get(i * vuts.len() + j)));
             }
         }
     }
-    let mut cases = crate::parallel_map(&jobs, |(sc, target, v)| {
-        steer_case_with(settings, sc, *target, v, seeds.clone(), free_drive)
+    let mut cases = crate::parallel_map(&jobs, |(sc, target, v, drives)| {
+        steer_case(settings, sc, *target, v, seeds.clone(), *drives)
     });
     for c in &mut cases {
         let target = Target::new(c.tau_s, c.style).ok();

@@ -9,6 +9,8 @@
 use std::path::{Path, PathBuf};
 
 use v2t_game::regulator::RegulatorParams;
+use v2t_game::route_speed::RouteSpeed;
+use v2t_lab::campaign::FreeDrives;
 use v2t_lab::miss::Miss;
 use v2t_lab::steer::steer_case;
 use v2t_lab::sumo::{SumoDriver, SumoWorld};
@@ -46,7 +48,7 @@ fn card(name: &str) -> v2t_sim::scenario::Scenario {
 /// The PET of one run (seed 1) of `sc` at `target` against `vut`, which must be safe (no collision,
 /// no zone overlap, a PET) and in the asked order.
 fn safe_pet(settings: &RegulatorParams, sc: &v2t_sim::scenario::Scenario, target: Target, vut: &Vut<'_>) -> f64 {
-    let c = steer_case(settings, sc, target, vut, 1..=1);
+    let c = steer_case(settings, sc, target, vut, 1..=1, None);
     let s = &c.stats;
     let tag = format!("{} {target:?} {}", sc.name, c.vut);
     assert_eq!((s.collisions, s.zone_overlaps, s.unmeasured), (0, 0, 0), "{tag}: {c:?}");
@@ -65,7 +67,7 @@ fn the_regulated_bv_steers_sumos_vut_in_every_scenario() {
     for name in ["left_turn_basic", "left_turn_vut", "cut_in_basic"] {
         let sc = card(name);
         let pets = [2.0, 4.0].map(|tau| {
-            let c = steer_case(&settings, &sc, Target::new(tau, Style::Rush).unwrap(), &vut, 1..=1);
+            let c = steer_case(&settings, &sc, Target::new(tau, Style::Rush).unwrap(), &vut, 1..=1, None);
             let s = &c.stats;
             assert_eq!((s.collisions, s.zone_overlaps, s.unmeasured), (0, 0, 0), "{name} τ {tau}: {c:?}");
             assert_eq!(s.order_ok_frac, 1.0, "{name} τ {tau}: {c:?}");
@@ -230,7 +232,7 @@ fn sumos_turning_vut_goes_first_when_the_bv_gives_way_outside_the_junction() {
     // beyond the network, before the VUT has finished its turn.
     let krauss = driver("krauss");
     let vut = Vut::Sumo { world: &world, driver: &krauss };
-    let c = steer_case(&settings, &sc, Target::new(5.0, Style::Rush).unwrap(), &vut, 1..=1);
+    let c = steer_case(&settings, &sc, Target::new(5.0, Style::Rush).unwrap(), &vut, 1..=1, None);
     assert_eq!((c.stats.unmeasured, c.stats.order_ok_frac), (0, 1.0), "rush τ 5 s: {c:?}");
 }
 
@@ -251,6 +253,20 @@ fn sumos_vut_does_not_wait_for_a_rushing_bv_that_crosses_at_speed() {
     }
 }
 
+/// The VUT-turning card's rush at τ 2 s against SUMO's IDM, with the shipped regulator: the
+/// case where IDM's own slowdown in its turn shows.
+fn idm_turning_rush() -> (RegulatorParams, v2t_sim::scenario::Scenario, Target, SumoDriver) {
+    let settings: RegulatorParams = v2t_files::load_toml(&root().join("config/regulator/default.toml")).unwrap();
+    (settings, card("left_turn_vut"), Target::new(2.0, Style::Rush).unwrap(), driver("idm"))
+}
+
+/// The slowest speed of a route IDM drove, after checking that it is its slowdown in the turn.
+fn idm_turn_slowdown(route: &RouteSpeed) -> f64 {
+    let (at, slowest) = route.slowest().unwrap();
+    assert!(slowest < 5.0 && (60.0..72.0).contains(&at), "slowest {slowest:.1} m/s at {at:.0} m");
+    slowest
+}
+
 #[test]
 fn a_campaign_learns_how_sumos_vut_drives_its_turn_and_the_next_run_lands_on_tau() {
     // The VUT turns left in front of the oncoming BV, which goes first, τ 2 s. SUMO's IDM slows
@@ -260,10 +276,7 @@ fn a_campaign_learns_how_sumos_vut_drives_its_turn_and_the_next_run_lands_on_tau
     // The first run's record of how it drove its route is the second run's follower, which then
     // lands on τ while still aiming at τ.
     let Some(world) = world() else { return };
-    let settings: RegulatorParams = v2t_files::load_toml(&root().join("config/regulator/default.toml")).unwrap();
-    let sc = card("left_turn_vut");
-    let target = Target::new(2.0, Style::Rush).unwrap();
-    let d = driver("idm");
+    let (settings, sc, target, d) = idm_turning_rush();
     let vut = Vut::Sumo { world: &world, driver: &d };
     let mut memory = v2t_game::campaign::CampaignMemory::new(vut.name(), vut.world().as_str());
     let runs = v2t_lab::campaign::run_campaign(&settings, &sc, target, &vut, 1, 2, &mut memory);
@@ -272,9 +285,7 @@ fn a_campaign_learns_how_sumos_vut_drives_its_turn_and_the_next_run_lands_on_tau
     }
     let (first, second) = (runs[0].pet_s.unwrap(), runs[1].pet_s.unwrap());
     assert!(first > 2.4, "without the learned route the PET comes out long: {first:.2} s");
-    let learned = memory.case("left_turn_vut", 0, target).unwrap().route_speed.clone().unwrap();
-    let (at, slowest) = learned.slowest().unwrap();
-    assert!(slowest < 5.0 && (60.0..72.0).contains(&at), "slowest {slowest:.1} m/s at {at:.0} m");
+    idm_turn_slowdown(memory.case("left_turn_vut", 0, target).unwrap().route_speed.as_ref().unwrap());
     assert_eq!(runs[1].aim_s, 2.0, "the second run aims at τ: its follower knows the route");
     assert!((second - 2.0).abs() <= 0.2, "the second run lands on τ: {second:.2} s");
 }
@@ -286,15 +297,11 @@ fn a_campaign_learns_how_sumos_vut_drives_its_turn_and_the_next_run_lands_on_tau
 #[test]
 fn a_free_drive_shows_the_first_run_how_sumos_vut_drives_its_turn() {
     let Some(world) = world() else { return };
-    let settings: RegulatorParams = v2t_files::load_toml(&root().join("config/regulator/default.toml")).unwrap();
-    let sc = card("left_turn_vut");
-    let target = Target::new(2.0, Style::Rush).unwrap();
-    let d = driver("idm");
+    let (settings, sc, target, d) = idm_turning_rush();
     let vut = Vut::Sumo { world: &world, driver: &d };
-    let routes = v2t_lab::campaign::free_drive(&sc, &vut, 1 + v2t_lab::campaign::FREE_DRIVE_SEED_OFFSET).unwrap();
-    let route = routes[0].as_ref().expect("the free drive passed the BV's zone");
-    let (at, slowest) = route.slowest().unwrap();
-    assert!(slowest < 5.0 && (60.0..72.0).contains(&at), "slowest {slowest:.1} m/s at {at:.0} m");
+    let drives = FreeDrives::drive(&sc, &vut, 1..=1);
+    let route = drives.routes(1).unwrap()[0].as_ref().expect("the free drive passed the BV's zone");
+    let slowest = idm_turn_slowdown(route);
     // The BV parked where it starts is no BV to SUMO's VUT: it turns as on a free road, the BV
     // parked 200 m away (the known answer above; the record is on a 2 m grid, so within 0.2 m/s).
     let (free_road, _, _) = turn_against(&world, &d, 0.0, 200.0);
@@ -303,8 +310,8 @@ fn a_free_drive_shows_the_first_run_how_sumos_vut_drives_its_turn() {
         assert!(c.stats.collisions == 0 && c.stats.zone_overlaps == 0 && c.stats.order_ok_frac == 1.0, "{c:?}");
         c.stats.pets_s[0]
     };
-    let without = pet(&steer_case(&settings, &sc, target, &vut, 1..=1));
-    let with = pet(&v2t_lab::steer::steer_case_with(&settings, &sc, target, &vut, 1..=1, true));
+    let without = pet(&steer_case(&settings, &sc, target, &vut, 1..=1, None));
+    let with = pet(&steer_case(&settings, &sc, target, &vut, 1..=1, Some(&drives)));
     assert!(without > 2.4, "without a free drive the PET comes out long: {without:.2} s");
     assert!((with - 2.0).abs() <= 0.2, "after a free drive the run lands on τ: {with:.2} s");
 }
