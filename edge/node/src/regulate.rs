@@ -29,6 +29,8 @@ use crate::prior::PriorContext;
 pub struct Regulation {
     inner: v2t_game::regulation::Regulation,
     prior_id: Option<u64>,
+    /// The header sequence of the active prior as last taken.
+    prior_seq: u64,
     header: Header,
 }
 
@@ -63,18 +65,28 @@ impl Regulation {
     /// to `lat_accel_mps2` (its plans slow down for the curves of the path ahead).
     pub fn new(params: RegulatorParams, lat_accel_mps2: f64) -> Result<Self, EdgeError> {
         let inner = v2t_game::regulation::Regulation::new(params, lat_accel_mps2)?;
-        Ok(Self { inner, prior_id: None, header: Header::default() })
+        Ok(Self { inner, prior_id: None, prior_seq: 0, header: Header::default() })
     }
 
-    /// Takes `prior` if it is new and well formed; a broken one (its timing included) leaves the
-    /// active prior in place.
+    /// Takes `prior` if it is news and well formed: a new prior (another id) starts a new run
+    /// around it; the active prior published again with the next header sequence (the uplink
+    /// does so when the cloud re-targets the running interaction, `send target`) aims the run at
+    /// its τ and style without starting it over. A broken one (its timing included) leaves the
+    /// active prior and its aim in place. `Ok(false)`: nothing new.
     pub fn set_prior(&mut self, prior: &ActivePrior) -> Result<bool, EdgeError> {
         if self.prior_id == Some(prior.prior_id) {
-            return Ok(false);
+            if self.prior_seq == prior.header.seq {
+                return Ok(false);
+            }
+            let target = prior.target().map_err(crate::prior::PriorError::from)?;
+            self.inner.aim(target, None);
+            self.prior_seq = prior.header.seq;
+            return Ok(true);
         }
         let ctx = PriorContext::new(prior)?;
         self.inner.set_context(ctx.context).map_err(crate::prior::PriorError::Invalid)?;
         self.prior_id = Some(prior.prior_id);
+        self.prior_seq = prior.header.seq;
         Ok(true)
     }
 
@@ -258,6 +270,27 @@ mod tests {
         let plan = reg.decide(&bv, None, 2_000);
         assert_eq!(plan.status, PlanStatus::Stale.code());
         assert!(plan.accel_mps2 < 0.0);
+    }
+
+    #[test]
+    fn a_new_target_for_the_active_prior_reaches_the_regulator() {
+        // `send target` re-targets the running interaction: the uplink publishes the active prior
+        // again, the same prior id with the new τ and style and the next header sequence.
+        let (mut reg, prior) = setup();
+        assert!(reg.set_prior(&prior).unwrap());
+        let mut retarget = prior.clone();
+        let new = v2t_model::Target::new(3.5, v2t_model::Style::Yield).unwrap();
+        retarget.set_target(new);
+        retarget.header.seq += 1;
+        assert!(reg.set_prior(&retarget).unwrap(), "a new target is news");
+        assert_eq!(reg.context().unwrap().target, new);
+        assert!(!reg.set_prior(&retarget).unwrap(), "the same message again is not");
+        // A retarget whose τ does not decode leaves the aim as it was.
+        let mut bad = retarget.clone();
+        bad.tau_s = 99.0;
+        bad.header.seq += 1;
+        assert!(reg.set_prior(&bad).is_err());
+        assert_eq!(reg.context().unwrap().target, new);
     }
 
     #[test]
