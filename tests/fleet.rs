@@ -1,7 +1,8 @@
 //! Two simulated BVs in one session, supervised by one `video2track serve` with its embedded
 //! broker: each BV's uplink node runs as its own process with its own iceoryx2 namespace; each gets
-//! its own prior and τ (one from the console, one from `video2track upload`), one is re-targeted,
-//! a prior signed with the wrong key is refused, and Ctrl-C on `serve` brings both to the
+//! its own prior and τ (one from the console, one from `video2track upload`), one is re-targeted
+//! and given what a campaign learned (`video2track campaign send`), a prior signed with the wrong
+//! key is refused, and Ctrl-C on `serve` brings both to the
 //! minimal-risk stop.
 
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)] // test code
@@ -146,6 +147,43 @@ fn one_serve_supervises_two_bvs_each_with_its_own_prior_and_target() {
         (p2b.prior_id, p2b.tau_s, StyleCode::from_code(p2b.style).unwrap()),
         (p2.prior_id, 3.0, StyleCode::Rush)
     );
+    // What earlier runs of this test learned of the VUT (a campaign memory as `campaign record`
+    // or `sim --campaign` keep it), sent with `video2track campaign send` for the prior bv2 holds.
+    let rush_3 = v2t_model::Target::new(3.0, v2t_model::Style::Rush).unwrap();
+    let mut memory = v2t_game::campaign::CampaignMemory::new("their-ads", "track");
+    let case = memory.case_mut("left_turn", 0, rush_3);
+    let speeds = (0..40).map(|i| if i < 20 { 8.0 } else { 4.5 }).collect();
+    case.learn_free_drive(rush_3, &v2t_game::route_speed::RouteSpeed { step_m: 2.0, speeds_mps: speeds, runs: 1 });
+    let learned = v2t_lab::campaign::learned_of(case);
+    let mem = dir.join("their-ads.json");
+    std::fs::write(&mem, v2t_lab::campaign::memory_json(&memory).unwrap()).unwrap();
+    let campaign_send = |prior_id: u64| {
+        std::process::Command::new(bin("video2track"))
+            .args(["campaign", "send", mem.to_str().unwrap(), "--scenario", "left_turn", "--style", "rush"])
+            .args(["--tau", "3", "--to", "bv2", "--prior-id", &prior_id.to_string(), "--fleet", "pg"])
+            .args(["--key", &key_arg, "--broker", &broker])
+            .current_dir(repo_root())
+            .output()
+            .unwrap()
+    };
+    let out = campaign_send(p2.prior_id);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success()
+            && stdout.contains("bv2: accepted campaign")
+            && stdout.contains("route over 1 run(s), 78 m"),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let p2c = bv2.prior();
+    assert_eq!((p2c.prior_id, p2c.header.seq), (p2.prior_id, p2b.header.seq + 1));
+    assert_eq!(p2c.target().unwrap(), rush_3, "the aim: no run yet, τ");
+    assert_eq!(v2t_edge::campaign::Learned::from_knowledge(&p2c.campaign).unwrap(), learned);
+    // For a prior bv2 does not hold: refused, and `campaign send` fails saying why.
+    let out = campaign_send(p2.prior_id + 1);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("the active prior is"), "{stderr}");
+
     std::thread::sleep(Duration::from_millis(300));
     serve.type_line("status");
     let r1 = serve.expect_line("bv1 ", Duration::from_secs(5));

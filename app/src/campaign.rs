@@ -23,6 +23,10 @@ pub enum CampaignCommand {
     Aim(AimArgs),
     /// Record one run's outcome (its aim and the PET the track measured) and update what is learned.
     Record(RecordArgs),
+    /// Send what the runs of a test have learned of the VUT (the aim, reach, how it drove its
+    /// route, how it was identified to react) to the BV that runs the next one, for the prior it
+    /// holds; the BV takes it between the prior's upload and `start`, and says whether it did.
+    Send(CampaignSendArgs),
     /// Every test in a memory file: runs, the learned model, the next aim, reach.
     Show {
         /// The memory file (JSON).
@@ -81,6 +85,21 @@ pub struct RecordArgs {
     collision: bool,
 }
 
+/// `campaign send`'s arguments.
+#[derive(Debug, clap::Args)]
+pub struct CampaignSendArgs {
+    #[command(flatten)]
+    test: TestArgs,
+    /// The BV that runs the test (its id; one BV).
+    #[arg(long)]
+    to: String,
+    /// The id of the prior the BV holds for the run (as `video2track upload` printed it).
+    #[arg(long)]
+    prior_id: u64,
+    #[command(flatten)]
+    shot: crate::link::OneShotArgs,
+}
+
 /// Runs a `campaign` subcommand.
 pub fn run(c: CampaignCommand) -> anyhow::Result<()> {
     match c {
@@ -105,6 +124,7 @@ pub fn run(c: CampaignCommand) -> anyhow::Result<()> {
             Ok(())
         }
         CampaignCommand::Record(a) => record(a),
+        CampaignCommand::Send(a) => send(a),
         CampaignCommand::Show { memory } => {
             let m = load(&memory)?.ok_or_else(|| Usage(format!("{}: no such memory file", memory.display())))?;
             outln!("campaign memory of VUT `{}` in `{}`: {} tests", m.vut, m.world, m.cases.len())?;
@@ -121,6 +141,25 @@ pub fn run(c: CampaignCommand) -> anyhow::Result<()> {
             Ok(())
         }
     }
+}
+
+fn send(a: CampaignSendArgs) -> anyhow::Result<()> {
+    let target = Target::new(a.test.tau, a.test.style)?;
+    if a.to == "all" || !v2t_wire::link::topics::valid_id(&a.to) {
+        return Err(Usage(format!(
+            "--to must name one BV (1 to 64 letters, digits, `_` or `-`), got `{}`: what a test learned is for the BV that runs it",
+            a.to
+        ))
+        .into());
+    }
+    let memory = load(&a.test.memory)?;
+    let case = memory.as_ref().and_then(|m| m.case(&a.test.scenario, a.test.bv, target));
+    let (aim, learned) = match case {
+        Some(c) => (c.aim(target), v2t_lab::campaign::learned_of(c)),
+        None => (target, v2t_edge::campaign::Learned::default()),
+    };
+    outln!("prior {}: aim {aim}; {}", a.prior_id, learned.summary())?;
+    a.shot.send(&a.to, v2t_wire::link::CloudBody::Campaign(learned.upload(a.prior_id, aim)))
 }
 
 fn record(a: RecordArgs) -> anyhow::Result<()> {

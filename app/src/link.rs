@@ -78,7 +78,7 @@ pub struct OneShotArgs {
 
 impl OneShotArgs {
     /// Signs `body` for `bv`, sends it and reports the BV's verdict.
-    fn send(&self, bv: &str, body: CloudBody) -> anyhow::Result<()> {
+    pub(crate) fn send(&self, bv: &str, body: CloudBody) -> anyhow::Result<()> {
         let mut signer = self.link.signer()?;
         if !(0.0..=600.0).contains(&self.wait_s) {
             return Err(Usage(format!("--wait-s must lie in [0, 600], got {}", self.wait_s)).into());

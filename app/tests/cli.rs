@@ -636,6 +636,40 @@ fn sim_drives_the_test_freely_and_the_first_regulated_run_knows_the_route() {
         let o = video2track(&args);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", text(&o).1);
     }
+    // What it learned goes to the BV with `campaign send` (crossing a broker: `tests/fleet.rs`);
+    // for every BV at once, or from a file that is no memory, it does not go: exit 2, before any
+    // connection (the broker here does not exist).
+    let broken = scratch.path().join("broken.json");
+    std::fs::write(&broken, "{").unwrap();
+    let send = |memory: &str, to: &str| {
+        video2track(&[
+            "campaign",
+            "send",
+            memory,
+            "--scenario",
+            "left_turn_vut",
+            "--style",
+            "rush",
+            "--tau",
+            "2",
+            "--to",
+            to,
+            "--prior-id",
+            "1",
+            "--broker",
+            "mqtt://127.0.0.1:1",
+        ])
+    };
+    for (memory, to, says) in [
+        (s(&memory), "all", "--to must name one BV"),
+        (s(&memory), "bv/1", "--to must name one BV"),
+        (s(&broken), "bv1", "broken.json: not a campaign memory"),
+    ] {
+        let o = send(memory, to);
+        let (_, err) = text(&o);
+        assert_eq!(o.status.code(), Some(2), "{to}: {err}");
+        assert!(err.contains(says), "{to}: {err}");
+    }
 }
 
 #[test]

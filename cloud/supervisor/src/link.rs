@@ -147,13 +147,18 @@ impl Signer {
         let topic = if bv_id == ALL_BVS {
             topics::all_cmd(&self.fleet)
         } else if topics::valid_id(bv_id) {
-            let leaf = if matches!(body, CloudBody::Prior(_)) { topics::PRIOR } else { topics::CMD };
+            // What belongs to one BV's run travels with its priors; commands on their own topic.
+            let leaf =
+                if matches!(body, CloudBody::Prior(_) | CloudBody::Campaign(_)) { topics::PRIOR } else { topics::CMD };
             topics::bv(&self.fleet, bv_id, leaf)
         } else {
             return Err(LinkError::Usage(format!("BV id `{bv_id}`: use 1–64 ASCII letters, digits, '_' or '-'")));
         };
         if bv_id == ALL_BVS && matches!(body, CloudBody::Prior(_)) {
             return Err(LinkError::Usage("a prior goes to one BV, not to all".into()));
+        }
+        if bv_id == ALL_BVS && matches!(body, CloudBody::Campaign(_)) {
+            return Err(LinkError::Usage("what a test learned goes to the BV that runs it, not to all".into()));
         }
         let seq = unix_us().max(self.last_seq + 1);
         self.last_seq = seq;
@@ -449,6 +454,20 @@ mod tests {
         let mut s = Signer::new(key, "pg").unwrap();
         assert_eq!(s.seal(ALL_BVS, CloudBody::Command(Command::Abort)).unwrap().0, "v2t/pg/all/cmd");
         assert!(s.seal("bv/1", CloudBody::Command(Command::Abort)).is_err());
+        // Campaign knowledge travels with the BV's priors, to one BV.
+        let campaign = || {
+            CloudBody::Campaign(v2t_wire::link::CampaignUpload {
+                prior_id: 3,
+                aim: v2t_model::Target::new(2.0, Style::Rush).unwrap(),
+                below_reach: None,
+                route: None,
+                reaction: None,
+            })
+        };
+        let (topic, frame, _) = s.seal("bv1", campaign()).unwrap();
+        assert_eq!(topic, "v2t/pg/bv/bv1/prior");
+        rx.open(&frame, v2t_wire::link::Arrival::Prior, unix_ms()).unwrap();
+        assert!(s.seal(ALL_BVS, campaign()).is_err());
         assert!(Signer::new(SigningKey::from_bytes(&[1; 32]), "a+b").is_err());
     }
 

@@ -28,6 +28,7 @@
 use serde::{Deserialize, Serialize};
 use v2t_wire::NodeKind;
 
+pub mod campaign;
 pub mod canbus;
 pub mod check;
 pub mod clock;

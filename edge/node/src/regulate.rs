@@ -10,11 +10,10 @@ use std::time::Duration;
 
 use iceoryx2::service::Service;
 use v2t_game::regulation::Measurement;
-use v2t_game::regulator::{BelowReachCause, RegulatorParams, RegulatorStatus};
-use v2t_wire::{
-    ActivePrior, BelowReachCode, BvState, Code, Header, NodeKind, PlanStatus, RegulatedPlan, VutState, services,
-};
+use v2t_game::regulator::{RegulatorParams, RegulatorStatus};
+use v2t_wire::{ActivePrior, BvState, Code, Header, NodeKind, PlanStatus, RegulatedPlan, VutState, services};
 
+use crate::campaign::{Learned, below_reach_code};
 use crate::clock::{now_ns, secs_between};
 use crate::config::Loaded;
 use crate::error::EdgeError;
@@ -31,15 +30,10 @@ pub struct Regulation {
     prior_id: Option<u64>,
     /// The header sequence of the active prior as last taken.
     prior_seq: u64,
+    /// What the campaign learned, as given to the regulator, and the cloud message it came with.
+    learned: Learned,
+    campaign_seq: u64,
     header: Header,
-}
-
-fn below_reach_code(c: BelowReachCause) -> BelowReachCode {
-    match c {
-        BelowReachCause::VutWaits => BelowReachCode::VutWaits,
-        BelowReachCause::Campaign => BelowReachCode::Campaign,
-        BelowReachCause::OrderRefused => BelowReachCode::OrderRefused,
-    }
 }
 
 /// The wire code of a regulator status.
@@ -65,29 +59,57 @@ impl Regulation {
     /// to `lat_accel_mps2` (its plans slow down for the curves of the path ahead).
     pub fn new(params: RegulatorParams, lat_accel_mps2: f64) -> Result<Self, EdgeError> {
         let inner = v2t_game::regulation::Regulation::new(params, lat_accel_mps2)?;
-        Ok(Self { inner, prior_id: None, prior_seq: 0, header: Header::default() })
+        Ok(Self {
+            inner,
+            prior_id: None,
+            prior_seq: 0,
+            learned: Learned::default(),
+            campaign_seq: 0,
+            header: Header::default(),
+        })
     }
 
     /// Takes `prior` if it is news and well formed: a new prior (another id) starts a new run
-    /// around it; the active prior published again with the next header sequence (the uplink
-    /// does so when the cloud re-targets the running interaction, `send target`) aims the run at
-    /// its τ and style without starting it over. A broken one (its timing included) leaves the
-    /// active prior and its aim in place. `Ok(false)`: nothing new.
+    /// around it with what its campaign block says (a prior as uploaded says nothing, so nothing
+    /// of an earlier test stays); the active prior published again with the next header sequence
+    /// (the uplink does so when the cloud re-targets the running interaction, `send target`, or
+    /// sends what a campaign learned, [`crate::campaign`]) aims the run at its τ and style without
+    /// starting it over, and takes a new campaign block. A broken one (its timing or its block
+    /// included) leaves the active prior, its aim and what was learned in place. `Ok(false)`:
+    /// nothing new.
     pub fn set_prior(&mut self, prior: &ActivePrior) -> Result<bool, EdgeError> {
+        let invalid = crate::prior::PriorError::Invalid;
         if self.prior_id == Some(prior.prior_id) {
             if self.prior_seq == prior.header.seq {
                 return Ok(false);
             }
             let target = prior.target().map_err(crate::prior::PriorError::from)?;
-            self.inner.aim(target, None);
+            if prior.campaign.seq == self.campaign_seq {
+                self.inner.aim(target, self.learned.known);
+            } else {
+                let learned = Learned::from_knowledge(&prior.campaign).map_err(invalid)?;
+                learned.apply(&mut self.inner, target).map_err(invalid)?;
+                self.learned = learned;
+                self.campaign_seq = prior.campaign.seq;
+            }
             self.prior_seq = prior.header.seq;
             return Ok(true);
         }
         let ctx = PriorContext::new(prior)?;
-        self.inner.set_context(ctx.context).map_err(crate::prior::PriorError::Invalid)?;
+        let target = ctx.context.target;
+        let learned = Learned::from_knowledge(&prior.campaign).map_err(invalid)?;
+        self.inner.set_context(ctx.context).map_err(invalid)?;
+        learned.apply(&mut self.inner, target).map_err(invalid)?;
+        self.learned = learned;
+        self.campaign_seq = prior.campaign.seq;
         self.prior_id = Some(prior.prior_id);
         self.prior_seq = prior.header.seq;
         Ok(true)
+    }
+
+    /// What the campaign has learned of the VUT for this run (nothing unless the cloud sent it).
+    pub fn learned(&self) -> &Learned {
+        &self.learned
     }
 
     /// The active prior's context.
@@ -176,8 +198,13 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
                 next_ns = now + period_ns;
             }
             while let Some(p) = priors.receive().map_err(|e| EdgeError::ipc("receive", services::PRIOR, e))? {
-                if let Err(e) = reg.set_prior(&p) {
-                    eprintln!("regulator: prior {} refused: {e}", p.prior_id);
+                match reg.set_prior(&p) {
+                    Ok(true) => {
+                        let aim = reg.context().map(|c| c.target.to_string()).unwrap_or_default();
+                        eprintln!("regulator: prior {}: aim {aim}; {}", p.prior_id, reg.learned().summary());
+                    }
+                    Ok(false) => {}
+                    Err(e) => eprintln!("regulator: prior {} refused: {e}", p.prior_id),
                 }
             }
             bv = latest(&states)?.or(bv);
@@ -294,6 +321,48 @@ mod tests {
     }
 
     #[test]
+    fn campaign_knowledge_reaches_the_regulator_and_a_new_prior_starts_from_nothing() {
+        use crate::campaign::Learned;
+        use v2t_game::regulator::{BelowReach, BelowReachCause};
+        use v2t_game::route_speed::RouteSpeed;
+        let (mut reg, prior) = setup();
+        reg.set_prior(&prior).unwrap();
+        assert_eq!(reg.learned(), &Learned::default());
+        let learned = Learned {
+            known: Some(BelowReach { cause: BelowReachCause::Campaign, pet_bound_s: Some(2.2) }),
+            route: Some(RouteSpeed { step_m: 2.0, speeds_mps: vec![8.0, 7.0, 5.0, 4.0], runs: 3 }),
+            reaction: None,
+        };
+        let aim = v2t_model::Target::new(1.8, v2t_model::Style::Rush).unwrap();
+        // As the uplink publishes it: the same prior, its block, the aim, the next sequence.
+        let (with, _) = crate::uplink::with_campaign(&prior, &learned.upload(prior.prior_id, aim), 9, 5).unwrap();
+        assert!(reg.set_prior(&with).unwrap());
+        assert_eq!(reg.learned(), &learned);
+        assert_eq!(reg.context().unwrap().target, aim);
+        assert_eq!(reg.inner.route_speed(), learned.route.as_ref());
+        // A retarget keeps what was learned.
+        let mut retarget = with.clone();
+        let yield_3 = v2t_model::Target::new(3.0, v2t_model::Style::Yield).unwrap();
+        retarget.set_target(yield_3);
+        retarget.header.seq += 1;
+        assert!(reg.set_prior(&retarget).unwrap());
+        assert_eq!((reg.learned(), reg.context().unwrap().target), (&learned, yield_3));
+        // A block the regulator refuses leaves what it had.
+        let mut bad = retarget.clone();
+        bad.campaign.route_step_m = 0.1;
+        bad.campaign.seq += 1;
+        bad.header.seq += 1;
+        let e = reg.set_prior(&bad).unwrap_err().to_string();
+        assert!(e.contains("campaign.route.step_m"), "{e}");
+        assert_eq!(reg.learned(), &learned);
+        // Another test's prior knows nothing of this one's.
+        let other = crate::prior::fixtures::left_turn(2);
+        assert!(reg.set_prior(&other).unwrap());
+        assert_eq!(reg.learned(), &Learned::default());
+        assert_eq!(reg.inner.route_speed(), None);
+    }
+
+    #[test]
     fn a_fresh_pair_of_states_is_regulated_and_a_nan_state_falls_back() {
         let (mut reg, prior) = setup();
         reg.set_prior(&prior).unwrap();
@@ -342,7 +411,7 @@ mod tests {
                 assert_eq!(last.below_reach, 0, "not before {} s of waiting", v2t_game::regulator::WAIT_BELOW_REACH_S);
             }
         }
-        assert_eq!(BelowReachCode::from_code(last.below_reach), Ok(BelowReachCode::VutWaits));
+        assert_eq!(v2t_wire::BelowReachCode::from_code(last.below_reach), Ok(v2t_wire::BelowReachCode::VutWaits));
         assert_eq!(last.has_pet_bound, 0, "no PET in the asked order: no bound");
     }
 }

@@ -38,7 +38,7 @@ use crate::prior::PriorChecks;
 
 mod logic;
 
-pub use logic::{Action, Outcome, RefusalTally, UplinkLogic, Verdict, reason_kind};
+pub use logic::{Action, Outcome, RefusalTally, UplinkLogic, Verdict, reason_kind, with_campaign};
 
 /// What the BV does when the broker has been unreachable for `link_loss_timeout_s`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

@@ -120,6 +120,115 @@ pub enum CloudBody {
     /// A plan of the cloud regulator, for a BV regulated in the cloud (the onboard runtime
     /// regulates itself and never subscribes to plans).
     Plan(CloudPlan),
+    /// What a test campaign has learned of the VUT, for the next run around the active prior.
+    Campaign(CampaignUpload),
+}
+
+/// What a test campaign has learned of the VUT in earlier runs of one test, for the BV that runs
+/// the next one around the prior `prior_id`: the aim, what the runs showed about reach, how the
+/// VUT drove its route and how it was identified to react (`v2t_game::campaign`'s memory of the
+/// test). The BV takes it between the prior's upload and the start of the run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CampaignUpload {
+    /// The prior it is for (the BV's active prior).
+    pub prior_id: u64,
+    /// The τ and style the BV aims at in the run (a τ out of range does not decode).
+    pub aim: Target,
+    /// What earlier runs showed about reach (`None`: nothing).
+    pub below_reach: Option<KnownBelowReach>,
+    /// How the VUT drove its route (`None`: not known).
+    pub route: Option<LearnedRoute>,
+    /// How the VUT was identified to react, the prior of the run's identification (`None`: the
+    /// regulator's default prior).
+    pub reaction: Option<LearnedReaction>,
+}
+
+/// What earlier runs showed about reach.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct KnownBelowReach {
+    /// Why τ is out of the VUT's reach ([`crate::BelowReachCode`] code).
+    pub cause: u8,
+    /// The PET the VUT allows as far as known, s.
+    pub pet_bound_s: Option<f64>,
+}
+
+/// The VUT's speed along its route, every `step_m` from the route's start (`v2t_game::route_speed`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LearnedRoute {
+    /// Grid spacing, m.
+    pub step_m: f64,
+    /// Valid runs it rests on.
+    pub runs: u32,
+    /// Speed at each grid point, m/s.
+    pub speeds_mps: Vec<f64>,
+}
+
+/// A posterior over the regulator's hypotheses of the VUT's reaction (`v2t_game::reaction`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LearnedReaction {
+    /// Probability of each hypothesis, in the regulator's order.
+    pub probabilities: Vec<f64>,
+    /// Cycles that taught something, over every run it rests on.
+    pub informative_cycles: u32,
+}
+
+impl CampaignUpload {
+    /// Refuses what no campaign learns, each field against its bound and before anything is
+    /// queued: a route of 2 to [`crate::MAX_ROUTE_POINTS`] speeds in [0, 70] m/s every (0, 10] m,
+    /// 1 to [`crate::MAX_REACTION_HYPOTHESES`] probabilities in [0, 1], a cause that decodes, a
+    /// bound in [0, 60] s, every number finite. (The regulator's own checks, the number of its
+    /// hypotheses among them, come on the BV.)
+    pub fn check(&self) -> Result<(), LinkError> {
+        use crate::Code as _;
+        let bad = |field: &str, bound: &str, v: f64| {
+            Err(LinkError::Malformed(format!("campaign field {field} = {v}: must be finite and {bound}")))
+        };
+        if let Some(b) = &self.below_reach {
+            if crate::BelowReachCode::from_code(b.cause).is_err() {
+                return Err(LinkError::Malformed(format!(
+                    "campaign field below_reach.cause = {}: unknown code",
+                    b.cause
+                )));
+            }
+            if let Some(v) = b.pet_bound_s
+                && !(v.is_finite() && (0.0..=60.0).contains(&v))
+            {
+                return bad("below_reach.pet_bound_s", "within [0, 60] s", v);
+            }
+        }
+        if let Some(r) = &self.route {
+            if !(r.step_m.is_finite() && r.step_m > 0.0 && r.step_m <= 10.0) {
+                return bad("route.step_m", "within (0, 10] m", r.step_m);
+            }
+            if !(2..=crate::MAX_ROUTE_POINTS).contains(&r.speeds_mps.len()) {
+                return Err(LinkError::Malformed(format!(
+                    "campaign field route.speeds_mps: {} points, must be 2 to {}",
+                    r.speeds_mps.len(),
+                    crate::MAX_ROUTE_POINTS
+                )));
+            }
+            if let Some((i, &v)) =
+                r.speeds_mps.iter().enumerate().find(|(_, v)| !(v.is_finite() && (0.0..=70.0).contains(*v)))
+            {
+                return bad(&format!("route.speeds_mps[{i}]"), "within [0, 70] m/s", v);
+            }
+        }
+        if let Some(r) = &self.reaction {
+            if !(1..=crate::MAX_REACTION_HYPOTHESES).contains(&r.probabilities.len()) {
+                return Err(LinkError::Malformed(format!(
+                    "campaign field reaction.probabilities: {} values, must be 1 to {}",
+                    r.probabilities.len(),
+                    crate::MAX_REACTION_HYPOTHESES
+                )));
+            }
+            if let Some((i, &p)) =
+                r.probabilities.iter().enumerate().find(|(_, p)| !(p.is_finite() && (0.0..=1.0).contains(*p)))
+            {
+                return bad(&format!("reaction.probabilities[{i}]"), "within [0, 1]", p);
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Most steps a cloud plan carries (the regulator's longest horizon).
@@ -411,7 +520,7 @@ impl Default for Window {
 /// The topic a cloud frame arrived on, as the BV subscribes them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Arrival {
-    /// `v2t/<fleet>/bv/<me>/prior`: priors addressed to this BV.
+    /// `v2t/<fleet>/bv/<me>/prior`: priors and campaign knowledge addressed to this BV.
     Prior,
     /// `v2t/<fleet>/bv/<me>/cmd`: commands addressed to this BV.
     Command,
@@ -514,12 +623,16 @@ impl Receiver {
             (CloudBody::Command(_), true) => ("command for every BV", arrival == Arrival::AllCommand),
             (CloudBody::Plan(_), false) => ("plan", arrival == Arrival::Plan),
             (CloudBody::Plan(_), true) => ("plan for every BV", false),
+            (CloudBody::Campaign(_), false) => ("campaign knowledge", arrival == Arrival::Prior),
+            (CloudBody::Campaign(_), true) => ("campaign knowledge for every BV", false),
         };
         if !fits {
             return Err(LinkError::WrongTopic { kind, topic: arrival.name() });
         }
-        if let CloudBody::Plan(plan) = &msg.body {
-            plan.check()?;
+        match &msg.body {
+            CloudBody::Plan(plan) => plan.check()?,
+            CloudBody::Campaign(c) => c.check()?,
+            CloudBody::Prior(_) | CloudBody::Command(_) => {}
         }
         Ok((msg, signed, sig))
     }
@@ -649,6 +762,55 @@ mod tests {
             let frame = seal(&msg(2, 1_000, CloudBody::Plan(bad)), &key()).unwrap();
             let e = rx().open(&frame, Arrival::Plan, 1_000).unwrap_err();
             assert!(e.genuine_seq.is_none() && e.reason.to_string().contains(field), "{}", e.reason);
+        }
+    }
+
+    fn campaign(speeds: Vec<f64>) -> CampaignUpload {
+        CampaignUpload {
+            prior_id: 9,
+            aim: Target::new(2.0, Style::Rush).unwrap(),
+            below_reach: Some(KnownBelowReach { cause: 2, pet_bound_s: Some(2.4) }),
+            route: Some(LearnedRoute { step_m: 2.0, runs: 2, speeds_mps: speeds }),
+            reaction: Some(LearnedReaction { probabilities: vec![0.5, 0.5], informative_cycles: 40 }),
+        }
+    }
+
+    #[test]
+    fn campaign_knowledge_goes_to_one_bv_on_its_prior_topic_and_its_numbers_are_checked_first() {
+        let frame = seal(&msg(1, 1_000, CloudBody::Campaign(campaign(vec![8.0; 40]))), &key()).unwrap();
+        assert!(matches!(rx().open(&frame, Arrival::Command, 1_000).unwrap_err().reason, LinkError::WrongTopic { .. }));
+        let m = rx().open(&frame, Arrival::Prior, 1_000).unwrap();
+        let CloudBody::Campaign(c) = &m.body else { panic!("{m:?}") };
+        let k = crate::CampaignKnowledge::from_upload(c, 1).unwrap();
+        assert_eq!(k.route(), Some((2.0, 2, &[8.0; 40][..])));
+        assert_eq!((k.below_reach(), k.reaction()), (Some((2, Some(2.4))), Some((&[0.5, 0.5][..], 40))));
+        let every =
+            CloudMessage { bv_id: ALL_BVS.into(), ..msg(2, 1_000, CloudBody::Campaign(campaign(vec![8.0; 4]))) };
+        let e = rx().open(&seal(&every, &key()).unwrap(), Arrival::Prior, 1_000).unwrap_err();
+        assert!(matches!(e.reason, LinkError::WrongTopic { .. }), "{}", e.reason);
+        let mut bound = campaign(vec![8.0; 4]);
+        bound.below_reach = Some(KnownBelowReach { cause: 2, pet_bound_s: Some(f64::INFINITY) });
+        let mut cause = campaign(vec![8.0; 4]);
+        cause.below_reach = Some(KnownBelowReach { cause: 0, pet_bound_s: None });
+        let mut p = campaign(vec![8.0; 4]);
+        p.reaction = Some(LearnedReaction { probabilities: vec![0.5, -0.1], informative_cycles: 1 });
+        let mut many = campaign(vec![8.0; 4]);
+        many.reaction = Some(LearnedReaction { probabilities: vec![0.0; 65], informative_cycles: 1 });
+        let mut step = campaign(vec![8.0; 4]);
+        step.route.as_mut().unwrap().step_m = f64::NAN;
+        for (bad, field) in [
+            (campaign(vec![8.0, 80.0]), "route.speeds_mps[1]"),
+            (campaign(vec![8.0; crate::MAX_ROUTE_POINTS + 1]), "502 points"),
+            (campaign(vec![8.0]), "1 points"),
+            (step, "route.step_m"),
+            (bound, "below_reach.pet_bound_s"),
+            (cause, "below_reach.cause = 0"),
+            (p, "reaction.probabilities[1]"),
+            (many, "65 values"),
+        ] {
+            let frame = seal(&msg(3, 1_000, CloudBody::Campaign(bad)), &key()).unwrap();
+            let e = rx().open(&frame, Arrival::Prior, 1_000).unwrap_err();
+            assert!(e.genuine_seq.is_none() && e.reason.to_string().contains(field), "{field}: {}", e.reason);
         }
     }
 

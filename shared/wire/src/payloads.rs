@@ -10,6 +10,87 @@ pub const MAX_PATH_POINTS: usize = 512;
 /// Most samples of a speed profile in an [`ActivePrior`].
 pub const MAX_PROFILE_SAMPLES: usize = 512;
 
+/// Most points of a learned route in a [`CampaignKnowledge`] (1,000 m every 2 m, the regulator's
+/// longest record).
+pub const MAX_ROUTE_POINTS: usize = 501;
+/// Most hypotheses of a reaction posterior in a [`CampaignKnowledge`].
+pub const MAX_REACTION_HYPOTHESES: usize = 64;
+
+/// What a test campaign has learned of the VUT for the run around the active prior
+/// ([`crate::link::CampaignUpload`] as the BV keeps it): fixed size, each part flagged.
+#[derive(Debug, Clone, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct CampaignKnowledge {
+    /// The sequence of the cloud message that brought it; 0: none (the prior as uploaded).
+    pub seq: u64,
+    /// What earlier runs showed about reach: a [`crate::BelowReachCode`], 0 when nothing.
+    pub below_reach: u8,
+    /// 1 when `pet_bound_s` holds a value.
+    pub has_pet_bound: u8,
+    /// 1 when the `route_*` fields hold a learned route.
+    pub has_route: u8,
+    /// 1 when the `reaction_*` fields hold a posterior.
+    pub has_reaction: u8,
+    /// Valid runs the route rests on.
+    pub route_runs: u32,
+    /// Cycles that taught the posterior something.
+    pub reaction_informative_cycles: u32,
+    /// With `below_reach`: the PET the VUT allows as far as known, s.
+    pub pet_bound_s: f64,
+    /// Grid spacing of the route, m.
+    pub route_step_m: f64,
+    /// The VUT's speed at each grid point of its route, m/s.
+    pub route_speeds_mps: StaticVec<f64, MAX_ROUTE_POINTS>,
+    /// Probability of each hypothesis of the VUT's reaction.
+    pub reaction_p: StaticVec<f64, MAX_REACTION_HYPOTHESES>,
+}
+
+impl CampaignKnowledge {
+    /// What `up` says, as the BV keeps it, brought by the cloud message `seq`; `up` is checked
+    /// first ([`crate::link::CampaignUpload::check`]).
+    pub fn from_upload(up: &crate::link::CampaignUpload, seq: u64) -> Result<Self, crate::link::LinkError> {
+        up.check()?;
+        let mut k = Self { seq, ..Self::default() };
+        if let Some(b) = &up.below_reach {
+            k.below_reach = b.cause;
+            k.has_pet_bound = u8::from(b.pet_bound_s.is_some());
+            k.pet_bound_s = b.pet_bound_s.unwrap_or(0.0);
+        }
+        if let Some(r) = &up.route {
+            k.has_route = 1;
+            k.route_runs = r.runs;
+            k.route_step_m = r.step_m;
+            for &v in &r.speeds_mps {
+                // `check` bounds the length by the capacity.
+                let _ = k.route_speeds_mps.push(v);
+            }
+        }
+        if let Some(r) = &up.reaction {
+            k.has_reaction = 1;
+            k.reaction_informative_cycles = r.informative_cycles;
+            for &p in &r.probabilities {
+                let _ = k.reaction_p.push(p);
+            }
+        }
+        Ok(k)
+    }
+
+    /// The learned route: grid spacing, runs, speeds.
+    pub fn route(&self) -> Option<(f64, u32, &[f64])> {
+        (self.has_route == 1).then(|| (self.route_step_m, self.route_runs, self.route_speeds_mps.as_slice()))
+    }
+
+    /// The posterior of the VUT's reaction: probabilities, informative cycles.
+    pub fn reaction(&self) -> Option<(&[f64], u32)> {
+        (self.has_reaction == 1).then(|| (self.reaction_p.as_slice(), self.reaction_informative_cycles))
+    }
+
+    /// What earlier runs showed about reach: the cause's code and the bound.
+    pub fn below_reach(&self) -> Option<(u8, Option<f64>)> {
+        (self.below_reach != 0).then(|| (self.below_reach, (self.has_pet_bound == 1).then_some(self.pet_bound_s)))
+    }
+}
+
 /// A point in the track frame, m.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
 #[repr(C)]
@@ -180,6 +261,9 @@ pub struct ActivePrior {
     /// Where the BV's centre stands when it gives way at this crossing: its front just before the
     /// junction's edge on its lane, m along `bv_path`.
     pub bv_stop_line_s_m: f64,
+    /// What a test campaign has learned of the VUT for this run (`seq` 0: nothing; the uplink
+    /// sets it, a prior is uploaded without).
+    pub campaign: CampaignKnowledge,
 }
 
 impl ActivePrior {

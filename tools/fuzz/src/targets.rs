@@ -315,6 +315,7 @@ impl Context {
                 status: 0,
                 predicted_pet_s: Some(2.1),
             }),
+            CloudBody::Campaign(campaign_seed()?),
         ];
         let mut out = Vec::new();
         for (i, body) in bodies.into_iter().enumerate() {
@@ -429,7 +430,11 @@ impl Context {
                 let mut receiver = Receiver::new(self.key.verifying_key(), "demo", "bv1", Window::default());
                 let now = 1_700_000_000_000u64;
                 for arrival in [Arrival::Prior, Arrival::Command, Arrival::Plan] {
-                    if receiver.open(bytes, arrival, now).is_ok() {
+                    if let Ok(msg) = receiver.open(bytes, arrival, now) {
+                        // What a BV does next with campaign knowledge: the regulator's checks.
+                        if let CloudBody::Campaign(up) = &msg.body {
+                            return v2t_edge::campaign::Learned::from_upload(up).map(drop).map_err(|e| s(&e));
+                        }
                         return Ok(());
                     }
                 }
@@ -556,4 +561,24 @@ fn report_frames() -> anyhow::Result<Vec<Seed>> {
         ("telemetry".into(), link::telemetry_frame(&telemetry)?),
         ("heartbeat".into(), link::heartbeat_frame(&heartbeat)?),
     ])
+}
+
+/// A campaign upload as a test's memory makes one after a few runs: a learned route, a posterior
+/// of the VUT's reaction, a reach verdict.
+fn campaign_seed() -> anyhow::Result<link::CampaignUpload> {
+    use v2t_game::reaction::{HYPOTHESES, ReactionPosterior};
+    use v2t_game::regulator::{BelowReach, BelowReachCause};
+    use v2t_game::route_speed::RouteSpeed;
+    // Half on the VUT that does not react (the first hypothesis), half spread over the others.
+    let probabilities = (0..HYPOTHESES).map(|i| if i == 0 { 0.5 } else { 0.5 / (HYPOTHESES - 1) as f64 }).collect();
+    let learned = v2t_edge::campaign::Learned {
+        known: Some(BelowReach { cause: BelowReachCause::Campaign, pet_bound_s: Some(2.3) }),
+        route: Some(RouteSpeed {
+            step_m: 2.0,
+            speeds_mps: (0..40).map(|i| 8.0 - 0.1 * f64::from(i)).collect(),
+            runs: 3,
+        }),
+        reaction: Some(ReactionPosterior { probabilities, informative_cycles: 250 }),
+    };
+    Ok(learned.upload(7, v2t_model::Target::new(2.0, v2t_model::Style::Rush)?))
 }

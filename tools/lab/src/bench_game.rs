@@ -157,12 +157,16 @@ fn sim_latencies(
             for model in VutModel::ALL {
                 let mut sc = base.clone();
                 sc.target = target;
-                let Ok(inner) = RegulatedBv::new(RegulatedBv::params_for(&settings, &sc, 0), &sc, 0) else {
+                let campaign = v2t_edge::campaign::Learned {
+                    route: learned.then(|| learned_route(sc.vut.agent.initial_speed_mps)),
+                    reaction: prior.clone(),
+                    known: None,
+                };
+                let Ok(inner) = RegulatedBv::new(RegulatedBv::params_for(&settings, &sc, 0), &sc, 0)
+                    .and_then(|r| r.with_campaign(&campaign.upload(crate::world::CARD_PRIOR_ID, target)))
+                else {
                     continue;
                 };
-                let inner = inner
-                    .with_route_speed(learned.then(|| learned_route(sc.vut.agent.initial_speed_mps)))
-                    .with_reaction_prior(prior.as_ref());
                 let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(Timed { inner, sink: Rc::clone(&sink) })];
                 let _ = run(&sc, &mut bvs, model.driver().as_mut(), 1);
             }

@@ -245,10 +245,9 @@ pub fn regulated_run(
     for i in 0..scenario.bvs.len() {
         let case = memory.and_then(|m| m.case(&scenario.name, i, target));
         let aim = case.map_or(target, |c| c.aim(target));
+        let learned = case.map(learned_of).unwrap_or_default();
         let r = RegulatedBv::new(RegulatedBv::params_for(settings, scenario, i), scenario, i)?
-            .aiming(aim, case.and_then(|c| c.below_reach))
-            .with_route_speed(case.and_then(|c| c.route_speed.clone()))
-            .with_reaction_prior(case.and_then(|c| c.reaction.as_ref()));
+            .with_campaign(&learned.upload(crate::world::CARD_PRIOR_ID, aim))?;
         reports.push(r.below_reach_report());
         logs.push(r.decision_log());
         aims.push(aim);
@@ -268,6 +267,16 @@ pub fn regulated_run(
         reaction_priors,
         reactions: reaction_reports.iter().map(|r| r.get().map(ReactionPosterior::from)).collect(),
     })
+}
+
+/// What `case` has learned of the VUT, as the cloud sends it to the BV of the test's next run
+/// (`video2track campaign send`; the lab's campaigns give it to their BVs the same way).
+pub fn learned_of(case: &CaseMemory) -> v2t_edge::campaign::Learned {
+    v2t_edge::campaign::Learned {
+        known: case.below_reach,
+        route: case.route_speed.clone(),
+        reaction: case.reaction.clone(),
+    }
 }
 
 /// Records a regulated run of `scenario` (its target is the test's) in `memory`, BV by BV: its

@@ -18,6 +18,7 @@ use crate::miss::Misses;
 use crate::reach::{Reach, YieldRule, reach};
 use crate::stats::{RunStats, SingleRuns, Tally};
 use crate::vut::{Vut, World};
+use v2t_edge::campaign::Learned;
 
 /// Targets τ of the steerability experiment, s.
 pub const STEER_TAUS_S: [f64; 5] = [1.5, 2.0, 3.0, 4.0, 5.0];
@@ -195,13 +196,14 @@ pub fn steer_case(
         let mut report = None;
         let bvs: Result<Vec<Box<dyn BvController>>, _> = (0..sc.bvs.len())
             .map(|i| {
-                RegulatedBv::new(RegulatedBv::params_for(settings, &sc, i), &sc, i).map(|r| {
-                    let r = r.with_route_speed(routes.get(i).cloned().flatten());
-                    if i == 0 {
-                        report = Some(r.reaction_report());
-                    }
-                    Box::new(r) as Box<dyn BvController>
-                })
+                // A free drive's route, given as a campaign would give it (aim: the target).
+                let learned = Learned { route: routes.get(i).cloned().flatten(), ..Learned::default() };
+                let r = RegulatedBv::new(RegulatedBv::params_for(settings, &sc, i), &sc, i)?
+                    .with_campaign(&learned.upload(crate::world::CARD_PRIOR_ID, target))?;
+                if i == 0 {
+                    report = Some(r.reaction_report());
+                }
+                Ok::<_, crate::controllers::RegulatedBvError>(Box::new(r) as Box<dyn BvController>)
             })
             .collect();
         let Ok(mut bvs) = bvs else {

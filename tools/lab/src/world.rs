@@ -108,6 +108,10 @@ pub fn from_prior(
     Ok(Scenario::from_paths(paths, settings, vehicles.vut.clone(), vehicles.bv.clone())?)
 }
 
+/// The id of the prior the lab's regulated BVs regulate around ([`prior_of_card`]), which a
+/// campaign's upload names.
+pub const CARD_PRIOR_ID: u64 = 0;
+
 /// The prior BV `bv_index` of a card's `scenario` would have received from the cloud: its path
 /// and reference timing, the VUT's route and start speed, their conflict zone and the target.
 pub fn prior_of_card(

@@ -6,8 +6,9 @@ use std::collections::BTreeMap;
 
 use v2t_wire::link::{self, Arrival, CloudBody, Command, LinkError, Receiver, Window};
 use v2t_wire::mqtt::Dropped;
-use v2t_wire::{ActivePrior, Header, SafetyAction};
+use v2t_wire::{ActivePrior, CampaignKnowledge, Header, SafetyAction};
 
+use crate::campaign::Learned;
 use crate::prior::{PriorChecks, from_upload};
 
 /// What the uplink does with an accepted frame.
@@ -121,12 +122,14 @@ pub struct UplinkLogic {
     rx: Receiver,
     checks: PriorChecks,
     active: Option<ActivePrior>,
+    /// A start was accepted since the active prior came or the BV was last armed: the run is on.
+    started: bool,
 }
 
 impl UplinkLogic {
     /// The logic of BV `bv_id` of `fleet`, trusting `key`.
     pub fn new(key: link::VerifyingKey, fleet: &str, bv_id: &str, window: Window, checks: PriorChecks) -> Self {
-        Self { rx: Receiver::new(key, fleet, bv_id, window), checks, active: None }
+        Self { rx: Receiver::new(key, fleet, bv_id, window), checks, active: None, started: false }
     }
 
     /// Refuses every sequence number up to `seq` from now on (the state a previous run left).
@@ -171,14 +174,17 @@ impl UplinkLogic {
             CloudBody::Prior(up) => match from_upload(&up, now_ms, &self.checks, mono_ns) {
                 Ok(prior) => {
                     self.active = Some(prior.clone());
+                    self.started = false;
                     ok(vec![Action::Prior(Box::new(prior))], format!("prior {} (seq {seq})", up.prior_id))
                 }
                 Err(e) => refused(e.to_string()),
             },
             CloudBody::Command(Command::Arm) => {
+                self.started = false;
                 ok(vec![Action::Safety(SafetyAction::Reset)], format!("arm (seq {seq}): gate reset"))
             }
             CloudBody::Command(Command::Start) => {
+                self.started = true;
                 ok(vec![Action::Safety(SafetyAction::Engage)], format!("start (seq {seq}): engage"))
             }
             CloudBody::Command(Command::Abort) => {
@@ -196,8 +202,54 @@ impl UplinkLogic {
             // This runtime regulates onboard: a cloud plan has no place here (and its topic is
             // never subscribed).
             CloudBody::Plan(_) => refused("a cloud plan: this BV regulates onboard".into()),
+            CloudBody::Campaign(up) => {
+                let Some(active) = self.active.as_mut() else {
+                    return refused(format!("campaign knowledge for prior {}: no active prior", up.prior_id));
+                };
+                if up.prior_id != active.prior_id {
+                    return refused(format!(
+                        "campaign knowledge for prior {}: the active prior is {}",
+                        up.prior_id, active.prior_id
+                    ));
+                }
+                if self.started {
+                    // It starts the regulator's identification of the VUT over: for the next run.
+                    return refused(format!(
+                        "campaign knowledge for prior {}: the run has started (send it before `start`)",
+                        up.prior_id
+                    ));
+                }
+                match with_campaign(active, &up, seq, mono_ns) {
+                    Ok((prior, learned)) => {
+                        *active = prior.clone();
+                        ok(
+                            vec![Action::Prior(Box::new(prior))],
+                            format!("campaign (seq {seq}): aim {}, {}", up.aim, learned.summary()),
+                        )
+                    }
+                    Err(e) => refused(e),
+                }
+            }
         }
     }
+}
+
+/// The active prior `active` as it is published with the campaign knowledge `up` of the cloud
+/// message `seq` (at monotonic `mono_ns`): aimed at its aim, its block set, the next header
+/// sequence; with what the regulator will take of it. The error says which field is refused.
+pub fn with_campaign(
+    active: &ActivePrior,
+    up: &link::CampaignUpload,
+    seq: u64,
+    mono_ns: u64,
+) -> Result<(ActivePrior, Learned), String> {
+    let knowledge = CampaignKnowledge::from_upload(up, seq).map_err(|e| e.to_string())?;
+    let learned = Learned::from_knowledge(&knowledge).map_err(|e| e.to_string())?;
+    let mut prior = active.clone();
+    prior.set_target(up.aim);
+    prior.campaign = knowledge;
+    prior.header = Header { seq: active.header.seq + 1, stamp_ns: mono_ns };
+    Ok((prior, learned))
 }
 
 #[cfg(test)]
@@ -276,6 +328,55 @@ mod tests {
         let foreign = frame(&SigningKey::from_bytes(&[4; 32]), 9, CloudBody::Command(Command::Abort));
         assert_eq!(logic.on_frame(&foreign, Arrival::Command, 50_000, 50_000, 9), Outcome::Counted("bad signature"));
         assert_eq!(logic.last_seq(), Some(7));
+    }
+
+    #[test]
+    fn campaign_knowledge_joins_the_active_prior_before_the_run_starts() {
+        use crate::campaign::Learned;
+        use v2t_game::route_speed::RouteSpeed;
+        let (mut logic, key, up) = setup();
+        let rush = v2t_model::Target::new(2.5, v2t_model::Style::Rush).unwrap();
+        let learned = Learned {
+            route: Some(RouteSpeed { step_m: 2.0, speeds_mps: vec![8.0, 7.5, 6.0, 4.3], runs: 2 }),
+            ..Learned::default()
+        };
+        let send = |logic: &mut UplinkLogic, seq, up: link::CampaignUpload| {
+            verdict(logic.on_frame(&frame(&key, seq, CloudBody::Campaign(up)), Arrival::Prior, 50_000, 50_000, 20))
+        };
+        let o = send(&mut logic, 1, learned.upload(5, rush));
+        assert!(o.verdict == "refused" && o.detail.contains("no active prior"), "{}", o.detail);
+        let o = verdict(logic.on_frame(&frame(&key, 2, CloudBody::Prior(up)), Arrival::Prior, 50_000, 50_000, 7));
+        let Some(Action::Prior(p)) = o.actions.first() else { panic!("{o:?}") };
+        assert_eq!(p.campaign.seq, 0, "a prior is uploaded knowing nothing");
+        let o = send(&mut logic, 3, learned.upload(6, rush));
+        assert!(o.verdict == "refused" && o.detail.contains("the active prior is 5"), "{}", o.detail);
+        // Refused by name: the regulator's own rule (a route rests on at least one run).
+        let mut bad = learned.upload(5, rush);
+        bad.route.as_mut().unwrap().runs = 0;
+        let o = send(&mut logic, 4, bad);
+        assert!(o.verdict == "refused" && o.detail.contains("campaign.route.runs"), "{}", o.detail);
+        // On a wrong topic it is not even opened.
+        let wrong = frame(&key, 5, CloudBody::Campaign(learned.upload(5, rush)));
+        assert_eq!(logic.on_frame(&wrong, Arrival::Command, 50_000, 50_000, 20), Outcome::Counted("wrong topic"));
+
+        let o = send(&mut logic, 6, learned.upload(5, rush));
+        assert_eq!(o.verdict, "accepted", "{}", o.detail);
+        assert!(o.detail.contains("route over 2 run(s), 6 m"), "{}", o.detail);
+        let Some(Action::Prior(q)) = o.actions.first() else { panic!("{o:?}") };
+        assert_eq!((q.prior_id, q.header.seq, q.campaign.seq), (5, p.header.seq + 1, 6));
+        assert_eq!(q.target().unwrap(), rush);
+        assert_eq!(Learned::from_knowledge(&q.campaign).unwrap(), learned);
+        assert_eq!(q.bv_path, p.bv_path, "the prior is the same");
+
+        // Once started, the run keeps what it started with; armed again, the next run may learn.
+        let cmd = |logic: &mut UplinkLogic, seq, c| {
+            verdict(logic.on_frame(&frame(&key, seq, CloudBody::Command(c)), Arrival::Command, 50_000, 50_000, 21))
+        };
+        assert_eq!(cmd(&mut logic, 7, Command::Start).verdict, "accepted");
+        let o = send(&mut logic, 8, learned.upload(5, rush));
+        assert!(o.verdict == "refused" && o.detail.contains("the run has started"), "{}", o.detail);
+        assert_eq!(cmd(&mut logic, 9, Command::Arm).verdict, "accepted");
+        assert_eq!(send(&mut logic, 10, learned.upload(5, rush)).verdict, "accepted");
     }
 
     #[test]

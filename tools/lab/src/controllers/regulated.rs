@@ -79,6 +79,9 @@ pub enum RegulatedBvError {
     /// The scenario gives this BV no prior the BV would accept (its timing included).
     #[error("prior: {0}")]
     Prior(#[from] WorldError),
+    /// What a campaign learned does not pass the BV's checks.
+    #[error("{0}")]
+    Campaign(#[from] v2t_model::validate::ValidationError),
 }
 
 impl RegulatedBv {
@@ -95,32 +98,15 @@ impl RegulatedBv {
         })
     }
 
-    /// This BV aiming at `aim` instead of the scenario's target (a campaign's learned aim, see
-    /// [`v2t_game::campaign`]), told what earlier runs showed about reach.
-    #[must_use]
-    pub fn aiming(mut self, aim: v2t_model::Target, known: Option<BelowReach>) -> Self {
-        self.regulation.aim(aim, known);
-        self
-    }
-
-    /// This BV's follower predicting the VUT's free motion from how it drove its route in earlier
-    /// runs of the test (the campaign memory's, [`v2t_game::route_speed`]). A record the regulator
-    /// refuses leaves none in place (a new BV has none): the follower keeps the VUT's current
-    /// speed, and [`Self::knows_route`] says so.
-    #[must_use]
-    pub fn with_route_speed(mut self, learned: Option<v2t_game::route_speed::RouteSpeed>) -> Self {
-        // Refused: the one before stays, and a new BV has none.
-        let _ = self.regulation.set_route_speed(learned);
-        self
-    }
-
-    /// This BV's regulator identifying the VUT's reaction from how earlier runs of the test
-    /// identified it (the campaign memory's, [`v2t_game::reaction`]). A posterior the regulator
-    /// refuses leaves the default prior: [`Self::has_reaction_prior`] says so.
-    #[must_use]
-    pub fn with_reaction_prior(mut self, prior: Option<&v2t_game::reaction::ReactionPosterior>) -> Self {
-        self.reaction_prior = prior.is_some() && self.regulation.set_reaction_prior(prior).is_ok();
-        self
+    /// This BV given what a test campaign has learned of the VUT (its aim, reach, route and
+    /// reaction, [`v2t_edge::campaign`]) as the vehicle takes it: the upload the cloud sends,
+    /// through the block the BV keeps with its prior, checked and given to the regulator by the
+    /// onboard node's own functions. What the regulator refuses is the error.
+    pub fn with_campaign(mut self, up: &v2t_wire::link::CampaignUpload) -> Result<Self, RegulatedBvError> {
+        let learned = v2t_edge::campaign::Learned::from_upload(up)?;
+        learned.apply(&mut self.regulation, up.aim)?;
+        self.reaction_prior = learned.reaction.is_some();
+        Ok(self)
     }
 
     /// Whether the regulator started from earlier runs' identification of the VUT's reaction.
@@ -181,7 +167,7 @@ pub(crate) fn regulation_for(
     bv_index: usize,
 ) -> Result<Regulation, RegulatedBvError> {
     let bv = scenario.bvs.get(bv_index).ok_or(WorldError::NoBv(bv_index))?;
-    let prior = crate::world::prior_of_card(scenario, bv_index, 0, 0)?;
+    let prior = crate::world::prior_of_card(scenario, bv_index, crate::world::CARD_PRIOR_ID, 0)?;
     let ctx = PriorContext::new(&prior).map_err(WorldError::from)?;
     let mut regulation = Regulation::new(params, bv.agent.vehicle.limits.max_lat_accel_mps2)?;
     regulation.set_context(ctx.context).map_err(|e| WorldError::from(PriorError::Invalid(e)))?;
@@ -329,5 +315,46 @@ mod tests {
             );
             assert!(*compared > 100, "{name}: only {compared} decisions compared");
         }
+    }
+
+    /// What a campaign learned reaches the onboard node as the cloud sends it (the uplink's
+    /// [`v2t_edge::uplink::with_campaign`], the active prior published again) and the lab's BV
+    /// as its campaigns give it: the same decisions, bit for bit.
+    #[test]
+    fn campaign_knowledge_steers_the_lab_and_the_onboard_node_alike() {
+        use v2t_game::reaction::{HYPOTHESES, ReactionPosterior};
+        use v2t_game::regulator::{BelowReach, BelowReachCause};
+        use v2t_game::route_speed::RouteSpeed;
+        let sc = card("left_turn_vut.toml", Target::new(2.5, Style::Rush).unwrap());
+        // A VUT that slows from 8 to 4.5 m/s 40–60 m along its route, mostly known to react.
+        let speeds = (0..60).map(|i| if (20..30).contains(&i) { 4.5 } else { 8.0 }).collect();
+        let mut probabilities = vec![0.8 / (HYPOTHESES - 1) as f64; HYPOTHESES];
+        probabilities[0] = 0.2;
+        let learned = v2t_edge::campaign::Learned {
+            known: Some(BelowReach { cause: BelowReachCause::Campaign, pet_bound_s: Some(2.1) }),
+            route: Some(RouteSpeed { step_m: 2.0, speeds_mps: speeds, runs: 4 }),
+            reaction: Some(ReactionPosterior { probabilities, informative_cycles: 300 }),
+        };
+        let aim = Target::new(2.2, Style::Rush).unwrap();
+        let params = RegulatedBv::params_for(&RegulatorParams::default(), &sc, 0);
+        let lat = sc.bvs[0].agent.vehicle.limits.max_lat_accel_mps2;
+        let mut onboard = OnboardRegulation::new(params, lat).unwrap();
+        let prior = crate::world::prior_of_card(&sc, 0, 7, 0).unwrap();
+        onboard.set_prior(&prior).unwrap();
+        let (with, _) = v2t_edge::uplink::with_campaign(&prior, &learned.upload(7, aim), 12, 1).unwrap();
+        assert!(onboard.set_prior(&with).unwrap());
+        assert_eq!(onboard.learned(), &learned);
+        let lab = RegulatedBv::new(params, &sc, 0).unwrap().with_campaign(&learned.upload(7, aim)).unwrap();
+        assert!(lab.knows_route() && lab.has_reaction_prior());
+        let tally = Rc::default();
+        let twin = Twin { lab, onboard, tally: Rc::clone(&tally) };
+        let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(twin)];
+        let out = v2t_sim::runner::run(&sc, &mut bvs, VutModel::IdmCautious.driver().as_mut(), 3).unwrap();
+        assert!(out.result.collision.is_none());
+        let (compared, mismatches) = &*tally.borrow();
+        assert!(mismatches.is_empty(), "{} of {compared} differ: {mismatches:?}", mismatches.len());
+        assert!(*compared > 100, "only {compared} decisions compared");
+        // The campaign's aim, not the card's τ, is what both steered at.
+        assert_eq!(with.target().unwrap(), aim);
     }
 }
