@@ -223,12 +223,25 @@ fn two_simulated_bvs_regulate_their_own_priors_in_closed_loop_under_one_serve() 
     let dir_scratch = tempdir("fleet-closed");
     let dir = dir_scratch.path();
     let (_key, secret, public) = write_keys(dir, 31);
+    let log = dir.join("session.jsonl");
     let port = free_port();
     let listen = format!("127.0.0.1:{port}");
     let key_arg = secret.to_str().unwrap().to_owned();
     let mut serve = Proc::start(
         &bin("video2track"),
-        &["serve", "--listen", &listen, "--fleet", "pg", "--key", &key_arg, "--status-period-s", "0"],
+        &[
+            "serve",
+            "--listen",
+            &listen,
+            "--fleet",
+            "pg",
+            "--key",
+            &key_arg,
+            "--status-period-s",
+            "0",
+            "--log",
+            log.to_str().unwrap(),
+        ],
         "serve",
     );
     serve.expect_line("embedded broker listening", Duration::from_secs(10));
@@ -256,9 +269,12 @@ fn two_simulated_bvs_regulate_their_own_priors_in_closed_loop_under_one_serve() 
     std::fs::write(&grounded, serde_json::to_string_pretty(&left_turn_grounded()).unwrap()).unwrap();
     let file = grounded.to_str().unwrap();
     let targets = [("bv1", 3.0, "yield"), ("bv2", 4.0, "yield")];
+    let mut prior_ids = Vec::new();
     for (bv, tau, style) in targets {
         serve.type_line(&format!("upload {file} {bv} tau {tau} style {style}"));
-        serve.expect_line(&format!("{bv} accepted prior"), Duration::from_secs(5));
+        let line = serve.expect_line(&format!("{bv} accepted prior"), Duration::from_secs(5));
+        let id = line.split("accepted prior ").nth(1).and_then(|r| r.split_whitespace().next()).unwrap();
+        prior_ids.push(id.parse::<u64>().unwrap());
     }
     // The simulated worlds start from the priors; then the supervisor arms and starts both.
     std::thread::sleep(Duration::from_millis(500));
@@ -267,6 +283,7 @@ fn two_simulated_bvs_regulate_their_own_priors_in_closed_loop_under_one_serve() 
     std::thread::sleep(Duration::from_millis(300));
     serve.type_line("start");
     serve.expect_all(&["bv1 accepted start", "bv2 accepted start"], Duration::from_secs(5));
+    let mut pets = Vec::new();
     for ((bv, out, ecu), (_, tau, _)) in ecus.into_iter().zip(targets) {
         let output = ecu.join().unwrap();
         eprintln!(
@@ -284,6 +301,42 @@ fn two_simulated_bvs_regulate_their_own_priors_in_closed_loop_under_one_serve() 
         let pet = r["pet_min_s"].as_f64().unwrap();
         println!("{bv}: τ {tau:.2} s (yield), PET {pet:.2} s, error {:.1} %", 100.0 * (pet - tau).abs() / tau);
         assert!((pet - tau).abs() / tau <= 0.15, "{bv}: PET {pet:.2} s vs τ {tau:.2} s");
+        pets.push(pet);
     }
+    // Each BV reported what its run taught it about the VUT once the VUT had left its zone.
+    let lessons = [
+        serve.expect_line("learned in the run of prior", Duration::from_secs(10)),
+        serve.expect_line("learned in the run of prior", Duration::from_secs(10)),
+    ];
+    for (bv, id) in ["bv1", "bv2"].into_iter().zip(&prior_ids) {
+        let line = lessons.iter().find(|l| l.contains(&format!("{bv} learned in the run of prior {id}")));
+        assert!(
+            line.is_some_and(|l| l.contains("the VUT's route to") && l.contains("its reaction identified")),
+            "{lessons:?}"
+        );
+    }
+    // Ctrl-C: the session log is complete; the test's memory learns bv1's run from it.
+    signal(&serve.child, "INT");
+    serve.expect_line("every BV confirmed the abort", Duration::from_secs(5));
+    assert!(serve.wait_exit(Duration::from_secs(5)).success());
+    let memory = dir.join("sim-vut.json");
+    let record = |aim: &str| {
+        std::process::Command::new(bin("video2track"))
+            .args(["campaign", "record", memory.to_str().unwrap(), "--scenario", "left_turn", "--style", "yield"])
+            .args(["--tau", "3", "--vut", "sim-vut", "--aim", aim, "--pet", &pets[0].to_string()])
+            .args(["--learned", log.to_str().unwrap(), "--from-bv", "bv1", "--prior-id", &prior_ids[0].to_string()])
+            .current_dir(repo_root())
+            .output()
+            .unwrap()
+    };
+    let out = record("2.5");
+    assert_eq!(out.status.code(), Some(2), "the run aimed at 3 s: {}", String::from_utf8_lossy(&out.stderr));
+    let out = record("3");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && stderr.contains("from the BV's report: route over 1 run(s)"), "{stderr}");
+    let text = std::fs::read_to_string(&memory).unwrap();
+    let m = v2t_lab::campaign::memory_from_json(&text).unwrap();
+    let case = m.case("left_turn", 0, v2t_model::Target::new(3.0, v2t_model::Style::Yield).unwrap()).unwrap();
+    assert!(case.route_speed.is_some() && case.reaction.is_some(), "{text}");
     drop(launchers);
 }

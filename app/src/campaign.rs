@@ -83,6 +83,16 @@ pub struct RecordArgs {
     /// The run ended in a collision.
     #[arg(long)]
     collision: bool,
+    /// The session log of `video2track serve --log` that holds what the BV reported it learned in
+    /// this run (how the VUT drove its route, how it reacted): the memory learns it too.
+    #[arg(long, requires_all = ["from_bv", "prior_id"])]
+    learned: Option<PathBuf>,
+    /// With --learned: the BV that ran it (its id).
+    #[arg(long, requires = "learned")]
+    from_bv: Option<String>,
+    /// With --learned: the prior of the run (its id).
+    #[arg(long, requires = "learned")]
+    prior_id: Option<u64>,
 }
 
 /// `campaign send`'s arguments.
@@ -174,8 +184,16 @@ fn record(a: RecordArgs) -> anyhow::Result<()> {
             return Err(Usage(format!("{field} must be 1 to 128 printable characters")).into());
         }
     }
+    let lesson = match (&a.learned, &a.from_bv, a.prior_id) {
+        (Some(log), Some(bv), Some(prior_id)) => Some(lesson_of(log, bv, prior_id, a.aim)?),
+        _ => None,
+    };
     let mut memory = load_for(&a.test.memory, &a.vut, &a.world)?;
     let case = memory.case_mut(&a.test.scenario, a.test.bv, target);
+    let (report, learned) = match lesson {
+        Some((r, l)) => (Some(r), l),
+        None => (None, v2t_edge::campaign::Learned::default()),
+    };
     case.record(
         target,
         RunRecord {
@@ -183,14 +201,70 @@ fn record(a: RecordArgs) -> anyhow::Result<()> {
             pet_s: a.pet,
             order_ok: !a.opposite_order,
             collision: a.collision,
-            learned_route: false,
-            reaction_prior: false,
+            learned_route: report.as_ref().is_some_and(|r| r.started_with_route),
+            reaction_prior: report.as_ref().is_some_and(|r| r.started_with_reaction),
         },
     );
+    if let Some(route) = &learned.route {
+        case.learn_route(target, route);
+    }
+    if let Some(reaction) = &learned.reaction {
+        case.learn_reaction(target, reaction);
+    }
+    if report.is_some() {
+        eprintln!("from the BV's report: {}", learned.summary());
+    }
     let line = v2t_lab::campaign::case_line(case, target);
     save(&a.test.memory, &memory)?;
     outln!("{line}")?;
     Ok(())
+}
+
+/// What BV `bv` reported it learned in the run of prior `prior_id` (the last such report in the
+/// session log `log`), checked by the regulator's rules; the run must have aimed at `aim_s`.
+fn lesson_of(
+    log: &Path,
+    bv: &str,
+    prior_id: u64,
+    aim_s: f64,
+) -> anyhow::Result<(v2t_wire::link::RunLearned, v2t_edge::campaign::Learned)> {
+    let text = v2t_files::bounds::read_text_within(log, v2t_files::bounds::SESSION_LOG)
+        .map_err(|e| Usage(format!("{}: {e}", log.display())))?;
+    let leaf = format!("/bv/{bv}/{}", v2t_wire::link::topics::LEARNED);
+    let mut found = None;
+    for (i, line) in text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty()) {
+        let bad = |why: String| Usage(format!("{} line {}: {why}", log.display(), i + 1));
+        let v: serde_json::Value = serde_json::from_str(line).map_err(|e| bad(format!("not JSON: {e}")))?;
+        if !v.get("topic").and_then(|t| t.as_str()).is_some_and(|t| t.ends_with(&leaf)) {
+            continue;
+        }
+        let r: v2t_wire::link::RunLearned = serde_json::from_value(v.get("message").cloned().unwrap_or_default())
+            .map_err(|e| bad(format!("not a run's report: {e}")))?;
+        if r.prior_id == prior_id {
+            r.check().map_err(|e| bad(e.to_string()))?;
+            found = Some(r);
+        }
+    }
+    let r = found.ok_or_else(|| {
+        Usage(format!("{}: no report of what {bv} learned in the run of prior {prior_id}", log.display()))
+    })?;
+    if (r.aim.tau_s() - aim_s).abs() > 1e-6 {
+        return Err(Usage(format!(
+            "--aim {aim_s} s, but the run of prior {prior_id} aimed at {} s (the BV's report)",
+            r.aim.tau_s()
+        ))
+        .into());
+    }
+    let up = v2t_wire::link::CampaignUpload {
+        prior_id,
+        aim: r.aim,
+        below_reach: None,
+        route: r.route.clone(),
+        reaction: r.reaction.clone(),
+    };
+    let learned = v2t_edge::campaign::Learned::from_upload(&up)
+        .map_err(|e| Usage(format!("{}: the report of prior {prior_id}: {e}", log.display())))?;
+    Ok((r, learned))
 }
 
 /// Reads a memory file: `None` when it does not exist; a malformed one is bad input naming the file.

@@ -613,6 +613,58 @@ fn sim_runs_one_run_of_a_campaign_and_keeps_its_memory_in_a_file() {
     }
 }
 
+/// `campaign record --learned` reads what a BV reported from a session log; a log that is not
+/// one, or holds no report of that run, is bad input (exit 2) and the memory is not written.
+/// (The report crossing a broker from a running BV: `tests/fleet.rs`.)
+#[test]
+fn campaign_record_takes_what_the_bv_learned_only_from_a_report_of_that_run() {
+    let scratch = tempdir("learned");
+    let memory = scratch.path().join("ads.json");
+    let log = scratch.path().join("session.jsonl");
+    let record = |log: &str, extra: &[&str]| {
+        let mut args = vec![
+            "campaign",
+            "record",
+            s(&memory),
+            "--scenario",
+            "left_turn",
+            "--style",
+            "rush",
+            "--tau",
+            "2",
+            "--vut",
+            "ads",
+            "--aim",
+            "2",
+            "--pet",
+            "2.1",
+            "--learned",
+            log,
+        ];
+        args.extend_from_slice(extra);
+        video2track(&args)
+    };
+    let telemetry = r#"{"received_ms":1,"topic":"v2t/pg/bv/bv1/telemetry","message":{"bv_id":"bv1"}}"#;
+    for (content, says) in [
+        ("not json\n", "session.jsonl line 1: not JSON"),
+        (telemetry, "no report of what bv1 learned in the run of prior 41"),
+        (
+            r#"{"topic":"v2t/pg/bv/bv1/learned","message":{"bv_id":"bv1","prior_id":41,"stamp_ms":1,"aim":{"tau_s":99.0,"style":"rush"},"started_with_route":false,"started_with_reaction":false,"route":null,"reaction":null}}"#,
+            "session.jsonl line 1: not a run's report",
+        ),
+    ] {
+        std::fs::write(&log, content).unwrap();
+        let o = record(s(&log), &["--from-bv", "bv1", "--prior-id", "41"]);
+        let (_, err) = text(&o);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains(says), "{says}: {err}");
+        assert!(!memory.exists(), "nothing recorded from a bad log");
+    }
+    // --learned names a run: without the BV and the prior it is refused by the parser.
+    let o = record(s(&log), &[]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o).1);
+}
+
 /// A free drive: the BVs parked, the VUT alone; what it showed is recorded for the test and the
 /// first regulated run knows it without being a second run; the options that make no sense with
 /// it are refused with exit 2.

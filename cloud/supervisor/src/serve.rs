@@ -155,6 +155,8 @@ pub enum Change {
     Online(String),
     /// A BV said what it did with a frame.
     Event(BvEvent),
+    /// A BV reported what a run taught it about the VUT (the session log keeps it whole).
+    Learned(link::RunLearned),
     /// Nothing worth a line.
     Quiet,
 }
@@ -204,6 +206,11 @@ impl Fleet {
                 }
                 Ok(Change::Quiet)
             }
+            topics::LEARNED => match link::read_report(payload) {
+                Ok(EdgeReport::Learned(r)) if r.bv_id == bv => Ok(Change::Learned(r)),
+                Ok(_) => Err(MessageError::OtherBv(topic.to_owned())),
+                Err(source) => Err(MessageError::Frame { topic: topic.to_owned(), source }),
+            },
             topics::EVENT => {
                 let ev: BvEvent = serde_json::from_slice(payload)
                     .map_err(|e| MessageError::Event { topic: topic.to_owned(), message: e.to_string() })?;
@@ -398,7 +405,7 @@ pub fn serve(mut opts: ServeOptions, stop: &Arc<AtomicBool>) -> Result<(), LinkE
         say!("serve: embedded broker listening on mqtt://{addr}");
     }
     let fleet_id = opts.signer.fleet().to_owned();
-    let subscribe = [topics::TELEMETRY, topics::HEARTBEAT, topics::EVENT]
+    let subscribe = [topics::TELEMETRY, topics::HEARTBEAT, topics::EVENT, topics::LEARNED]
         .iter()
         .map(|leaf| Subscription::reliable(format!("v2t/{fleet_id}/bv/+/{leaf}")))
         .collect();
@@ -450,6 +457,12 @@ pub fn serve(mut opts: ServeOptions, stop: &Arc<AtomicBool>) -> Result<(), LinkE
                         // A summary of refused garbage says so itself ("N frames refused in 1.0 s: …").
                         Ok(Change::Event(e)) if e.seq.is_none() => say!("serve: {}: {}", e.bv_id, e.detail),
                         Ok(Change::Event(e)) => say!("serve: {} {} {}", e.bv_id, e.verdict, e.detail),
+                        Ok(Change::Learned(r)) => say!(
+                            "serve: {} learned in the run of prior {}: {}",
+                            r.bv_id,
+                            r.prior_id,
+                            learned_summary(&r)
+                        ),
                         Ok(Change::Quiet) => {}
                         Err(why) => say!("serve: ignored a message: {why}"),
                     }
@@ -557,12 +570,25 @@ fn abort_all_and_wait(
     }
 }
 
+/// What a run's report says it learned, in words.
+fn learned_summary(r: &link::RunLearned) -> String {
+    let route = match &r.route {
+        Some(route) => {
+            format!("the VUT's route to {:.0} m", (route.speeds_mps.len().saturating_sub(1)) as f64 * route.step_m)
+        }
+        None => "no route".to_owned(),
+    };
+    let reaction = if r.reaction.is_some() { "its reaction identified" } else { "no identification" };
+    format!("{route}, {reaction} (aim {}; `campaign record --learned` takes it from the session log)", r.aim)
+}
+
 /// One line of the session log: when it arrived, the topic, the message, and for a report how old
 /// it was on arrival (`age_ms`: a backlog after an outage arrives late, not current).
 fn log_line(topic: &str, payload: &[u8], arrived_ms: u64) -> String {
     let (body, stamp) = match link::read_report(payload) {
         Ok(EdgeReport::Telemetry(t)) => (serde_json::to_value(&t).unwrap_or_default(), Some(t.stamp_ms)),
         Ok(EdgeReport::Heartbeat(h)) => (serde_json::to_value(&h).unwrap_or_default(), Some(h.stamp_ms)),
+        Ok(EdgeReport::Learned(r)) => (serde_json::to_value(&r).unwrap_or_default(), Some(r.stamp_ms)),
         Err(_) => (serde_json::from_slice(payload).unwrap_or(serde_json::Value::Null), None),
     };
     let mut line = serde_json::json!({"received_ms": arrived_ms, "topic": topic, "message": body});
@@ -608,6 +634,37 @@ mod tests {
             gate_state: GateState::Engaged.code(),
             gate_reason: GateReason::EngageRequest.code(),
         }
+    }
+
+    #[test]
+    fn a_runs_lesson_is_shown_and_logged_whole_and_a_bad_one_is_ignored() {
+        use v2t_wire::link::{LearnedReaction, LearnedRoute, RunLearned, learned_frame};
+        let lesson = RunLearned {
+            bv_id: "bv1".into(),
+            prior_id: 41,
+            stamp_ms: 5,
+            aim: Target::new(2.0, Style::Rush).unwrap(),
+            started_with_route: true,
+            started_with_reaction: false,
+            route: Some(LearnedRoute { step_m: 2.0, runs: 1, speeds_mps: vec![8.0, 7.0, 4.5] }),
+            reaction: Some(LearnedReaction { probabilities: vec![0.25; 4], informative_cycles: 30 }),
+        };
+        let frame = learned_frame(&lesson).unwrap();
+        let mut f = Fleet::default();
+        let t0 = Instant::now();
+        let change = f.on_message("v2t/pg/bv/bv1/learned", &frame, t0, 10).unwrap();
+        assert_eq!(change, Change::Learned(lesson.clone()));
+        assert!(learned_summary(&lesson).contains("the VUT's route to 4 m, its reaction identified"));
+        // Under another BV's topic, or with a number out of bounds: not taken.
+        assert!(f.on_message("v2t/pg/bv/bv2/learned", &frame, t0, 10).is_err());
+        let mut bad = lesson.clone();
+        bad.route.as_mut().unwrap().speeds_mps[1] = f64::NAN;
+        let e = f.on_message("v2t/pg/bv/bv1/learned", &learned_frame(&bad).unwrap(), t0, 10).unwrap_err();
+        assert!(e.to_string().contains("route.speeds_mps[1]"), "{e}");
+        // The session log keeps it whole, as `campaign record --learned` reads it back.
+        let line: serde_json::Value = serde_json::from_str(&log_line("v2t/pg/bv/bv1/learned", &frame, 12)).unwrap();
+        let back: RunLearned = serde_json::from_value(line["message"].clone()).unwrap();
+        assert_eq!((back, line["age_ms"].as_u64()), (lesson, Some(7)));
     }
 
     #[test]

@@ -11,7 +11,11 @@ use std::time::Duration;
 use iceoryx2::service::Service;
 use v2t_game::regulation::Measurement;
 use v2t_game::regulator::{RegulatorParams, RegulatorStatus};
-use v2t_wire::{ActivePrior, BvState, Code, Header, NodeKind, PlanStatus, RegulatedPlan, VutState, services};
+use v2t_game::route_speed::RouteSpeed;
+use v2t_wire::{
+    ActivePrior, BvState, CampaignKnowledge, Code, Header, NodeKind, PlanStatus, RegulatedPlan, RunLearnedMsg,
+    VutState, services,
+};
 
 use crate::campaign::{Learned, below_reach_code};
 use crate::clock::{now_ns, secs_between};
@@ -20,6 +24,9 @@ use crate::error::EdgeError;
 use crate::heart::Heart;
 use crate::ports::{Bus, latest, send};
 use crate::prior::PriorContext;
+
+/// Most VUT samples a run keeps for what it learns of the VUT's route (10 min of decisions at 10 Hz).
+pub const RUN_SAMPLES: usize = 6000;
 
 /// The regulator with the prior it regulates around: [`v2t_game::regulation::Regulation`] (the
 /// one adapter the lab runs too) between the bus's states and plans. Pure: time comes in as
@@ -33,6 +40,12 @@ pub struct Regulation {
     /// What the campaign learned, as given to the regulator, and the cloud message it came with.
     learned: Learned,
     campaign_seq: u64,
+    /// The VUT's arc length and speed at every decision of the run (capacity [`RUN_SAMPLES`],
+    /// reserved once), and whether the run's lesson was given ([`Regulation::run_learned`]).
+    vut_samples: Vec<(f64, f64)>,
+    reported: bool,
+    /// Lessons given.
+    lessons: u64,
     header: Header,
 }
 
@@ -65,33 +78,30 @@ impl Regulation {
             prior_seq: 0,
             learned: Learned::default(),
             campaign_seq: 0,
+            vut_samples: Vec::with_capacity(RUN_SAMPLES),
+            reported: false,
+            lessons: 0,
             header: Header::default(),
         })
     }
 
-    /// Takes `prior` if it is news and well formed: a new prior (another id) starts a new run
-    /// around it with what its campaign block says (a prior as uploaded says nothing, so nothing
-    /// of an earlier test stays); the active prior published again with the next header sequence
-    /// (the uplink does so when the cloud re-targets the running interaction, `send target`, or
-    /// sends what a campaign learned, [`crate::campaign`]) aims the run at its τ and style without
-    /// starting it over, and takes a new campaign block. A broken one (its timing or its block
-    /// included) leaves the active prior, its aim and what was learned in place. `Ok(false)`:
-    /// nothing new.
+    /// Takes `prior` if it is news and well formed. A new prior (another id), or the active one
+    /// with new campaign knowledge (the uplink takes it only before `start`: it prepares the next
+    /// run, [`crate::campaign`]), starts a run around it with what its campaign block says (a
+    /// prior as uploaded says nothing, so nothing of an earlier test stays). The active prior
+    /// published again otherwise (the uplink does so when the cloud re-targets the running
+    /// interaction, `send target`) aims the run at its τ and style without starting it over. A
+    /// broken one (its timing or its block included) leaves the active prior, its aim and what
+    /// was learned in place. `Ok(false)`: nothing new.
     pub fn set_prior(&mut self, prior: &ActivePrior) -> Result<bool, EdgeError> {
         let invalid = crate::prior::PriorError::Invalid;
-        if self.prior_id == Some(prior.prior_id) {
-            if self.prior_seq == prior.header.seq {
-                return Ok(false);
-            }
+        let same = self.prior_id == Some(prior.prior_id);
+        if same && self.prior_seq == prior.header.seq {
+            return Ok(false);
+        }
+        if same && prior.campaign.seq == self.campaign_seq {
             let target = prior.target().map_err(crate::prior::PriorError::from)?;
-            if prior.campaign.seq == self.campaign_seq {
-                self.inner.aim(target, self.learned.known);
-            } else {
-                let learned = Learned::from_knowledge(&prior.campaign).map_err(invalid)?;
-                learned.apply(&mut self.inner, target).map_err(invalid)?;
-                self.learned = learned;
-                self.campaign_seq = prior.campaign.seq;
-            }
+            self.inner.aim(target, self.learned.known);
             self.prior_seq = prior.header.seq;
             return Ok(true);
         }
@@ -104,7 +114,40 @@ impl Regulation {
         self.campaign_seq = prior.campaign.seq;
         self.prior_id = Some(prior.prior_id);
         self.prior_seq = prior.header.seq;
+        self.vut_samples.clear();
+        self.reported = false;
         Ok(true)
+    }
+
+    /// What this run taught the regulator about the VUT, once per run, when the VUT has left its
+    /// zone: how it drove its route up to there as the regulator measured it (every decision's
+    /// VUT arc length and speed, [`RouteSpeed::from_samples`]) and, with the reacting follower,
+    /// how it identified the VUT's reaction by then. `None` before, and after it was given.
+    pub fn run_learned(&mut self, stamp_ns: u64) -> Option<RunLearnedMsg> {
+        let ctx = self.inner.context().filter(|_| !self.reported)?;
+        let exit = ctx.zone_vut.exit_s_m;
+        if self.vut_samples.last().is_none_or(|&(s, _)| s < exit) {
+            return None;
+        }
+        self.reported = true;
+        let learned = Learned {
+            known: None,
+            route: RouteSpeed::from_samples(self.vut_samples.iter().copied(), exit),
+            reaction: self.inner.params().reacting_follower.then(|| self.inner.reaction_belief().posterior()),
+        };
+        let target = ctx.target;
+        // A posterior or a route the wire refuses is not reported (the regulator made neither).
+        let knowledge = CampaignKnowledge::from_upload(&learned.upload(0, target), 0).ok()?;
+        self.lessons += 1;
+        Some(RunLearnedMsg {
+            header: Header { seq: self.lessons, stamp_ns },
+            prior_id: self.prior_id.unwrap_or(0),
+            tau_s: target.tau_s(),
+            style: v2t_wire::StyleCode::from(target.style()).code(),
+            started_with_route: u8::from(self.learned.route.is_some()),
+            started_with_reaction: u8::from(self.learned.reaction.is_some()),
+            learned: knowledge,
+        })
     }
 
     /// What the campaign has learned of the VUT for this run (nothing unless the cloud sent it).
@@ -150,6 +193,11 @@ impl Regulation {
         let vut =
             vut.filter(|v| v.is_finite()).map(|v| measured(v.px_m, v.py_m, v.speed_mps, v.header.stamp_ns, now_ns));
         let Some(step) = self.inner.decide(now_ns as f64 * 1e-9, &own, vut.as_ref()) else { return plan };
+        if let Some(inp) = &step.input
+            && self.vut_samples.len() < RUN_SAMPLES
+        {
+            self.vut_samples.push((inp.vut.s_m, inp.vut.v_mps));
+        }
         let d = step.decision;
         plan.s0_m = step.bv_s_m.unwrap_or(0.0);
         plan.status = status_code(d.status).code();
@@ -182,6 +230,7 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
     let vuts = bus.subscriber::<VutState>(services::VUT)?;
     let priors = bus.subscriber::<ActivePrior>(services::PRIOR)?;
     let out = bus.publisher::<RegulatedPlan>(services::PLAN)?;
+    let lessons = bus.publisher::<RunLearnedMsg>(services::LEARNED)?;
     let t = cfg.edge.timing;
     let mut heart = Heart::new(&bus, NodeKind::Regulator, t.heartbeat_period_s)?;
     let mut reg = Regulation::new(cfg.regulator, cfg.vehicle.limits.max_lat_accel_mps2)?;
@@ -234,6 +283,13 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
                 }
                 plan.solve_ns = done - now;
                 send(&out, None, plan)?;
+                if let Some(lesson) = reg.run_learned(done) {
+                    eprintln!(
+                        "regulator: prior {}: the VUT has left its zone, what the run learned is out",
+                        lesson.prior_id
+                    );
+                    lessons.send_copy(lesson).map_err(|e| EdgeError::ipc("send", services::LEARNED, e))?;
+                }
                 heart.cycle(done - now, budget_ns);
             }
         }
@@ -249,6 +305,7 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use v2t_wire::Vector as _;
 
     fn setup() -> (Regulation, ActivePrior) {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../config");
@@ -360,6 +417,46 @@ mod tests {
         assert!(reg.set_prior(&other).unwrap());
         assert_eq!(reg.learned(), &Learned::default());
         assert_eq!(reg.inner.route_speed(), None);
+    }
+
+    #[test]
+    fn a_run_gives_what_it_learned_once_when_the_vut_has_left_its_zone() {
+        let (mut reg, prior) = setup();
+        reg.set_prior(&prior).unwrap();
+        let exit = prior.vut_zone_exit_s_m;
+        let path = prior.vut_path.as_slice();
+        // The VUT drives its route point by point (a point every ~0.2–1 m) at 8 m/s, the BV waits.
+        let mut lesson = None;
+        let mut before_exit = 0;
+        for (k, q) in path.iter().enumerate() {
+            let now = 1_000_000_000 + k as u64 * 50_000_000;
+            let vut = VutState {
+                header: Header { seq: k as u64 + 1, stamp_ns: now },
+                px_m: q.x_m,
+                py_m: q.y_m,
+                speed_mps: 8.0,
+                ..VutState::default()
+            };
+            let _ = reg.decide(&bv_at(&prior, 0, now), Some(&vut), now + 1_000_000);
+            if let Some(l) = reg.run_learned(now) {
+                assert!(lesson.is_none(), "once per run");
+                lesson = Some(l);
+            } else if lesson.is_none() {
+                before_exit += 1;
+            }
+        }
+        assert!(before_exit > 10, "not before the VUT has left its zone");
+        let l = lesson.expect("the VUT left its zone");
+        assert_eq!((l.prior_id, l.tau_s, l.started_with_route, l.started_with_reaction), (1, prior.tau_s, 0, 0));
+        let learned = Learned::from_knowledge(&l.learned).unwrap();
+        let route = learned.route.expect("the route up to the zone's exit");
+        assert!(route.speeds_mps.iter().all(|v| (v - 8.0).abs() < 1e-9), "{:?}", route.speeds_mps);
+        assert!((route.speeds_mps.len() - 1) as f64 * route.step_m >= exit - route.step_m, "{route:?} to {exit}");
+        assert!(learned.reaction.is_some(), "the shipped follower identifies the reaction");
+        assert!(reg.run_learned(10_000_000_000).is_none());
+        // A new run (another prior) learns afresh.
+        reg.set_prior(&crate::prior::fixtures::left_turn(2)).unwrap();
+        assert!(reg.run_learned(10_000_000_000).is_none(), "nothing seen yet");
     }
 
     #[test]

@@ -215,6 +215,7 @@ struct Ports<S: Service> {
     states: iceoryx2::port::subscriber::Subscriber<S, BvState, ()>,
     plans: iceoryx2::port::subscriber::Subscriber<S, RegulatedPlan, ()>,
     gates: iceoryx2::port::subscriber::Subscriber<S, GateReport, ()>,
+    lessons: iceoryx2::port::subscriber::Subscriber<S, v2t_wire::RunLearnedMsg, ()>,
 }
 
 /// The state of the link to the broker.
@@ -247,6 +248,8 @@ struct Node<'a, S: Service> {
     gate: GateReport,
     plan: RegulatedPlan,
     state: BvState,
+    /// What the last run taught the regulator, until it is sent (once, when connected).
+    lesson: Option<link::RunLearned>,
 }
 
 impl<'a, S: Service> Node<'a, S> {
@@ -373,6 +376,12 @@ impl<'a, S: Service> Node<'a, S> {
         if let Some(g) = latest(&self.ports.gates)? {
             self.gate = g;
         }
+        while let Some(m) = self.ports.lessons.receive().map_err(|e| EdgeError::ipc("receive", services::LEARNED, e))? {
+            match logic::run_learned(&m, &self.u.bv_id, unix_ms()) {
+                Ok(r) => self.lesson = Some(r),
+                Err(e) => eprintln!("uplink: what the run learned is not sent: {e}"),
+            }
+        }
         Ok(())
     }
 
@@ -382,6 +391,17 @@ impl<'a, S: Service> Node<'a, S> {
             return;
         }
         let due = |last: u64, period_s: f64| now.saturating_sub(last) as f64 * 1e-9 >= period_s;
+        if let Some(r) = self.lesson.take() {
+            // Once per run, at QoS 1: the campaign's memory needs it.
+            match link::learned_frame(&r) {
+                Ok(frame) => {
+                    if let Err(e) = self.mqtt.publish(&self.topic(topics::LEARNED), frame, true) {
+                        eprintln!("uplink: learned not queued: {e}");
+                    }
+                }
+                Err(e) => eprintln!("uplink: learned not encoded: {e}"),
+            }
+        }
         if due(self.last_tele_ns, self.u.telemetry_period_s) {
             self.last_tele_ns = now;
             self.seqs.0 += 1;
@@ -474,6 +494,7 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
         states: bus.subscriber::<BvState>(services::STATE)?,
         plans: bus.subscriber::<RegulatedPlan>(services::PLAN)?,
         gates: bus.subscriber::<GateReport>(services::GATE)?,
+        lessons: bus.subscriber::<v2t_wire::RunLearnedMsg>(services::LEARNED)?,
     };
     let mut heart = Heart::new(&bus, NodeKind::Uplink, cfg.edge.timing.heartbeat_period_s)?;
     let checks =
@@ -523,6 +544,7 @@ pub fn run<S: Service>(cfg: &Loaded) -> Result<(), EdgeError> {
         gate: GateReport::default(),
         plan: RegulatedPlan::default(),
         state: BvState::default(),
+        lesson: None,
     };
     let mut first = None;
     loop {

@@ -43,6 +43,8 @@ pub const WEIGHTS: SizeBound = SizeBound { what: "a weights file", max_bytes: 64
 pub const VLM_FILE: SizeBound = SizeBound { what: "a VLM prompt or cassette file", max_bytes: 16 << 20 };
 /// OpenDRIVE maps.
 pub const MAP: SizeBound = SizeBound { what: "an OpenDRIVE map", max_bytes: LARGEST_BOUND_BYTES };
+/// A session log of `video2track serve --log` (JSON lines: 10 Hz telemetry per BV, a few hours).
+pub const SESSION_LOG: SizeBound = SizeBound { what: "a session log", max_bytes: LARGEST_BOUND_BYTES };
 /// MCAP recordings.
 pub const RECORDING: SizeBound = SizeBound { what: "an MCAP recording", max_bytes: LARGEST_BOUND_BYTES };
 

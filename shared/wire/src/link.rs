@@ -54,6 +54,8 @@ pub mod topics {
     pub const HEARTBEAT: &str = "heartbeat";
     /// BV → cloud: what the BV accepted, refused or did, as JSON text.
     pub const EVENT: &str = "event";
+    /// BV → cloud: what a run taught the BV about the VUT ([`super::RunLearned`]), once per run.
+    pub const LEARNED: &str = "learned";
 
     /// The topic `leaf` of BV `bv` in `fleet`.
     pub fn bv(fleet: &str, bv: &str, leaf: &str) -> String {
@@ -82,6 +84,8 @@ pub enum FrameKind {
     Telemetry = 2,
     /// [`Heartbeat`], unsigned.
     Heartbeat = 3,
+    /// [`RunLearned`], unsigned.
+    Learned = 4,
 }
 
 impl FrameKind {
@@ -90,6 +94,7 @@ impl FrameKind {
             1 => Some(Self::Cloud),
             2 => Some(Self::Telemetry),
             3 => Some(Self::Heartbeat),
+            4 => Some(Self::Learned),
             _ => None,
         }
     }
@@ -197,38 +202,106 @@ impl CampaignUpload {
             }
         }
         if let Some(r) = &self.route {
-            if !(r.step_m.is_finite() && r.step_m > 0.0 && r.step_m <= 10.0) {
-                return bad("route.step_m", "within (0, 10] m", r.step_m);
-            }
-            if !(2..=crate::MAX_ROUTE_POINTS).contains(&r.speeds_mps.len()) {
-                return Err(LinkError::Malformed(format!(
-                    "campaign field route.speeds_mps: {} points, must be 2 to {}",
-                    r.speeds_mps.len(),
-                    crate::MAX_ROUTE_POINTS
-                )));
-            }
-            if let Some((i, &v)) =
-                r.speeds_mps.iter().enumerate().find(|(_, v)| !(v.is_finite() && (0.0..=70.0).contains(*v)))
-            {
-                return bad(&format!("route.speeds_mps[{i}]"), "within [0, 70] m/s", v);
-            }
+            r.check("campaign")?;
         }
         if let Some(r) = &self.reaction {
-            if !(1..=crate::MAX_REACTION_HYPOTHESES).contains(&r.probabilities.len()) {
-                return Err(LinkError::Malformed(format!(
-                    "campaign field reaction.probabilities: {} values, must be 1 to {}",
-                    r.probabilities.len(),
-                    crate::MAX_REACTION_HYPOTHESES
-                )));
-            }
-            if let Some((i, &p)) =
-                r.probabilities.iter().enumerate().find(|(_, p)| !(p.is_finite() && (0.0..=1.0).contains(*p)))
-            {
-                return bad(&format!("reaction.probabilities[{i}]"), "within [0, 1]", p);
-            }
+            r.check("campaign")?;
         }
         Ok(())
     }
+}
+
+impl LearnedRoute {
+    /// 2 to [`crate::MAX_ROUTE_POINTS`] speeds in [0, 70] m/s every (0, 10] m; the error names
+    /// the field under `what`.
+    pub fn check(&self, what: &str) -> Result<(), LinkError> {
+        if !(self.step_m.is_finite() && self.step_m > 0.0 && self.step_m <= 10.0) {
+            return Err(LinkError::Malformed(format!(
+                "{what} field route.step_m = {}: must be finite and within (0, 10] m",
+                self.step_m
+            )));
+        }
+        if !(2..=crate::MAX_ROUTE_POINTS).contains(&self.speeds_mps.len()) {
+            return Err(LinkError::Malformed(format!(
+                "{what} field route.speeds_mps: {} points, must be 2 to {}",
+                self.speeds_mps.len(),
+                crate::MAX_ROUTE_POINTS
+            )));
+        }
+        if let Some((i, v)) =
+            self.speeds_mps.iter().enumerate().find(|(_, v)| !(v.is_finite() && (0.0..=70.0).contains(*v)))
+        {
+            return Err(LinkError::Malformed(format!(
+                "{what} field route.speeds_mps[{i}] = {v}: must be finite and within [0, 70] m/s"
+            )));
+        }
+        Ok(())
+    }
+}
+
+impl LearnedReaction {
+    /// 1 to [`crate::MAX_REACTION_HYPOTHESES`] probabilities in [0, 1]; the error names the field
+    /// under `what`.
+    pub fn check(&self, what: &str) -> Result<(), LinkError> {
+        if !(1..=crate::MAX_REACTION_HYPOTHESES).contains(&self.probabilities.len()) {
+            return Err(LinkError::Malformed(format!(
+                "{what} field reaction.probabilities: {} values, must be 1 to {}",
+                self.probabilities.len(),
+                crate::MAX_REACTION_HYPOTHESES
+            )));
+        }
+        if let Some((i, p)) =
+            self.probabilities.iter().enumerate().find(|(_, p)| !(p.is_finite() && (0.0..=1.0).contains(*p)))
+        {
+            return Err(LinkError::Malformed(format!(
+                "{what} field reaction.probabilities[{i}] = {p}: must be finite and within [0, 1]"
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// What one run taught a BV about the VUT, reported once per run when the VUT has left its zone:
+/// how the VUT drove its route up to there and how the regulator identified its reaction by then
+/// (`campaign record --learned` adds it to the test's memory).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunLearned {
+    /// The BV.
+    pub bv_id: String,
+    /// The prior of the run.
+    pub prior_id: u64,
+    /// When, Unix ms.
+    pub stamp_ms: u64,
+    /// The τ and style the run aimed at.
+    pub aim: Target,
+    /// Whether the run started from a learned route (campaign knowledge), as its record must say.
+    pub started_with_route: bool,
+    /// Whether it started from an earlier identification of the VUT's reaction.
+    pub started_with_reaction: bool,
+    /// How the VUT drove its route up to its zone's exit, as the BV measured it (`None`: too
+    /// little of it seen).
+    pub route: Option<LearnedRoute>,
+    /// The identification of the VUT's reaction at that moment (`None`: the BV's regulator does
+    /// not identify it).
+    pub reaction: Option<LearnedReaction>,
+}
+
+impl RunLearned {
+    /// Each field against its bound (as [`CampaignUpload::check`]).
+    pub fn check(&self) -> Result<(), LinkError> {
+        if let Some(r) = &self.route {
+            r.check("learned")?;
+        }
+        if let Some(r) = &self.reaction {
+            r.check("learned")?;
+        }
+        Ok(())
+    }
+}
+
+/// The frame of a run's report of what it learned.
+pub fn learned_frame(r: &RunLearned) -> Result<Vec<u8>, LinkError> {
+    encode(FrameKind::Learned, r)
 }
 
 /// Most steps a cloud plan carries (the regulator's longest horizon).
@@ -488,14 +561,21 @@ pub enum EdgeReport {
     Telemetry(Telemetry),
     /// Heartbeat.
     Heartbeat(Heartbeat),
+    /// What a run taught the BV.
+    Learned(RunLearned),
 }
 
-/// Decodes a telemetry or heartbeat frame.
+/// Decodes a telemetry, heartbeat or run-learned frame (the last one checked against its bounds).
 pub fn read_report(frame: &[u8]) -> Result<EdgeReport, LinkError> {
     let decode = |e: postcard::Error| LinkError::Decode(e.to_string());
     match parse_header(frame)? {
         (FrameKind::Telemetry, body) => Ok(EdgeReport::Telemetry(postcard::from_bytes(body).map_err(decode)?)),
         (FrameKind::Heartbeat, body) => Ok(EdgeReport::Heartbeat(postcard::from_bytes(body).map_err(decode)?)),
+        (FrameKind::Learned, body) => {
+            let r: RunLearned = postcard::from_bytes(body).map_err(decode)?;
+            r.check()?;
+            Ok(EdgeReport::Learned(r))
+        }
         (FrameKind::Cloud, _) => Err(LinkError::Malformed("a cloud frame where a BV report was expected".into())),
     }
 }

@@ -91,6 +91,27 @@ impl CampaignKnowledge {
     }
 }
 
+/// What one run taught the regulator about the VUT (its route and its reaction, in a
+/// [`CampaignKnowledge`] block), published once per run when the VUT has left its zone.
+#[derive(Debug, Clone, PartialEq, Default, ZeroCopySend)]
+#[repr(C)]
+pub struct RunLearnedMsg {
+    /// Sequence and when.
+    pub header: Header,
+    /// The prior of the run.
+    pub prior_id: u64,
+    /// The τ the run aimed at, s.
+    pub tau_s: f64,
+    /// Its style ([`crate::StyleCode`] code).
+    pub style: u8,
+    /// 1 when the run started from a learned route.
+    pub started_with_route: u8,
+    /// 1 when it started from an earlier identification of the VUT's reaction.
+    pub started_with_reaction: u8,
+    /// The route as measured and the identification at the end (its `seq` unused).
+    pub learned: CampaignKnowledge,
+}
+
 /// A point in the track frame, m.
 #[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
 #[repr(C)]

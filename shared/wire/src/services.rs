@@ -14,6 +14,8 @@ pub const VUT: &str = "vut";
 pub const PRIOR: &str = "prior";
 /// Regulator decisions ([`crate::RegulatedPlan`]).
 pub const PLAN: &str = "plan";
+/// What a run taught the regulator about the VUT ([`crate::RunLearnedMsg`]), once per run.
+pub const LEARNED: &str = "learned";
 /// Tracker requests ([`crate::ActuationCommand`]).
 pub const ACTUATION: &str = "actuation";
 /// Monitor and operator requests to the gateway ([`crate::SafetyCommand`]).
@@ -37,8 +39,8 @@ pub const WAKE_GATEWAY: &str = "wake/gateway";
 pub const WAKE_ECU: &str = "wake/ecu";
 
 /// Every publish-subscribe service leaf.
-pub const ALL: [&str; 12] =
-    [LOCALIZATION, FEEDBACK, STATE, VUT, PRIOR, PLAN, ACTUATION, SAFETY, GATE, HEARTBEAT, CAN_TX, CAN_RX];
+pub const ALL: [&str; 13] =
+    [LOCALIZATION, FEEDBACK, STATE, VUT, PRIOR, PLAN, LEARNED, ACTUATION, SAFETY, GATE, HEARTBEAT, CAN_TX, CAN_RX];
 
 /// Every event service leaf.
 pub const WAKES: [&str; 4] = [WAKE_STATE, WAKE_TRACKER, WAKE_GATEWAY, WAKE_ECU];

@@ -252,6 +252,26 @@ pub fn with_campaign(
     Ok((prior, learned))
 }
 
+/// What the regulator's lesson `msg` says, as the BV `bv_id` reports it to the cloud at Unix
+/// `stamp_ms`. The error names what does not decode.
+pub fn run_learned(msg: &v2t_wire::RunLearnedMsg, bv_id: &str, stamp_ms: u64) -> Result<link::RunLearned, String> {
+    use v2t_wire::Code as _;
+    let style = v2t_wire::StyleCode::from_code(msg.style).map_err(|e| e.to_string())?;
+    let aim = v2t_model::Target::new(msg.tau_s, style.into()).map_err(|e| e.to_string())?;
+    let learned = Learned::from_knowledge(&msg.learned).map_err(|e| e.to_string())?;
+    let up = learned.upload(msg.prior_id, aim);
+    Ok(link::RunLearned {
+        bv_id: bv_id.to_owned(),
+        prior_id: msg.prior_id,
+        stamp_ms,
+        aim,
+        started_with_route: msg.started_with_route == 1,
+        started_with_reaction: msg.started_with_reaction == 1,
+        route: up.route,
+        reaction: up.reaction,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
