@@ -72,8 +72,13 @@ pub struct RecordArgs {
     #[arg(long, default_value = "track")]
     world: String,
     /// The τ the BV was given in that run, s (the aim `campaign aim` printed).
-    #[arg(long, value_parser = Target::parse_tau)]
-    aim: f64,
+    #[arg(long, value_parser = Target::parse_tau, required_unless_present = "free_drive")]
+    aim: Option<f64>,
+    /// The run was a free drive (the BV parked where it starts, never started; the VUT drove the
+    /// test alone): only how the VUT drove its route is learned, from the BV's report
+    /// (`--learned`); it is no run of the test.
+    #[arg(long, requires = "learned", conflicts_with_all = ["aim", "pet", "opposite_order", "collision"])]
+    free_drive: bool,
     /// The PET measured, s (leave out when no PET was measured).
     #[arg(long)]
     pet: Option<f64>,
@@ -190,6 +195,23 @@ fn record(a: RecordArgs) -> anyhow::Result<()> {
     };
     let mut memory = load_for(&a.test.memory, &a.vut, &a.world)?;
     let case = memory.case_mut(&a.test.scenario, a.test.bv, target);
+    if a.free_drive {
+        // No PET, no aim, nothing for the reaction model: a free drive shows the VUT's route.
+        let route = lesson.and_then(|(_, l)| l.route).ok_or_else(|| {
+            Usage("--free-drive: the BV's report holds no route (the VUT was not seen through its zone)".into())
+        })?;
+        case.learn_free_drive(target, &route);
+        eprintln!(
+            "free drive: the VUT's route learned to {:.0} m",
+            (route.speeds_mps.len().saturating_sub(1)) as f64 * route.step_m
+        );
+        let line = v2t_lab::campaign::case_line(case, target);
+        save(&a.test.memory, &memory)?;
+        outln!("{line}")?;
+        return Ok(());
+    }
+    // clap makes --aim required without --free-drive.
+    let aim_s = a.aim.ok_or_else(|| Usage("--aim is required".into()))?;
     let (report, learned) = match lesson {
         Some((r, l)) => (Some(r), l),
         None => (None, v2t_edge::campaign::Learned::default()),
@@ -197,7 +219,7 @@ fn record(a: RecordArgs) -> anyhow::Result<()> {
     case.record(
         target,
         RunRecord {
-            aim_s: a.aim,
+            aim_s,
             pet_s: a.pet,
             order_ok: !a.opposite_order,
             collision: a.collision,
@@ -221,12 +243,13 @@ fn record(a: RecordArgs) -> anyhow::Result<()> {
 }
 
 /// What BV `bv` reported it learned in the run of prior `prior_id` (the last such report in the
-/// session log `log`), checked by the regulator's rules; the run must have aimed at `aim_s`.
+/// session log `log`), checked by the regulator's rules; the run must have aimed at `aim_s` when
+/// one is given.
 fn lesson_of(
     log: &Path,
     bv: &str,
     prior_id: u64,
-    aim_s: f64,
+    aim_s: Option<f64>,
 ) -> anyhow::Result<(v2t_wire::link::RunLearned, v2t_edge::campaign::Learned)> {
     let text = v2t_files::bounds::read_text_within(log, v2t_files::bounds::SESSION_LOG)
         .map_err(|e| Usage(format!("{}: {e}", log.display())))?;
@@ -248,7 +271,9 @@ fn lesson_of(
     let r = found.ok_or_else(|| {
         Usage(format!("{}: no report of what {bv} learned in the run of prior {prior_id}", log.display()))
     })?;
-    if (r.aim.tau_s() - aim_s).abs() > 1e-6 {
+    if let Some(aim_s) = aim_s
+        && (r.aim.tau_s() - aim_s).abs() > 1e-6
+    {
         return Err(Usage(format!(
             "--aim {aim_s} s, but the run of prior {prior_id} aimed at {} s (the BV's report)",
             r.aim.tau_s()

@@ -663,6 +663,58 @@ fn campaign_record_takes_what_the_bv_learned_only_from_a_report_of_that_run() {
     // --learned names a run: without the BV and the prior it is refused by the parser.
     let o = record(s(&log), &[]);
     assert_eq!(o.status.code(), Some(2), "{}", text(&o).1);
+
+    // A report as `serve --log` keeps it: a free drive's (the BV parked, never started) teaches
+    // the route alone; a regulated run's is a run of the test with what it learned.
+    let report = |prior_id: u64, speed: f64| {
+        let r = v2t_wire::link::RunLearned {
+            bv_id: "bv1".into(),
+            prior_id,
+            stamp_ms: 1,
+            aim: v2t_model::Target::new(2.0, v2t_model::Style::Rush).unwrap(),
+            started_with_route: prior_id == 42,
+            started_with_reaction: false,
+            route: Some(v2t_wire::link::LearnedRoute { step_m: 2.0, runs: 1, speeds_mps: vec![speed; 30] }),
+            reaction: None,
+        };
+        serde_json::json!({"received_ms": 2, "topic": "v2t/pg/bv/bv1/learned", "message": r}).to_string()
+    };
+    std::fs::write(&log, format!("{telemetry}\n{}\n{}\n", report(41, 7.0), report(42, 8.0))).unwrap();
+    let free = |extra: &[&str]| {
+        let mut args = vec![
+            "campaign",
+            "record",
+            s(&memory),
+            "--scenario",
+            "left_turn",
+            "--style",
+            "rush",
+            "--tau",
+            "2",
+            "--vut",
+            "ads",
+            "--free-drive",
+            "--learned",
+            s(&log),
+            "--from-bv",
+            "bv1",
+            "--prior-id",
+            "41",
+        ];
+        args.extend_from_slice(extra);
+        video2track(&args)
+    };
+    let o = free(&["--aim", "2"]);
+    assert_eq!(o.status.code(), Some(2), "a free drive has no aim: {}", text(&o).1);
+    let o = free(&[]);
+    let (out, err) = text(&o);
+    assert!(o.status.success() && err.contains("free drive: the VUT's route learned to 58 m"), "{err}");
+    assert!(out.contains("0 runs before") && out.contains("route learned over 1 run(s), to 58 m"), "{out}");
+    let o = record(s(&log), &["--from-bv", "bv1", "--prior-id", "42"]);
+    let (out, err) = text(&o);
+    assert!(o.status.success() && err.contains("from the BV's report: route over 1 run(s), 58 m"), "{err}");
+    assert!(out.contains("1 runs before (1 with a PET in order)"), "{out}");
+    assert!(out.contains("route learned over 2 run(s), to 58 m"), "the free drive's and the run's: {out}");
 }
 
 /// A free drive: the BVs parked, the VUT alone; what it showed is recorded for the test and the
