@@ -238,3 +238,30 @@ fn a_free_drive_shows_how_the_vut_drives_its_route_alone() {
     let case = steer_case(&settings, &sc, four, &vut, 1..=2, Some(&drives));
     assert!(case.landed_safely(), "{case:?}");
 }
+
+/// What a campaign learns of a run is what the BV's regulator measured (the lesson the onboard node
+/// reports), not the simulator's trace of the VUT: the same route within the noise and age of the
+/// VUT's states, up to its zone's exit, and the identification of its reaction.
+#[test]
+fn a_campaign_learns_what_the_bvs_regulator_measured_of_the_vut() {
+    use v2t_lab::campaign::{regulated_run, vut_route_speed};
+    let mut sc = load_scenario(&repo_root().join("config/scenarios/left_turn_vut.toml")).unwrap();
+    sc.target = v2t_model::Target::new(3.0, Style::Rush).unwrap();
+    let settings: RegulatorParams = load_toml(&repo_root().join("config/regulator/default.toml")).unwrap();
+    let vut = v2t_lab::vut::Vut::Builtin(VutModel::IdmCautious);
+    let run = regulated_run(&settings, &sc, &vut, 3, None).unwrap();
+    let lesson = run.lessons[0].as_ref().expect("the VUT left its zone");
+    let measured = lesson.route.as_ref().expect("a route");
+    let traced = vut_route_speed(&run.outcome, 0).unwrap();
+    let exit = run.outcome.layout.zones[0].zone.vut.exit_s_m;
+    assert!(measured.end_m() + v2t_game::route_speed::ROUTE_STEP_M >= exit, "{} m of {exit:.1} m", measured.end_m());
+    let worst = measured.speeds_mps.iter().zip(&traced.speeds_mps).map(|(m, t)| (m - t).abs()).fold(0.0, f64::max);
+    println!(
+        "measured against traced route: {} and {} points, worst {worst:.3} m/s",
+        measured.speeds_mps.len(),
+        traced.speeds_mps.len()
+    );
+    assert!(worst < 0.5, "measured and traced speeds differ by up to {worst:.2} m/s");
+    assert!(lesson.reaction.is_some(), "the shipped follower identifies the reaction");
+    assert_eq!(run.reactions[0].is_some(), lesson.reaction.is_some());
+}

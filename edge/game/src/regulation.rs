@@ -171,6 +171,21 @@ pub struct Step {
     pub decision: Decision,
 }
 
+/// Most VUT samples a run keeps for what it learns of the VUT's route (10 min of decisions at
+/// 10 Hz; reserved once).
+pub const RUN_SAMPLES: usize = 6000;
+
+/// What one run taught the regulator about the VUT ([`Regulation::lesson`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Lesson {
+    /// How the VUT drove its route up to its zone's exit, as the regulator measured it (every
+    /// decision's VUT arc length and speed, brought to the decision's time;
+    /// [`RouteSpeed::from_samples`]). `None`: too little of it seen.
+    pub route: Option<RouteSpeed>,
+    /// With the reacting follower: how it identified the VUT's reaction by then.
+    pub reaction: Option<ReactionPosterior>,
+}
+
 /// The regulator of one BV with the prior it regulates around.
 #[derive(Debug)]
 pub struct Regulation {
@@ -180,6 +195,10 @@ pub struct Regulation {
     vut: Tracked,
     last_accel: f64,
     lat_accel_mps2: f64,
+    /// The VUT's arc length and speed at every decision of the run (capacity [`RUN_SAMPLES`]).
+    vut_samples: Vec<(f64, f64)>,
+    /// Whether the run's [`Lesson`] was given.
+    lesson_given: bool,
 }
 
 impl Regulation {
@@ -193,6 +212,26 @@ impl Regulation {
             vut: Tracked::default(),
             last_accel: 0.0,
             lat_accel_mps2,
+            vut_samples: Vec::with_capacity(RUN_SAMPLES),
+            lesson_given: false,
+        })
+    }
+
+    /// What this run taught the regulator about the VUT, once per run (per context), as soon as
+    /// the VUT has left its zone: how it drove its route up to there and how its reaction was
+    /// identified by then. The onboard node reports it to the cloud; the lab's campaigns learn it
+    /// as the campaign memory on the track does. `None` before, and after it was given; a run in
+    /// which the VUT never leaves its zone teaches nothing. Allocates when it gives it (once).
+    pub fn lesson(&mut self) -> Option<Lesson> {
+        let ctx = self.context.as_ref().filter(|_| !self.lesson_given)?;
+        let exit = ctx.zone_vut.exit_s_m;
+        if self.vut_samples.last().is_none_or(|&(s, _)| s < exit) {
+            return None;
+        }
+        self.lesson_given = true;
+        Some(Lesson {
+            route: RouteSpeed::from_samples(self.vut_samples.iter().copied(), exit),
+            reaction: self.regulator.params().reacting_follower.then(|| self.regulator.reaction_belief().posterior()),
         })
     }
 
@@ -205,6 +244,8 @@ impl Regulation {
         self.bv = Tracked::default();
         self.vut = Tracked::default();
         self.last_accel = 0.0;
+        self.vut_samples.clear();
+        self.lesson_given = false;
         Ok(())
     }
 
@@ -315,6 +356,9 @@ impl Regulation {
         let path = &ctx.bv_path;
         let decision = self.regulator.decide_on_path(&input, &|s| curve_speed(path, s, CURVE_HALF_WINDOW_M, lat));
         self.last_accel = decision.accel_mps2;
+        if self.vut_samples.len() < RUN_SAMPLES {
+            self.vut_samples.push((input.vut.s_m, input.vut.v_mps));
+        }
         Some(Step { bv_s_m: Some(bv_s), input: Some(input), decision })
     }
 }

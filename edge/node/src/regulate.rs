@@ -11,7 +11,6 @@ use std::time::Duration;
 use iceoryx2::service::Service;
 use v2t_game::regulation::Measurement;
 use v2t_game::regulator::{RegulatorParams, RegulatorStatus};
-use v2t_game::route_speed::RouteSpeed;
 use v2t_wire::{
     ActivePrior, BvState, CampaignKnowledge, Code, Header, NodeKind, PlanStatus, RegulatedPlan, RunLearnedMsg,
     VutState, services,
@@ -25,9 +24,6 @@ use crate::heart::Heart;
 use crate::ports::{Bus, latest, send};
 use crate::prior::PriorContext;
 
-/// Most VUT samples a run keeps for what it learns of the VUT's route (10 min of decisions at 10 Hz).
-pub const RUN_SAMPLES: usize = 6000;
-
 /// The regulator with the prior it regulates around: [`v2t_game::regulation::Regulation`] (the
 /// one adapter the lab runs too) between the bus's states and plans. Pure: time comes in as
 /// arguments.
@@ -40,10 +36,6 @@ pub struct Regulation {
     /// What the campaign learned, as given to the regulator, and the cloud message it came with.
     learned: Learned,
     campaign_seq: u64,
-    /// The VUT's arc length and speed at every decision of the run (capacity [`RUN_SAMPLES`],
-    /// reserved once), and whether the run's lesson was given ([`Regulation::run_learned`]).
-    vut_samples: Vec<(f64, f64)>,
-    reported: bool,
     /// Lessons given.
     lessons: u64,
     header: Header,
@@ -78,8 +70,6 @@ impl Regulation {
             prior_seq: 0,
             learned: Learned::default(),
             campaign_seq: 0,
-            vut_samples: Vec::with_capacity(RUN_SAMPLES),
-            reported: false,
             lessons: 0,
             header: Header::default(),
         })
@@ -114,27 +104,15 @@ impl Regulation {
         self.campaign_seq = prior.campaign.seq;
         self.prior_id = Some(prior.prior_id);
         self.prior_seq = prior.header.seq;
-        self.vut_samples.clear();
-        self.reported = false;
         Ok(true)
     }
 
-    /// What this run taught the regulator about the VUT, once per run, when the VUT has left its
-    /// zone: how it drove its route up to there as the regulator measured it (every decision's
-    /// VUT arc length and speed, [`RouteSpeed::from_samples`]) and, with the reacting follower,
-    /// how it identified the VUT's reaction by then. `None` before, and after it was given.
+    /// What this run taught the regulator about the VUT ([`v2t_game::regulation::Regulation::lesson`]:
+    /// once per run, when the VUT has left its zone), as the bus carries it to the uplink.
     pub fn run_learned(&mut self, stamp_ns: u64) -> Option<RunLearnedMsg> {
-        let ctx = self.inner.context().filter(|_| !self.reported)?;
-        let exit = ctx.zone_vut.exit_s_m;
-        if self.vut_samples.last().is_none_or(|&(s, _)| s < exit) {
-            return None;
-        }
-        self.reported = true;
-        let learned = Learned {
-            known: None,
-            route: RouteSpeed::from_samples(self.vut_samples.iter().copied(), exit),
-            reaction: self.inner.params().reacting_follower.then(|| self.inner.reaction_belief().posterior()),
-        };
+        let lesson = self.inner.lesson()?;
+        let ctx = self.inner.context()?;
+        let learned = Learned { known: None, route: lesson.route, reaction: lesson.reaction };
         let target = ctx.target;
         // A posterior or a route the wire refuses is not reported (the regulator made neither).
         let knowledge = CampaignKnowledge::from_upload(&learned.upload(0, target), 0).ok()?;
@@ -193,11 +171,6 @@ impl Regulation {
         let vut =
             vut.filter(|v| v.is_finite()).map(|v| measured(v.px_m, v.py_m, v.speed_mps, v.header.stamp_ns, now_ns));
         let Some(step) = self.inner.decide(now_ns as f64 * 1e-9, &own, vut.as_ref()) else { return plan };
-        if let Some(inp) = &step.input
-            && self.vut_samples.len() < RUN_SAMPLES
-        {
-            self.vut_samples.push((inp.vut.s_m, inp.vut.v_mps));
-        }
         let d = step.decision;
         plan.s0_m = step.bv_s_m.unwrap_or(0.0);
         plan.status = status_code(d.status).code();

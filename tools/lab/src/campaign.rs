@@ -206,6 +206,9 @@ pub struct RegulatedRun {
     /// How each BV's regulator identified the VUT's reaction by the end of the run (`None`: its
     /// follower does not react).
     pub reactions: Vec<Option<ReactionPosterior>>,
+    /// What the run taught each BV's regulator once the VUT had left its zone (what the onboard
+    /// node reports, `campaign record --learned`): what the campaign memory learns.
+    pub lessons: Vec<Option<v2t_game::regulation::Lesson>>,
 }
 
 impl RegulatedRun {
@@ -241,6 +244,7 @@ pub fn regulated_run(
     let mut learned_routes = Vec::with_capacity(scenario.bvs.len());
     let mut reaction_priors = Vec::with_capacity(scenario.bvs.len());
     let mut reaction_reports = Vec::with_capacity(scenario.bvs.len());
+    let mut lesson_reports = Vec::with_capacity(scenario.bvs.len());
     let mut bvs: Vec<Box<dyn BvController>> = Vec::with_capacity(scenario.bvs.len());
     for i in 0..scenario.bvs.len() {
         let case = memory.and_then(|m| m.case(&scenario.name, i, target));
@@ -254,6 +258,7 @@ pub fn regulated_run(
         learned_routes.push(r.knows_route());
         reaction_priors.push(r.has_reaction_prior());
         reaction_reports.push(r.reaction_report());
+        lesson_reports.push(r.lesson_report());
         bvs.push(Box::new(r));
     }
     let outcome = vut.run(scenario, &mut bvs, seed)?;
@@ -266,6 +271,7 @@ pub fn regulated_run(
         learned_routes,
         reaction_priors,
         reactions: reaction_reports.iter().map(|r| r.get().map(ReactionPosterior::from)).collect(),
+        lessons: lesson_reports.iter().map(|l| l.take()).collect(),
     })
 }
 
@@ -280,7 +286,9 @@ pub fn learned_of(case: &CaseMemory) -> v2t_edge::campaign::Learned {
 }
 
 /// Records a regulated run of `scenario` (its target is the test's) in `memory`, BV by BV: its
-/// outcome, and how the VUT drove its route up to that BV's zone ([`vut_route_speed`]).
+/// outcome, and what the run taught that BV's regulator (the VUT's route as the regulator measured
+/// it, its reaction as identified once the VUT had left its zone: [`RegulatedRun::lessons`]), as
+/// the memory learns it on the track from the BV's report.
 pub fn record_run(memory: &mut CampaignMemory, scenario: &Scenario, run: &RegulatedRun) {
     let target = scenario.target;
     for (i, aim) in run.aims.iter().enumerate() {
@@ -292,11 +300,13 @@ pub fn record_run(memory: &mut CampaignMemory, scenario: &Scenario, run: &Regula
             target,
             RunRecord { learned_route, reaction_prior, ..bv_record(&run.outcome.result, id, aim.tau_s()) },
         );
-        if let Some(route) = vut_route_speed(&run.outcome, i) {
-            case.learn_route(target, &route);
-        }
-        if let Some(Some(reaction)) = run.reactions.get(i) {
-            case.learn_reaction(target, reaction);
+        if let Some(Some(lesson)) = run.lessons.get(i) {
+            if let Some(route) = &lesson.route {
+                case.learn_route(target, route);
+            }
+            if let Some(reaction) = &lesson.reaction {
+                case.learn_reaction(target, reaction);
+            }
         }
     }
 }

@@ -30,6 +30,9 @@ pub struct RegulatedBv {
     reaction: Rc<Cell<Option<v2t_game::reaction::BeliefSnapshot>>>,
     /// Whether the regulator started from earlier runs' identification.
     reaction_prior: bool,
+    /// What the run taught the regulator, once the VUT has left its zone (shared with whoever
+    /// asked; [`v2t_game::regulation::Regulation::lesson`], what the onboard node reports).
+    lesson: Rc<RefCell<Option<v2t_game::regulation::Lesson>>>,
 }
 
 /// One decision of an in-process regulated BV, kept as it was made (no allocation in the control
@@ -95,6 +98,7 @@ impl RegulatedBv {
             log: Rc::default(),
             reaction: Rc::default(),
             reaction_prior: false,
+            lesson: Rc::default(),
         })
     }
 
@@ -118,6 +122,12 @@ impl RegulatedBv {
     /// decision (`None` while it made none, or when its follower does not react).
     pub fn reaction_report(&self) -> Rc<Cell<Option<v2t_game::reaction::BeliefSnapshot>>> {
         Rc::clone(&self.reaction)
+    }
+
+    /// Where what the run taught the regulator will be once the VUT has left its zone (`None`
+    /// before, and for a run in which it never did).
+    pub fn lesson_report(&self) -> Rc<RefCell<Option<v2t_game::regulation::Lesson>>> {
+        Rc::clone(&self.lesson)
     }
 
     /// Whether the follower predicts the VUT's free motion from a learned route speed.
@@ -205,6 +215,9 @@ impl BvController for RegulatedBv {
         }
         if self.regulation.params().reacting_follower {
             self.reaction.set(Some(self.regulation.reaction_belief().snapshot()));
+        }
+        if let Some(lesson) = self.regulation.lesson() {
+            *self.lesson.borrow_mut() = Some(lesson);
         }
         ActuationRequest {
             accel_mps2: d.accel_mps2,
