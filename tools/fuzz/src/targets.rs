@@ -557,9 +557,21 @@ fn report_frames() -> anyhow::Result<Vec<Seed>> {
         gate_reason: 0,
     };
     let heartbeat = link::Heartbeat { bv_id: "bv1".into(), seq: 6, stamp_ms: 1_700_000_000_000, healthy: true };
+    let seed = campaign_seed()?;
+    let learned = link::RunLearned {
+        bv_id: "bv1".into(),
+        prior_id: 7,
+        stamp_ms: 1_700_000_000_000,
+        aim: seed.aim,
+        started_with_route: true,
+        started_with_reaction: false,
+        route: seed.route,
+        reaction: seed.reaction,
+    };
     Ok(vec![
         ("telemetry".into(), link::telemetry_frame(&telemetry)?),
         ("heartbeat".into(), link::heartbeat_frame(&heartbeat)?),
+        ("run learned".into(), link::learned_frame(&learned)?),
     ])
 }
 
