@@ -1,7 +1,7 @@
 //! What a test campaign has learned of the VUT, on the BV: the aim of the next run, what earlier
 //! runs showed about reach, how the VUT drove its route and how it was identified to react
 //! (`v2t_game::campaign`'s memory of one test), carried by a signed
-//! [`CampaignUpload`](v2t_wire::link::CampaignUpload), kept with the active prior
+//! [`CampaignUpload`], kept with the active prior
 //! ([`CampaignKnowledge`]) and given to the regulator before the run starts ([`Learned::apply`]).
 //!
 //! The lab's campaigns give it to their regulated BVs through the same conversions (upload → the
