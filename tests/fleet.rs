@@ -319,6 +319,17 @@ fn two_simulated_bvs_regulate_their_own_priors_in_closed_loop_under_one_serve() 
     signal(&serve.child, "INT");
     serve.expect_line("every BV confirmed the abort", Duration::from_secs(5));
     assert!(serve.wait_exit(Duration::from_secs(5)).success());
+    // The telemetry said, while the runs went on, how each BV's regulator identified the VUT.
+    let session = std::fs::read_to_string(&log).unwrap();
+    for bv in ["bv1", "bv2"] {
+        let identified = session
+            .lines()
+            .filter(|l| l.contains(&format!("/bv/{bv}/telemetry")))
+            .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+            .filter_map(|v| v["message"]["vut_reaction"]["reacts_p"].as_f64())
+            .count();
+        assert!(identified > 10, "{bv}: {identified} telemetry reports with the VUT's identification");
+    }
     let memory = dir.join("sim-vut.json");
     let record = |aim: &str| {
         std::process::Command::new(bin("video2track"))

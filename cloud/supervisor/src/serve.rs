@@ -224,12 +224,12 @@ impl Fleet {
     /// A table of every BV at `now`.
     pub fn table(&self, now: Instant) -> String {
         let mut s = String::from(
-            "BV        link     health   prior  speed   plan              PET pred  τ reach           gate  (telemetry age)\n",
+            "BV        link     health   prior  speed   plan              PET pred  τ reach           VUT reacts        gate  (telemetry age)\n",
         );
         for (id, b) in &self.bvs {
             let link = if b.online(now) { "online" } else { "OFFLINE" };
             let health = if b.healthy { "ok" } else { "DEGRADED" };
-            let (prior, speed, plan, pet, reach, gate) = match &b.telemetry {
+            let (prior, speed, plan, pet, reach, reacts, gate) = match &b.telemetry {
                 Some(t) => (
                     if t.prior_id == 0 { "-".to_owned() } else { t.prior_id.to_string() },
                     format!("{:.1}", t.speed_mps),
@@ -237,9 +237,13 @@ impl Fleet {
                         .map_or_else(|_| format!("?{}", t.plan_status), |p| format!("{p:?}")),
                     t.predicted_pet_s.map_or_else(|| "-".to_owned(), |p| format!("{p:.2} s")),
                     reach_text(t.below_reach, t.pet_bound_s),
+                    t.vut_reaction.map_or_else(
+                        || "-".to_owned(),
+                        |r| format!("p {:.2}, {:.1}±{:.1} s", r.reacts_p, r.gap_s, r.gap_sd_s),
+                    ),
                     gate_text(t.gate_state, t.gate_reason),
                 ),
-                None => ("-".into(), "-".into(), "-".into(), "-".into(), "-".into(), "-".into()),
+                None => ("-".into(), "-".into(), "-".into(), "-".into(), "-".into(), "-".into(), "-".into()),
             };
             let late = if b.telemetry_age_ms > LATE_AFTER_MS {
                 format!("  LATE: {:.1} s old on arrival", b.telemetry_age_ms as f64 * 1e-3)
@@ -248,7 +252,7 @@ impl Fleet {
             };
             let _ = writeln!(
                 s,
-                "{id:<9} {link:<8} {health:<8} {prior:<6} {speed:<7} {plan:<17} {pet:<9} {reach:<17} {gate}{late}"
+                "{id:<9} {link:<8} {health:<8} {prior:<6} {speed:<7} {plan:<17} {pet:<9} {reach:<17} {reacts:<17} {gate}{late}"
             );
         }
         s
@@ -633,6 +637,7 @@ mod tests {
             pet_bound_s: None,
             gate_state: GateState::Engaged.code(),
             gate_reason: GateReason::EngageRequest.code(),
+            vut_reaction: None,
         }
     }
 
@@ -723,6 +728,18 @@ mod tests {
         let odd = Telemetry { seq: 4, below_reach: 77, ..telemetry("bv1", 42) };
         f.on_message("v2t/pg/bv/bv1/telemetry", &telemetry_frame(&odd).unwrap(), t0, 10).unwrap();
         assert!(f.table(t0).contains("BELOW: ?77"), "{}", f.table(t0));
+    }
+
+    #[test]
+    fn the_fleet_table_says_how_the_vuts_reaction_is_identified() {
+        let mut f = Fleet::default();
+        let t0 = Instant::now();
+        f.on_message("v2t/pg/bv/bv1/telemetry", &telemetry_frame(&telemetry("bv1", 42)).unwrap(), t0, 10).unwrap();
+        assert!(!f.table(t0).contains("±"), "{}", f.table(t0));
+        let reaction = link::VutReaction { reacts_p: 0.93, gap_s: 2.1, gap_sd_s: 0.4 };
+        let t = Telemetry { seq: 2, vut_reaction: Some(reaction), ..telemetry("bv1", 42) };
+        f.on_message("v2t/pg/bv/bv1/telemetry", &telemetry_frame(&t).unwrap(), t0, 10).unwrap();
+        assert!(f.table(t0).contains("p 0.93, 2.1±0.4 s"), "{}", f.table(t0));
     }
 
     #[test]

@@ -423,6 +423,13 @@ impl<'a, S: Service> Node<'a, S> {
                     .then_some(p.pet_bound_s),
                 gate_state: g.state,
                 gate_reason: g.reason,
+                vut_reaction: (p.has_reaction == 1
+                    && [p.vut_reacts_p, p.vut_gap_s, p.vut_gap_sd_s].iter().all(|v| v.is_finite()))
+                .then_some(link::VutReaction {
+                    reacts_p: p.vut_reacts_p,
+                    gap_s: p.vut_gap_s,
+                    gap_sd_s: p.vut_gap_sd_s,
+                }),
             };
             self.send_report(topics::TELEMETRY, link::telemetry_frame(&tele));
         }

@@ -27,8 +27,10 @@ use serde::{Deserialize, Serialize};
 use v2t_model::Target;
 use v2t_model::prior::TrajectoryPrior;
 
-/// The link version this build speaks.
-pub const LINK_VERSION: u8 = 1;
+/// The link version this build speaks (2: telemetry says how the VUT's reaction is identified,
+/// campaign uploads and runs' reports exist; a BV and a cloud of another version refuse each
+/// other's frames by name).
+pub const LINK_VERSION: u8 = 2;
 /// The first bytes of every frame.
 pub const MAGIC: &[u8; 3] = b"V2T";
 /// Header length: magic, version, kind.
@@ -418,6 +420,20 @@ pub struct Telemetry {
     pub gate_state: u8,
     /// Why the gate is in that state (`v2t_wire::GateReason` code).
     pub gate_reason: u8,
+    /// How the regulator identifies the VUT's reaction to the BV so far this run (`None`: it does
+    /// not identify it, or has no decision yet).
+    pub vut_reaction: Option<VutReaction>,
+}
+
+/// How the regulator identifies the VUT's reaction to the BV (its plan's `vut_*` fields).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct VutReaction {
+    /// Probability that the VUT reacts to the BV at all.
+    pub reacts_p: f64,
+    /// The gap it is identified to accept (expected over the reacting hypotheses), s.
+    pub gap_s: f64,
+    /// Its standard deviation, s.
+    pub gap_sd_s: f64,
 }
 
 /// A BV's sign of life at 5 Hz.
@@ -921,9 +937,9 @@ mod tests {
         assert!(cmd(&mut rx(), &unsigned, 10_000).is_err());
         assert!(matches!(cmd(&mut rx(), b"V2", 0), Err(LinkError::Malformed(_))));
         assert!(matches!(cmd(&mut rx(), b"XYZ\x01\x01", 0), Err(LinkError::Malformed(_))));
-        let mut v2 = seal(&m, &key()).unwrap();
-        v2[3] = 2;
-        assert_eq!(cmd(&mut rx(), &v2, 10_000), Err(LinkError::Version { got: 2 }));
+        let mut other_version = seal(&m, &key()).unwrap();
+        other_version[3] = LINK_VERSION - 1;
+        assert_eq!(cmd(&mut rx(), &other_version, 10_000), Err(LinkError::Version { got: LINK_VERSION - 1 }));
         let tele = telemetry_frame(&Telemetry {
             bv_id: "bv1".into(),
             seq: 1,
@@ -939,6 +955,7 @@ mod tests {
             pet_bound_s: None,
             gate_state: 0,
             gate_reason: 0,
+            vut_reaction: None,
         })
         .unwrap();
         assert!(matches!(cmd(&mut rx(), &tele, 0), Err(LinkError::Malformed(_))));

@@ -555,6 +555,7 @@ fn report_frames() -> anyhow::Result<Vec<Seed>> {
         pet_bound_s: None,
         gate_state: 1,
         gate_reason: 0,
+        vut_reaction: Some(link::VutReaction { reacts_p: 0.8, gap_s: 2.1, gap_sd_s: 0.4 }),
     };
     let heartbeat = link::Heartbeat { bv_id: "bv1".into(), seq: 6, stamp_ms: 1_700_000_000_000, healthy: true };
     let seed = campaign_seed()?;

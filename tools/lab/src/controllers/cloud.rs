@@ -252,6 +252,7 @@ fn report(id: &str, seq: u64, epoch_ms: u64, p: &Perceived, t_s: f64) -> Telemet
         pet_bound_s: None,
         gate_state: 0,
         gate_reason: 0,
+        vut_reaction: None,
     }
 }
 
