@@ -59,6 +59,16 @@ impl Bv {
     }
 }
 
+/// `video2track serve` of fleet `pg` with its embedded broker on `listen`, signing with `key`,
+/// logging the session to `log`, no periodic table; returned once its broker listens.
+fn serve(listen: &str, key: &str, log: &std::path::Path) -> Proc {
+    let log = log.to_str().unwrap();
+    let args = ["serve", "--listen", listen, "--fleet", "pg", "--key", key, "--log", log, "--status-period-s", "0"];
+    let serve = Proc::start(&bin("video2track"), &args, "serve");
+    serve.expect_line("embedded broker listening", Duration::from_secs(10));
+    serve
+}
+
 #[test]
 fn one_serve_supervises_two_bvs_each_with_its_own_prior_and_target() {
     let dir_scratch = tempdir("fleet");
@@ -68,24 +78,7 @@ fn one_serve_supervises_two_bvs_each_with_its_own_prior_and_target() {
     let listen = format!("127.0.0.1:{port}");
     let log = dir.join("session.jsonl");
     let key_arg = secret.to_str().unwrap().to_owned();
-    let mut serve = Proc::start(
-        &bin("video2track"),
-        &[
-            "serve",
-            "--listen",
-            &listen,
-            "--fleet",
-            "pg",
-            "--key",
-            &key_arg,
-            "--log",
-            log.to_str().unwrap(),
-            "--status-period-s",
-            "0",
-        ],
-        "serve",
-    );
-    serve.expect_line("embedded broker listening", Duration::from_secs(10));
+    let mut serve = serve(&listen, &key_arg, &log);
     v2t_tests::harness::iceoryx2_config();
     let bv1 = Bv::start(dir, port, &public, "bv1");
     let bv2 = Bv::start(dir, port, &public, "bv2");
@@ -227,24 +220,7 @@ fn two_simulated_bvs_regulate_their_own_priors_in_closed_loop_under_one_serve() 
     let port = free_port();
     let listen = format!("127.0.0.1:{port}");
     let key_arg = secret.to_str().unwrap().to_owned();
-    let mut serve = Proc::start(
-        &bin("video2track"),
-        &[
-            "serve",
-            "--listen",
-            &listen,
-            "--fleet",
-            "pg",
-            "--key",
-            &key_arg,
-            "--status-period-s",
-            "0",
-            "--log",
-            log.to_str().unwrap(),
-        ],
-        "serve",
-    );
-    serve.expect_line("embedded broker listening", Duration::from_secs(10));
+    let mut serve = serve(&listen, &key_arg, &log);
     let mut launchers = Vec::new();
     let mut ecus = Vec::new();
     for (i, bv) in ["bv1", "bv2"].into_iter().enumerate() {

@@ -621,29 +621,16 @@ fn campaign_record_takes_what_the_bv_learned_only_from_a_report_of_that_run() {
     let scratch = tempdir("learned");
     let memory = scratch.path().join("ads.json");
     let log = scratch.path().join("session.jsonl");
-    let record = |log: &str, extra: &[&str]| {
-        let mut args = vec![
-            "campaign",
-            "record",
-            s(&memory),
-            "--scenario",
-            "left_turn",
-            "--style",
-            "rush",
-            "--tau",
-            "2",
-            "--vut",
-            "ads",
-            "--aim",
-            "2",
-            "--pet",
-            "2.1",
-            "--learned",
-            log,
-        ];
+    // Every call records in the test `left_turn` rush τ 2 s of VUT `ads` from the session log;
+    // `run` adds what a run's record needs, `extra` the rest.
+    let record_with = |run: &[&str], extra: &[&str]| {
+        let mut args = vec!["campaign", "record", s(&memory), "--scenario", "left_turn", "--style", "rush", "--tau"];
+        args.extend_from_slice(&["2", "--vut", "ads", "--learned", s(&log)]);
+        args.extend_from_slice(run);
         args.extend_from_slice(extra);
         video2track(&args)
     };
+    let record = |extra: &[&str]| record_with(&["--aim", "2", "--pet", "2.1"], extra);
     let telemetry = r#"{"received_ms":1,"topic":"v2t/pg/bv/bv1/telemetry","message":{"bv_id":"bv1"}}"#;
     for (content, says) in [
         ("not json\n", "session.jsonl line 1: not JSON"),
@@ -654,14 +641,14 @@ fn campaign_record_takes_what_the_bv_learned_only_from_a_report_of_that_run() {
         ),
     ] {
         std::fs::write(&log, content).unwrap();
-        let o = record(s(&log), &["--from-bv", "bv1", "--prior-id", "41"]);
+        let o = record(&["--from-bv", "bv1", "--prior-id", "41"]);
         let (_, err) = text(&o);
         assert_eq!(o.status.code(), Some(2), "{err}");
         assert!(err.contains(says), "{says}: {err}");
         assert!(!memory.exists(), "nothing recorded from a bad log");
     }
     // --learned names a run: without the BV and the prior it is refused by the parser.
-    let o = record(s(&log), &[]);
+    let o = record(&[]);
     assert_eq!(o.status.code(), Some(2), "{}", text(&o).1);
 
     // A report as `serve --log` keeps it: a free drive's (the BV parked, never started) teaches
@@ -680,37 +667,14 @@ fn campaign_record_takes_what_the_bv_learned_only_from_a_report_of_that_run() {
         serde_json::json!({"received_ms": 2, "topic": "v2t/pg/bv/bv1/learned", "message": r}).to_string()
     };
     std::fs::write(&log, format!("{telemetry}\n{}\n{}\n", report(41, 7.0), report(42, 8.0))).unwrap();
-    let free = |extra: &[&str]| {
-        let mut args = vec![
-            "campaign",
-            "record",
-            s(&memory),
-            "--scenario",
-            "left_turn",
-            "--style",
-            "rush",
-            "--tau",
-            "2",
-            "--vut",
-            "ads",
-            "--free-drive",
-            "--learned",
-            s(&log),
-            "--from-bv",
-            "bv1",
-            "--prior-id",
-            "41",
-        ];
-        args.extend_from_slice(extra);
-        video2track(&args)
-    };
+    let free = |extra: &[&str]| record_with(&["--free-drive", "--from-bv", "bv1", "--prior-id", "41"], extra);
     let o = free(&["--aim", "2"]);
     assert_eq!(o.status.code(), Some(2), "a free drive has no aim: {}", text(&o).1);
     let o = free(&[]);
     let (out, err) = text(&o);
     assert!(o.status.success() && err.contains("free drive: the VUT's route learned to 58 m"), "{err}");
     assert!(out.contains("0 runs before") && out.contains("route learned over 1 run(s), to 58 m"), "{out}");
-    let o = record(s(&log), &["--from-bv", "bv1", "--prior-id", "42"]);
+    let o = record(&["--from-bv", "bv1", "--prior-id", "42"]);
     let (out, err) = text(&o);
     assert!(o.status.success() && err.contains("from the BV's report: route over 1 run(s), 58 m"), "{err}");
     assert!(out.contains("1 runs before (1 with a PET in order)"), "{out}");

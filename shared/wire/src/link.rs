@@ -213,6 +213,33 @@ impl CampaignUpload {
     }
 }
 
+/// `values` of the field `field` (under `what`): `count` of them (`noun` in the error), each
+/// finite and within `bound` (`bound_text` says it with its unit); the error names the field and
+/// the bound.
+fn check_series(
+    what: &str,
+    (field, noun): (&str, &str),
+    values: &[f64],
+    count: std::ops::RangeInclusive<usize>,
+    bound: std::ops::RangeInclusive<f64>,
+    bound_text: &str,
+) -> Result<(), LinkError> {
+    if !count.contains(&values.len()) {
+        return Err(LinkError::Malformed(format!(
+            "{what} field {field}: {} {noun}, must be {} to {}",
+            values.len(),
+            count.start(),
+            count.end()
+        )));
+    }
+    match values.iter().enumerate().find(|(_, v)| !(v.is_finite() && bound.contains(*v))) {
+        Some((i, v)) => Err(LinkError::Malformed(format!(
+            "{what} field {field}[{i}] = {v}: must be finite and within {bound_text}"
+        ))),
+        None => Ok(()),
+    }
+}
+
 impl LearnedRoute {
     /// 2 to [`crate::MAX_ROUTE_POINTS`] speeds in [0, 70] m/s every (0, 10] m; the error names
     /// the field under `what`.
@@ -223,21 +250,8 @@ impl LearnedRoute {
                 self.step_m
             )));
         }
-        if !(2..=crate::MAX_ROUTE_POINTS).contains(&self.speeds_mps.len()) {
-            return Err(LinkError::Malformed(format!(
-                "{what} field route.speeds_mps: {} points, must be 2 to {}",
-                self.speeds_mps.len(),
-                crate::MAX_ROUTE_POINTS
-            )));
-        }
-        if let Some((i, v)) =
-            self.speeds_mps.iter().enumerate().find(|(_, v)| !(v.is_finite() && (0.0..=70.0).contains(*v)))
-        {
-            return Err(LinkError::Malformed(format!(
-                "{what} field route.speeds_mps[{i}] = {v}: must be finite and within [0, 70] m/s"
-            )));
-        }
-        Ok(())
+        let (field, count) = (("route.speeds_mps", "points"), 2..=crate::MAX_ROUTE_POINTS);
+        check_series(what, field, &self.speeds_mps, count, 0.0..=70.0, "[0, 70] m/s")
     }
 }
 
@@ -245,21 +259,8 @@ impl LearnedReaction {
     /// 1 to [`crate::MAX_REACTION_HYPOTHESES`] probabilities in [0, 1]; the error names the field
     /// under `what`.
     pub fn check(&self, what: &str) -> Result<(), LinkError> {
-        if !(1..=crate::MAX_REACTION_HYPOTHESES).contains(&self.probabilities.len()) {
-            return Err(LinkError::Malformed(format!(
-                "{what} field reaction.probabilities: {} values, must be 1 to {}",
-                self.probabilities.len(),
-                crate::MAX_REACTION_HYPOTHESES
-            )));
-        }
-        if let Some((i, p)) =
-            self.probabilities.iter().enumerate().find(|(_, p)| !(p.is_finite() && (0.0..=1.0).contains(*p)))
-        {
-            return Err(LinkError::Malformed(format!(
-                "{what} field reaction.probabilities[{i}] = {p}: must be finite and within [0, 1]"
-            )));
-        }
-        Ok(())
+        let count = 1..=crate::MAX_REACTION_HYPOTHESES;
+        check_series(what, ("reaction.probabilities", "values"), &self.probabilities, count, 0.0..=1.0, "[0, 1]")
     }
 }
 
