@@ -36,6 +36,8 @@ pub struct Regulation {
     /// What the campaign learned, as given to the regulator, and the cloud message it came with.
     learned: Learned,
     campaign_seq: u64,
+    /// The run of the active prior ([`ActivePrior::run`]).
+    run: u64,
     /// Lessons given.
     lessons: u64,
     header: Header,
@@ -70,15 +72,18 @@ impl Regulation {
             prior_seq: 0,
             learned: Learned::default(),
             campaign_seq: 0,
+            run: 0,
             lessons: 0,
             header: Header::default(),
         })
     }
 
-    /// Takes `prior` if it is news and well formed. A new prior (another id), or the active one
+    /// Takes `prior` if it is news and well formed. A new prior (another id), the active one
     /// with new campaign knowledge (the uplink takes it only before `start`: it prepares the next
-    /// run, [`crate::campaign`]), starts a run around it with what its campaign block says (a
-    /// prior as uploaded says nothing, so nothing of an earlier test stays). The active prior
+    /// run, [`crate::campaign`]), or the active one as its next run (the BV armed again,
+    /// [`ActivePrior::run`]) starts a run around it with what its campaign block says (a
+    /// prior as uploaded says nothing, so nothing of an earlier test stays; nothing of an earlier
+    /// run does either: which of its vehicles left the zone when, what it identified). The active prior
     /// published again otherwise (the uplink does so when the cloud re-targets the running
     /// interaction, `send target`) aims the run at its τ and style without starting it over. A
     /// broken one (its timing or its block included) leaves the active prior, its aim and what
@@ -89,7 +94,7 @@ impl Regulation {
         if same && self.prior_seq == prior.header.seq {
             return Ok(false);
         }
-        if same && prior.campaign.seq == self.campaign_seq {
+        if same && prior.campaign.seq == self.campaign_seq && prior.run == self.run {
             let target = prior.target().map_err(crate::prior::PriorError::from)?;
             self.inner.aim(target, self.learned.known);
             self.prior_seq = prior.header.seq;
@@ -102,6 +107,7 @@ impl Regulation {
         learned.apply(&mut self.inner, target).map_err(invalid)?;
         self.learned = learned;
         self.campaign_seq = prior.campaign.seq;
+        self.run = prior.run;
         self.prior_id = Some(prior.prior_id);
         self.prior_seq = prior.header.seq;
         Ok(true)
@@ -291,6 +297,11 @@ mod tests {
         BvState { header: Header { seq: 1, stamp_ns }, px_m: p.x_m, py_m: p.y_m, speed_mps: 8.0, ..BvState::default() }
     }
 
+    /// The VUT at route point `q`, at 8 m/s.
+    fn vut_at(q: v2t_wire::Vec2, seq: u64, stamp_ns: u64) -> VutState {
+        VutState { header: Header { seq, stamp_ns }, px_m: q.x_m, py_m: q.y_m, speed_mps: 8.0, ..VutState::default() }
+    }
+
     #[test]
     fn a_decision_over_its_budget_is_counted_in_the_heartbeat() {
         use iceoryx2::prelude::local;
@@ -403,14 +414,7 @@ mod tests {
         let mut before_exit = 0;
         for (k, q) in path.iter().enumerate() {
             let now = 1_000_000_000 + k as u64 * 50_000_000;
-            let vut = VutState {
-                header: Header { seq: k as u64 + 1, stamp_ns: now },
-                px_m: q.x_m,
-                py_m: q.y_m,
-                speed_mps: 8.0,
-                ..VutState::default()
-            };
-            let _ = reg.decide(&bv_at(&prior, 0, now), Some(&vut), now + 1_000_000);
+            let _ = reg.decide(&bv_at(&prior, 0, now), Some(&vut_at(*q, k as u64 + 1, now)), now + 1_000_000);
             if let Some(l) = reg.run_learned(now) {
                 assert!(lesson.is_none(), "once per run");
                 lesson = Some(l);
@@ -427,6 +431,21 @@ mod tests {
         assert!((route.speeds_mps.len() - 1) as f64 * route.step_m >= exit - route.step_m, "{route:?} to {exit}");
         assert!(learned.reaction.is_some(), "the shipped follower identifies the reaction");
         assert!(reg.run_learned(10_000_000_000).is_none());
+        // The BV armed again with the same prior (the uplink publishes it as its next run): the
+        // run starts over, the VUT's exit of the run before forgotten, and learns afresh.
+        let mut again = prior.clone();
+        again.run += 1;
+        again.header.seq += 1;
+        assert!(reg.set_prior(&again).unwrap(), "the next run is news");
+        let now = 20_000_000_000;
+        let _ = reg.decide(&bv_at(&prior, 0, now), Some(&vut_at(path[0], 1, now)), now + 1_000_000);
+        assert!(reg.run_learned(now).is_none(), "nothing seen yet in this run");
+        for (k, q) in path.iter().enumerate().skip(1) {
+            let now = 20_000_000_000 + k as u64 * 50_000_000;
+            let _ = reg.decide(&bv_at(&prior, 0, now), Some(&vut_at(*q, k as u64 + 1, now)), now + 1_000_000);
+        }
+        let l = reg.run_learned(30_000_000_000).expect("the second run's lesson");
+        assert_eq!(l.header.seq, 2, "the second lesson");
         // A new run (another prior) learns afresh.
         reg.set_prior(&crate::prior::fixtures::left_turn(2)).unwrap();
         assert!(reg.run_learned(10_000_000_000).is_none(), "nothing seen yet");

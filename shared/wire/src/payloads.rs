@@ -285,6 +285,10 @@ pub struct ActivePrior {
     /// What a test campaign has learned of the VUT for this run (`seq` 0: nothing; the uplink
     /// sets it, a prior is uploaded without).
     pub campaign: CampaignKnowledge,
+    /// Which run of this prior it stands for: 0 as uploaded, one more each time the BV is armed
+    /// with the prior active (the uplink counts). A new run starts from what the prior and its
+    /// campaign block say, nothing of the run before.
+    pub run: u64,
 }
 
 impl ActivePrior {

@@ -181,7 +181,16 @@ impl UplinkLogic {
             },
             CloudBody::Command(Command::Arm) => {
                 self.started = false;
-                ok(vec![Action::Safety(SafetyAction::Reset)], format!("arm (seq {seq}): gate reset"))
+                // Armed for a run: with a prior active, the regulator starts its run over (the
+                // prior again as the next run; what it learned comes back only with the cloud's
+                // `campaign send`).
+                let Some(active) = self.active.as_mut() else {
+                    return ok(vec![Action::Safety(SafetyAction::Reset)], format!("arm (seq {seq}): gate reset"));
+                };
+                active.run += 1;
+                active.header = Header { seq: active.header.seq + 1, stamp_ns: mono_ns };
+                let detail = format!("arm (seq {seq}): gate reset, run {} of prior {}", active.run, active.prior_id);
+                ok(vec![Action::Safety(SafetyAction::Reset), Action::Prior(Box::new(active.clone()))], detail)
             }
             CloudBody::Command(Command::Start) => {
                 self.started = true;
@@ -333,7 +342,12 @@ mod tests {
                 50_000,
                 9,
             ));
-            assert_eq!(o.actions, vec![Action::Safety(action)]);
+            assert_eq!(o.actions.first(), Some(&Action::Safety(action)));
+            // Armed with a prior active, the prior goes again as its next run.
+            let next_run =
+                matches!(cmd, Command::Arm).then(|| Action::Prior(Box::new(logic.active().unwrap().clone())));
+            assert_eq!(o.actions.get(1), next_run.as_ref(), "{cmd:?}");
+            assert_eq!(o.actions.len(), 1 + usize::from(next_run.is_some()));
         }
         // A replay of a genuine frame is a verdict the sender can match; garbage is only counted.
         let o = verdict(logic.on_frame(
@@ -395,7 +409,12 @@ mod tests {
         assert_eq!(cmd(&mut logic, 7, Command::Start).verdict, "accepted");
         let o = send(&mut logic, 8, learned.upload(5, rush));
         assert!(o.verdict == "refused" && o.detail.contains("the run has started"), "{}", o.detail);
-        assert_eq!(cmd(&mut logic, 9, Command::Arm).verdict, "accepted");
+        // Armed again: the regulator starts its next run of the prior, with what it knew.
+        let o = cmd(&mut logic, 9, Command::Arm);
+        assert_eq!(o.verdict, "accepted");
+        assert!(o.detail.contains("run 1 of prior 5"), "{}", o.detail);
+        let [Action::Safety(SafetyAction::Reset), Action::Prior(r)] = o.actions.as_slice() else { panic!("{o:?}") };
+        assert_eq!((r.prior_id, r.run, r.header.seq, &r.campaign), (5, 1, q.header.seq + 1, &q.campaign));
         assert_eq!(send(&mut logic, 10, learned.upload(5, rush)).verdict, "accepted");
     }
 
