@@ -19,6 +19,7 @@
 use serde::Serialize;
 use v2t_game::qp::CAP_DECEL_SHARE;
 use v2t_game::regulator::{HOLD_CLEARANCE_M, HOLD_CREEP_M, hold_station, stop_line_station};
+use v2t_model::driving::{CurvePreview, curve_speed_ahead};
 use v2t_model::metrics::ConflictKind;
 use v2t_model::{Style, Target};
 use v2t_sim::bv::BvController;
@@ -63,7 +64,13 @@ pub fn grid() -> Vec<Profile> {
     out
 }
 
-/// A BV that drives one [`Profile`] and follows its route laterally. With `keep`, it gives way
+/// A BV that drives one [`Profile`] and follows its route laterally, within its limits: never
+/// faster than its path's curves allow at its lateral-acceleration limit (the curve speed ahead,
+/// [`curve_speed_ahead`], braking for it at [`CAP_DECEL_SHARE`] of its largest deceleration, from
+/// where its actuator's lag takes it, less the speed it may still gain meanwhile). Its plant follows any speed on any curve (a kinematic
+/// bicycle does not skid): without this cap the grid counted PETs that only a BV turning at half
+/// again its lateral limit reached (the BV-turning left turn's rush at τ 1.5 s against SUMO's IDM,
+/// at 6.6 m/s² where 4.5 are allowed). With `keep`, it gives way
 /// as [`YieldRule`] asks whatever its profile says: it never drives faster than it can stop at
 /// (at [`CAP_DECEL_SHARE`] of its largest deceleration) before its hold station until the VUT is
 /// in its zone, nor before the clearance station until the VUT has left it; then its profile
@@ -95,6 +102,23 @@ impl BvController for OpenLoop {
         } else {
             self.profile.a2_mps2
         };
+        // The distance it covers before a request takes effect (its actuator's delay and lag, and
+        // one control period): over that time it may still be speeding up at its largest
+        // acceleration.
+        let act = &bv.agent.vehicle.actuator;
+        let lag_s = act.delay_s + act.accel_time_constant_s + obs.dt_s;
+        let lag_m = v * lag_s + 0.5 * lim.max_accel_mps2 * lag_s * lag_s;
+        let curve = curve_speed_ahead(
+            &bv.agent.route,
+            obs.own.s_m + lag_m,
+            v,
+            lim.max_lat_accel_mps2,
+            CAP_DECEL_SHARE * lim.max_decel_mps2,
+            &CurvePreview::DRIVER,
+        );
+        if curve.is_finite() {
+            wanted = wanted.min(((curve - lim.max_accel_mps2 * lag_s).max(0.0) - v) / obs.dt_s);
+        }
         if let (Some(rule), Some(c)) = (self.keep, conflict) {
             let station = if obs.vut.s_m < c.zone.vut.enter_s_m {
                 rule.hold_s_m
@@ -104,17 +128,12 @@ impl BvController for OpenLoop {
                 f64::INFINITY
             };
             // The speed it can still stop from: the distance it covers before a request takes
-            // effect (its actuator's delay and lag, and one control period) comes off its room,
-            // and the speed it may still gain in that time off the speed.
-            // Once it stands near the station it stays (no creeping up to it).
-            let act = &bv.agent.vehicle.actuator;
+            // effect comes off its room, and the speed it may still gain in that time off the
+            // speed. Once it stands near the station it stays (no creeping up to it).
             let room = station - obs.own.s_m;
             if room < KEEP_STAND_M && v < KEEP_STAND_MPS {
                 wanted = wanted.min(-v / obs.dt_s);
             } else {
-                // Over that time it may still be speeding up, at most at its largest acceleration.
-                let lag_s = act.delay_s + act.accel_time_constant_s + obs.dt_s;
-                let lag_m = v * lag_s + 0.5 * lim.max_accel_mps2 * lag_s * lag_s;
                 let stop = (2.0 * CAP_DECEL_SHARE * lim.max_decel_mps2 * (room - lag_m).max(0.0)).sqrt();
                 let allowed = (stop - lim.max_accel_mps2 * lag_s).max(0.0);
                 wanted = wanted.min((allowed - v) / obs.dt_s);
@@ -347,6 +366,46 @@ mod tests {
             assert!(run.result.collision.is_none() && !run.result.zone_overlap, "{keep:?}");
             assert_eq!(run.result.conflicts[0].first, Some(FirstThrough::Vut), "{keep:?}");
             assert_eq!(YieldRule::kept_in(&scenario, 0, &run), Some(kept), "{keep:?}");
+        }
+    }
+
+    /// The largest lateral acceleration of the BV (trace index 1) in `run`, m/s²: speed times
+    /// yaw rate between trace samples.
+    fn peak_lateral(run: &RunOutcome) -> f64 {
+        run.trace
+            .windows(2)
+            .filter_map(|w| {
+                let (a, b) = (w.first()?, w.get(1)?);
+                let (pa, pb) = (a.agents.get(1)?.state, b.agents.get(1)?.state);
+                let turn = (pb.theta_rad - pa.theta_rad + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                    - std::f64::consts::PI;
+                Some((pb.speed_mps * turn / (b.t_s - a.t_s)).abs())
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// Stop, then full throttle into the left turn: the plant would follow it at 6.6 m/s² of
+    /// lateral acceleration (the grid's profile that reached 1.58 s against SUMO's IDM). The
+    /// grid's BV keeps its limit, and slows for the turn before it, not in it.
+    #[test]
+    fn a_profile_run_turns_within_the_bvs_lateral_limit() {
+        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../../config/scenarios/left_turn_basic.toml");
+        let scenario = v2t_sim::files::load_scenario(std::path::Path::new(root)).unwrap();
+        let limit = scenario.bvs[0].agent.vehicle.limits.max_lat_accel_mps2;
+        let vut = Vut::Builtin(VutModel::IdmNormal);
+        for profile in
+            [Profile { a1_mps2: -3.0, t1_s: 4.0, a2_mps2: 3.0 }, Profile { a1_mps2: 3.0, t1_s: 12.0, a2_mps2: 3.0 }]
+        {
+            let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(OpenLoop { profile, keep: None })];
+            let run = vut.run(&scenario, &mut bvs, 1).unwrap();
+            let peak = peak_lateral(&run);
+            assert!(peak <= 1.05 * limit, "{profile:?}: {peak:.2} m/s² against a limit of {limit} m/s²");
+            // It still drives its profile where the path is straight: full throttle at first.
+            let first = run.trace.iter().find(|x| x.t_s >= 1.0).unwrap().agents[1].state.speed_mps;
+            assert!(
+                if profile.a1_mps2 > 0.0 { first > 11.0 } else { first < 9.0 },
+                "{profile:?}: {first:.2} m/s at 1 s"
+            );
         }
     }
 

@@ -410,7 +410,7 @@ pub fn steer_markdown(r: &SteerReport) -> String {
     if !r.reach.is_empty() {
         out.push_str("\nWhat open-loop BVs reached (a grid of ");
         out.push_str(&crate::reach::grid().len().to_string());
-        out.push_str(" speed profiles, one seed, each run once more keeping the yield rule below where it applies; PET range of the safe runs in each order; a τ counts as reached when a profile lands within ±10 % of it, or the regulated runs did; at a crossing a yield counts only when the BV waited behind its stop line until the VUT was in its zone and kept 2.5 m from its zone until the VUT had left, as the regulator's BV must):\n\n| scenario | VUT | rush PETs (s) | yield PETs (s) | yields not kept back | collisions | failed |\n|---|---|---|---|---|---|---|\n");
+        out.push_str(" speed profiles, one seed, every BV within its lateral-acceleration limit in the curves, each run once more keeping the yield rule below where it applies; PET range of the safe runs in each order; a τ counts as reached when a profile lands within ±10 % of it, or the regulated runs did; at a crossing a yield counts only when the BV waited behind its stop line until the VUT was in its zone and kept 2.5 m from its zone until the VUT had left, as the regulator's BV must):\n\n| scenario | VUT | rush PETs (s) | yield PETs (s) | yields not kept back | collisions | failed |\n|---|---|---|---|---|---|---|\n");
         let range = |x: Option<(f64, f64)>| x.map_or_else(|| "none".to_owned(), |(a, b)| format!("{a:.2}–{b:.2}"));
         for x in &r.reach {
             out.push_str(&format!(
