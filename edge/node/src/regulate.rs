@@ -81,9 +81,9 @@ impl Regulation {
     /// Takes `prior` if it is news and well formed. A new prior (another id), the active one
     /// with new campaign knowledge (the uplink takes it only before `start`: it prepares the next
     /// run, [`crate::campaign`]), or the active one as its next run (the BV armed again,
-    /// [`ActivePrior::run`]) starts a run around it with what its campaign block says (a
-    /// prior as uploaded says nothing, so nothing of an earlier test stays; nothing of an earlier
-    /// run does either: which of its vehicles left the zone when, what it identified). The active prior
+    /// [`ActivePrior::run`]) starts a run around it with what its campaign block says (a prior as
+    /// uploaded says nothing, so nothing of an earlier test stays; nothing of an earlier run does
+    /// either: which vehicle left the zone when, what it identified). The active prior
     /// published again otherwise (the uplink does so when the cloud re-targets the running
     /// interaction, `send target`) aims the run at its τ and style without starting it over. A
     /// broken one (its timing or its block included) leaves the active prior, its aim and what

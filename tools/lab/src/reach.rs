@@ -67,11 +67,11 @@ pub fn grid() -> Vec<Profile> {
 /// A BV that drives one [`Profile`] and follows its route laterally, within its limits: never
 /// faster than its path's curves allow at its lateral-acceleration limit (the curve speed ahead,
 /// [`curve_speed_ahead`], braking for it at [`CAP_DECEL_SHARE`] of its largest deceleration, from
-/// where its actuator's lag takes it, less the speed it may still gain meanwhile). Its plant follows any speed on any curve (a kinematic
-/// bicycle does not skid): without this cap the grid counted PETs that only a BV turning at half
-/// again its lateral limit reached (the BV-turning left turn's rush at τ 1.5 s against SUMO's IDM,
-/// at 6.6 m/s² where 4.5 are allowed). With `keep`, it gives way
-/// as [`YieldRule`] asks whatever its profile says: it never drives faster than it can stop at
+/// where its actuator's lag takes it, less the speed it may still gain meanwhile). Its plant
+/// follows any speed on any curve (a kinematic bicycle does not skid): without this cap the grid
+/// counted PETs that only a BV turning at half again its lateral limit reached (the BV-turning
+/// left turn's rush at τ 1.5 s against SUMO's IDM, at 6.6 m/s² where 4.5 are allowed). With
+/// `keep`, it gives way as [`YieldRule`] asks whatever its profile says: it never drives faster than it can stop at
 /// (at [`CAP_DECEL_SHARE`] of its largest deceleration) before its hold station until the VUT is
 /// in its zone, nor before the clearance station until the VUT has left it; then its profile
 /// goes on.
@@ -108,6 +108,8 @@ impl BvController for OpenLoop {
         let act = &bv.agent.vehicle.actuator;
         let lag_s = act.delay_s + act.accel_time_constant_s + obs.dt_s;
         let lag_m = v * lag_s + 0.5 * lim.max_accel_mps2 * lag_s * lag_s;
+        // Within its lateral limit: no faster than the curves ahead allow from where the lag
+        // takes it, less the speed it may still gain in that time.
         let curve = curve_speed_ahead(
             &bv.agent.route,
             obs.own.s_m + lag_m,
@@ -400,7 +402,7 @@ mod tests {
             let run = vut.run(&scenario, &mut bvs, 1).unwrap();
             let peak = peak_lateral(&run);
             assert!(peak <= 1.05 * limit, "{profile:?}: {peak:.2} m/s² against a limit of {limit} m/s²");
-            // It still drives its profile where the path is straight: full throttle at first.
+            // Where the path is straight it still drives its profile's first acceleration.
             let first = run.trace.iter().find(|x| x.t_s >= 1.0).unwrap().agents[1].state.speed_mps;
             assert!(
                 if profile.a1_mps2 > 0.0 { first > 11.0 } else { first < 9.0 },
