@@ -707,11 +707,16 @@ mod tests {
         assert!(!f.table(t0).contains("LATE"));
     }
 
+    /// bv1's telemetry `t` arriving at `at` (10 ms old), taken by the fleet.
+    fn report(f: &mut Fleet, t: &Telemetry, at: Instant) {
+        f.on_message("v2t/pg/bv/bv1/telemetry", &telemetry_frame(t).unwrap(), at, 10).unwrap();
+    }
+
     #[test]
     fn the_fleet_table_says_when_tau_is_out_of_the_vuts_reach() {
         let mut f = Fleet::default();
         let t0 = Instant::now();
-        f.on_message("v2t/pg/bv/bv1/telemetry", &telemetry_frame(&telemetry("bv1", 42)).unwrap(), t0, 10).unwrap();
+        report(&mut f, &telemetry("bv1", 42), t0);
         assert!(!f.table(t0).contains("BELOW"), "{}", f.table(t0));
         let below = Telemetry {
             seq: 2,
@@ -719,14 +724,14 @@ mod tests {
             pet_bound_s: Some(2.04),
             ..telemetry("bv1", 42)
         };
-        f.on_message("v2t/pg/bv/bv1/telemetry", &telemetry_frame(&below).unwrap(), t0, 10).unwrap();
+        report(&mut f, &below, t0);
         assert!(f.table(t0).contains("BELOW: campaign 2.04 s"), "{}", f.table(t0));
         let waits = Telemetry { seq: 3, below_reach: BelowReachCode::VutWaits.code(), ..telemetry("bv1", 42) };
-        f.on_message("v2t/pg/bv/bv1/telemetry", &telemetry_frame(&waits).unwrap(), t0, 10).unwrap();
+        report(&mut f, &waits, t0);
         assert!(f.table(t0).contains("BELOW: VUT waits"), "{}", f.table(t0));
         // An unknown code is shown as such, never as "nothing".
         let odd = Telemetry { seq: 4, below_reach: 77, ..telemetry("bv1", 42) };
-        f.on_message("v2t/pg/bv/bv1/telemetry", &telemetry_frame(&odd).unwrap(), t0, 10).unwrap();
+        report(&mut f, &odd, t0);
         assert!(f.table(t0).contains("BELOW: ?77"), "{}", f.table(t0));
     }
 
@@ -734,11 +739,11 @@ mod tests {
     fn the_fleet_table_says_how_the_vuts_reaction_is_identified() {
         let mut f = Fleet::default();
         let t0 = Instant::now();
-        f.on_message("v2t/pg/bv/bv1/telemetry", &telemetry_frame(&telemetry("bv1", 42)).unwrap(), t0, 10).unwrap();
+        report(&mut f, &telemetry("bv1", 42), t0);
         assert!(!f.table(t0).contains("±"), "{}", f.table(t0));
         let reaction = link::VutReaction { reacts_p: 0.93, gap_s: 2.1, gap_sd_s: 0.4 };
         let t = Telemetry { seq: 2, vut_reaction: Some(reaction), ..telemetry("bv1", 42) };
-        f.on_message("v2t/pg/bv/bv1/telemetry", &telemetry_frame(&t).unwrap(), t0, 10).unwrap();
+        report(&mut f, &t, t0);
         assert!(f.table(t0).contains("p 0.93, 2.1±0.4 s"), "{}", f.table(t0));
     }
 
