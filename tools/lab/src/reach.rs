@@ -371,21 +371,6 @@ mod tests {
         }
     }
 
-    /// The largest lateral acceleration of the BV (trace index 1) in `run`, m/s²: speed times
-    /// yaw rate between trace samples.
-    fn peak_lateral(run: &RunOutcome) -> f64 {
-        run.trace
-            .windows(2)
-            .filter_map(|w| {
-                let (a, b) = (w.first()?, w.get(1)?);
-                let (pa, pb) = (a.agents.get(1)?.state, b.agents.get(1)?.state);
-                let turn = (pb.theta_rad - pa.theta_rad + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
-                    - std::f64::consts::PI;
-                Some((pb.speed_mps * turn / (b.t_s - a.t_s)).abs())
-            })
-            .fold(0.0, f64::max)
-    }
-
     /// Stop, then full throttle into the left turn: the plant would follow it at 6.6 m/s² of
     /// lateral acceleration (the grid's profile that reached 1.58 s against SUMO's IDM). The
     /// grid's BV keeps its limit, and slows for the turn before it, not in it.
@@ -400,7 +385,7 @@ mod tests {
         {
             let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(OpenLoop { profile, keep: None })];
             let run = vut.run(&scenario, &mut bvs, 1).unwrap();
-            let peak = peak_lateral(&run);
+            let peak = crate::stats::peak_lateral_mps2(&run, 1);
             assert!(peak <= 1.05 * limit, "{profile:?}: {peak:.2} m/s² against a limit of {limit} m/s²");
             // Where the path is straight it still drives its profile's first acceleration.
             let first = run.trace.iter().find(|x| x.t_s >= 1.0).unwrap().agents[1].state.speed_mps;

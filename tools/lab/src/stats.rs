@@ -137,6 +137,23 @@ impl Tally {
     }
 }
 
+/// The largest lateral acceleration of trace agent `agent` (0: the VUT, 1: the first BV) in
+/// `run`, m/s²: its speed times its yaw rate between trace samples; 0 without two samples.
+pub fn peak_lateral_mps2(run: &v2t_sim::runner::RunOutcome, agent: usize) -> f64 {
+    run.trace
+        .windows(2)
+        .filter_map(|w| {
+            let (a, b) = (w.first()?, w.get(1)?);
+            let (pa, pb) = (a.agents.get(agent)?.state, b.agents.get(agent)?.state);
+            let dt = b.t_s - a.t_s;
+            let turn = (pb.theta_rad - pa.theta_rad + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                - std::f64::consts::PI;
+            (dt > 0.0).then(|| (pb.speed_mps * turn / dt).abs())
+        })
+        .filter(|x| x.is_finite())
+        .fold(0.0, f64::max)
+}
+
 /// What the repeated runs of one case measured.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RunStats {

@@ -61,6 +61,28 @@ pub struct SteerCase {
     /// until it had left); 0 where the card has no stop line. Such a run is a near miss, not a
     /// yield: the case is not counted as reached by its own runs.
     pub yields_not_kept: usize,
+    /// The first BV's lateral acceleration over the runs (speed times yaw rate, against its
+    /// vehicle's `max_lat_accel_mps2`).
+    pub bv_lateral: BvLateral,
+}
+
+/// The first BV's lateral acceleration over the runs of a case.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct BvLateral {
+    /// Its vehicle's limit, m/s².
+    pub limit_mps2: f64,
+    /// The largest of any run, m/s².
+    pub peak_mps2: f64,
+    /// Runs in which it went over the limit.
+    pub over_limit_runs: usize,
+}
+
+impl BvLateral {
+    /// One run's largest lateral acceleration.
+    fn add(&mut self, peak_mps2: f64) {
+        self.peak_mps2 = self.peak_mps2.max(peak_mps2);
+        self.over_limit_runs += usize::from(peak_mps2 > self.limit_mps2);
+    }
 }
 
 /// How a case's regulator identified the VUT's reaction by the end of its runs
@@ -182,6 +204,8 @@ pub fn steer_case(
     let mut misses = Misses::default();
     let mut identified = IdentifiedRuns::default();
     let mut yields_not_kept = 0;
+    let limit_mps2 = scenario.bvs.first().map_or(f64::INFINITY, |b| b.agent.vehicle.limits.max_lat_accel_mps2);
+    let mut bv_lateral = BvLateral { limit_mps2, ..BvLateral::default() };
     let mut sc = scenario.clone();
     sc.target = target;
     for seed in seeds {
@@ -214,6 +238,7 @@ pub fn steer_case(
             Ok(out) => {
                 tally.add(&out.result);
                 misses.add(&sc, &out, target);
+                bv_lateral.add(crate::stats::peak_lateral_mps2(&out, 1));
                 if YieldRule::kept_in(&sc, 0, &out) == Some(false) {
                     yields_not_kept += 1;
                 }
@@ -239,6 +264,7 @@ pub fn steer_case(
         reachable: None,
         identified,
         yields_not_kept,
+        bv_lateral,
     }
 }
 
@@ -354,6 +380,7 @@ pub fn steer_markdown(r: &SteerReport) -> String {
     }
     let runs: usize = r.cases.iter().map(|c| c.stats.repeats).sum();
     let total = |f: fn(&SteerCase) -> usize| r.cases.iter().map(f).sum::<usize>();
+    let lateral = r.cases.iter().map(|c| c.bv_lateral).max_by(|a, b| a.peak_mps2.total_cmp(&b.peak_mps2));
     out.push_str(&format!(
         "\nmean error {:.1} %, max error {:.1} %; {} runs: {} collisions, {} zone overlaps, {} without a measured PET, {} yields not kept back (the BV past its stop line before the VUT was in its zone, or near the zone while it was)\n",
         100.0 * r.mean_error_rel,
@@ -364,6 +391,14 @@ pub fn steer_markdown(r: &SteerReport) -> String {
         total(|c| c.stats.unmeasured),
         total(|c| c.yields_not_kept)
     ));
+    if let Some(l) = lateral {
+        out.push_str(&format!(
+            "the BV's lateral acceleration: over its limit in {} runs; largest {:.2} m/s² (its limit {:.1} m/s²)\n",
+            total(|c| c.bv_lateral.over_limit_runs),
+            l.peak_mps2,
+            l.limit_mps2
+        ));
+    }
     if let Some((mean, max)) = r.reachable_errors {
         let n = r.cases.iter().filter(|c| c.reachable == Some(true)).count();
         out.push_str(&format!(
