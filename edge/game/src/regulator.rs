@@ -309,6 +309,11 @@ pub const CURVE_LAT_SHARE: f64 = 0.8;
 
 /// Farthest a speed cap is looked for ahead, m.
 const CAP_SCAN_MAX_M: f64 = 400.0;
+/// Share of the BV's largest deceleration its plans brake with for a curve ahead: the speed
+/// caps of a plan are the braking envelope of the path's curve speeds at this deceleration.
+pub const CURVE_BRAKE_SHARE: f64 = 0.35;
+/// Points of the 1 m grid the caps ahead are read on.
+const CAP_GRID: usize = CAP_SCAN_MAX_M as usize + 1;
 
 /// What the regulator decided, and why.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -1062,23 +1067,43 @@ impl Regulator {
             }
         }
         let (dt, a_max) = (self.params.dt_s, self.params.bv.max_accel_mps2);
+        let brake = CURVE_BRAKE_SHARE * self.params.bv.max_decel_mps2;
         let (s0, v0) = (inp.bv.s_m, inp.bv.v_mps.max(0.0));
-        let mut cap = f64::INFINITY;
-        let mut scanned = 0.0;
         let upper = self.leader_upper.v_cap_mut();
-        for (k, (c, u)) in self.leader_equal.v_cap_mut().iter_mut().zip(upper.iter_mut()).enumerate() {
-            if let Some(limit) = speed_limit_at
-                && s0.is_finite()
-            {
-                let t = (k + 1) as f64 * dt;
-                let reach = (v0 * t + 0.5 * a_max * t * t).min(CAP_SCAN_MAX_M);
-                while scanned <= reach {
-                    let v = limit(s0 + scanned);
-                    if v >= 0.0 && v < cap {
-                        cap = v;
-                    }
-                    scanned += 1.0;
-                }
+        let caps = self.leader_equal.v_cap_mut().iter_mut().zip(upper.iter_mut());
+        let Some(limit) = speed_limit_at.filter(|_| s0.is_finite()) else {
+            caps.for_each(|(c, u)| (*c, *u) = (f64::INFINITY, f64::INFINITY));
+            return;
+        };
+        // The limits every metre ahead, as far as the BV can get within the horizon and then brake
+        // from its top speed; the braking envelope of each point (the fastest the BV may be there
+        // and still slow down to every limit after it at `brake`) from the far end back.
+        let horizon_t = self.params.horizon as f64 * dt;
+        let stop_m = self.params.bv.max_speed_mps.powi(2) / (2.0 * brake);
+        let far = (v0 * horizon_t + 0.5 * a_max * horizon_t * horizon_t + stop_m).min(CAP_SCAN_MAX_M);
+        let n = (far.ceil() as usize + 1).min(CAP_GRID);
+        let mut envelope = [f64::INFINITY; CAP_GRID];
+        for (i, e) in envelope.iter_mut().enumerate().take(n) {
+            let v = limit(s0 + i as f64);
+            *e = if v >= 0.0 { v } else { f64::INFINITY };
+        }
+        let mut behind = f64::INFINITY;
+        for i in (0..n).rev() {
+            if let Some(e) = envelope.get_mut(i) {
+                *e = e.min((behind * behind + 2.0 * brake).sqrt());
+                behind = *e;
+            }
+        }
+        // At step k the BV is at most `reach` ahead: no faster than the envelope anywhere up to
+        // there (every limit it may have reached, and a curve beyond still to be braked for).
+        let (mut cap, mut scanned) = (f64::INFINITY, 0usize);
+        for (k, (c, u)) in caps.enumerate() {
+            let t = (k + 1) as f64 * dt;
+            let reach = (v0 * t + 0.5 * a_max * t * t).min(CAP_SCAN_MAX_M);
+            let at = (reach.ceil() as usize).min(n.saturating_sub(1));
+            while scanned <= at {
+                cap = cap.min(envelope.get(scanned).copied().unwrap_or(f64::INFINITY));
+                scanned += 1;
             }
             *c = cap;
             *u = cap;

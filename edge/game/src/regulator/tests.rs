@@ -729,3 +729,32 @@ fn the_plan_keeps_the_priors_acceleration_shape_as_asked_and_lands_where_the_gam
     // Without the realism term there is no prior to take a shape from: the same plan bit for bit.
     assert_eq!(plan(1.0, 0.0), plan(0.0, 0.0));
 }
+
+/// A rushing BV 30 m before a curve it may take at 8.85 m/s, at 14 m/s and in a hurry (τ 5 s):
+/// its plan slows for the curve along the braking envelope of [`CURVE_BRAKE_SHARE`] of its
+/// largest deceleration, so that its actuator, which follows the plan late, is not still too fast
+/// in the curve. Before, the plan held its speed until the curve was within reach of the step and
+/// then braked at up to 4.8 m/s²: the regulated BV of the BV-turning card entered its turn at
+/// 11.6 m/s, 5.5 m/s² of lateral acceleration for a limit of 4.5.
+#[test]
+fn a_plan_slows_for_a_curve_ahead_along_its_braking_envelope() {
+    let mut r = regulator();
+    let mut inp = input(Style::Rush, 5.0);
+    inp.bv.v_mps = 14.0;
+    inp.vut.s_m = -40.0;
+    let (curve_at, curve_mps) = (30.0, 8.85);
+    let limit = |s: f64| if s >= curve_at { curve_mps } else { f64::INFINITY };
+    let d = r.decide_on_path(&inp, &limit);
+    let brake = CURVE_BRAKE_SHARE * r.params().bv.max_decel_mps2;
+    let envelope = |s: f64| (curve_mps * curve_mps + 2.0 * brake * (curve_at - s).max(0.0)).sqrt();
+    let dt = r.params().dt_s;
+    let (mut s, mut v) = (inp.bv.s_m, inp.bv.v_mps);
+    let accels = r.planned_accels(&d).unwrap().to_vec();
+    for (k, a) in accels.iter().enumerate() {
+        let v1 = (v + a * dt).max(0.0);
+        s += 0.5 * (v + v1) * dt;
+        v = v1;
+        assert!(v <= envelope(s) + 0.05, "step {k}: {v:.2} m/s at {s:.1} m, envelope {:.2} m/s", envelope(s));
+    }
+    assert!(s > curve_at, "the plan reaches the curve within the horizon ({s:.1} m)");
+}
