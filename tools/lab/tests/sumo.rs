@@ -46,6 +46,22 @@ fn card(name: &str) -> v2t_sim::scenario::Scenario {
     v2t_sim::files::load_scenario(&root().join(format!("config/scenarios/{name}.toml"))).unwrap()
 }
 
+/// Card `name` changed by `edit`, built as `load_scenario` builds it (the conflict zone is found on
+/// the changed paths).
+fn card_edited(name: &str, edit: impl FnOnce(&mut v2t_sim::config::ScenarioCard)) -> v2t_sim::scenario::Scenario {
+    let path = root().join(format!("config/scenarios/{name}.toml"));
+    let mut c: v2t_sim::config::ScenarioCard = v2t_files::load_toml(&path).unwrap();
+    edit(&mut c);
+    let near = |written: &str| v2t_files::relative_to(&path, written);
+    v2t_sim::scenario::Scenario::from_card(
+        &c,
+        v2t_files::load_toml(&near(&c.sim)).unwrap(),
+        v2t_files::load_toml(&near(&c.vut.vehicle)).unwrap(),
+        vec![v2t_files::load_toml(&near(&c.bvs[0].vehicle)).unwrap()],
+    )
+    .unwrap()
+}
+
 /// The PET of one run (seed 1) of `sc` at `target` against `vut`, which must be safe (no collision,
 /// no zone overlap, a PET) and in the asked order.
 fn safe_pet(settings: &RegulatorParams, sc: &v2t_sim::scenario::Scenario, target: Target, vut: &Vut<'_>) -> f64 {
@@ -92,26 +108,17 @@ fn turn_against(
     speed_mps: f64,
     gap_m: f64,
 ) -> (f64, Option<FirstThrough>, Option<Miss>) {
-    // The card with its BV moved and re-timed, built as `load_scenario` builds it (the conflict
-    // zone is found on the new route).
-    let path = root().join("config/scenarios/left_turn_vut.toml");
-    let mut c: v2t_sim::config::ScenarioCard = v2t_files::load_toml(&path).unwrap();
-    let near = |written: &str| v2t_files::relative_to(&path, written);
-    // The BV comes south on x = -1.75 and crosses the VUT's turn at y = -8.49.
-    let crossing_y = -8.49;
-    let start_y = crossing_y + gap_m + speed_mps * 8.8;
-    let bv = &mut c.bvs[0];
-    bv.initial_speed_mps = speed_mps;
-    bv.speed_profile = vec![[0.0, speed_mps]];
-    bv.path.start_y_m = start_y;
-    bv.path.segments = vec![v2t_model::path::SegmentSpec::Line { length_m: start_y + 78.5 }];
-    let sc = v2t_sim::scenario::Scenario::from_card(
-        &c,
-        v2t_files::load_toml(&near(&c.sim)).unwrap(),
-        v2t_files::load_toml(&near(&c.vut.vehicle)).unwrap(),
-        vec![v2t_files::load_toml(&near(&c.bvs[0].vehicle)).unwrap()],
-    )
-    .unwrap();
+    // The card with its BV moved and re-timed.
+    let sc = card_edited("left_turn_vut", |c| {
+        // The BV comes south on x = -1.75 and crosses the VUT's turn at y = -8.49.
+        let crossing_y = -8.49;
+        let start_y = crossing_y + gap_m + speed_mps * 8.8;
+        let bv = &mut c.bvs[0];
+        bv.initial_speed_mps = speed_mps;
+        bv.speed_profile = vec![[0.0, speed_mps]];
+        bv.path.start_y_m = start_y;
+        bv.path.segments = vec![v2t_model::path::SegmentSpec::Line { length_m: start_y + 78.5 }];
+    });
     let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(ReferenceFollower::default())];
     let out = world.run(driver, &sc, &mut bvs, 1).unwrap();
     let r = &out.result;
@@ -191,21 +198,12 @@ fn on_a_free_road_sumos_turning_vut_drives_its_own_turn_and_idm_slows_deep_in_it
 #[test]
 fn sumos_straight_vut_drives_on_past_a_bv_that_turned_across_well_ahead() {
     let Some(world) = world() else { return };
-    // The card with the VUT 16 m nearer the junction, built as `load_scenario` builds it: the BV
-    // (10 m/s from its start, 40 m to the crossing) is out of the zone about 3 s before the VUT
-    // is in it.
-    let path = root().join("config/scenarios/left_turn_basic.toml");
-    let mut c: v2t_sim::config::ScenarioCard = v2t_files::load_toml(&path).unwrap();
-    let near = |written: &str| v2t_files::relative_to(&path, written);
-    c.vut.path.start_y_m += 16.0;
-    c.vut.path.segments = vec![v2t_model::path::SegmentSpec::Line { length_m: 134.0 }];
-    let sc = v2t_sim::scenario::Scenario::from_card(
-        &c,
-        v2t_files::load_toml(&near(&c.sim)).unwrap(),
-        v2t_files::load_toml(&near(&c.vut.vehicle)).unwrap(),
-        vec![v2t_files::load_toml(&near(&c.bvs[0].vehicle)).unwrap()],
-    )
-    .unwrap();
+    // The card with the VUT 16 m nearer the junction: the BV (10 m/s from its start, 40 m to the
+    // crossing) is out of the zone about 3 s before the VUT is in it.
+    let sc = card_edited("left_turn_basic", |c| {
+        c.vut.path.start_y_m += 16.0;
+        c.vut.path.segments = vec![v2t_model::path::SegmentSpec::Line { length_m: 134.0 }];
+    });
     for name in ["krauss", "idm", "eidm", "impatient"] {
         let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(ReferenceFollower::default())];
         let out = world.run(&driver(name), &sc, &mut bvs, 1).unwrap();
