@@ -521,4 +521,30 @@ mod tests {
         merge.add(&ReactionPosterior { informative_cycles: 0, ..posterior(0.2) }.identified().unwrap());
         assert_eq!(merge.line(), "1 run(s) saw no conflict to learn from");
     }
+
+    /// A BV driven through the BV-turning card's left turn by its reference at a steady speed:
+    /// the measured lateral acceleration is v²/R in the arc (R 21.75 m) and nothing on the
+    /// straight, and the case counts the runs over the limit.
+    #[test]
+    fn the_bvs_lateral_acceleration_is_its_speed_squared_over_the_radius_and_runs_over_the_limit_count() {
+        use v2t_sim::bv::ReferenceFollower;
+        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../../config/scenarios/left_turn_basic.toml");
+        let mut sc = v2t_sim::files::load_scenario(std::path::Path::new(root)).unwrap();
+        let peak = |sc: &Scenario| {
+            let mut bvs: Vec<Box<dyn BvController>> = vec![Box::new(ReferenceFollower::default())];
+            let run = Vut::Builtin(v2t_sim::vut::VutModel::IdmNormal).run(sc, &mut bvs, 1).unwrap();
+            crate::stats::peak_lateral_mps2(&run, 1)
+        };
+        for v in [6.0, 8.0] {
+            sc.bvs[0].agent.initial_speed_mps = v;
+            sc.bvs[0].reference = v2t_sim::scenario::SpeedProfile::new(vec![[0.0, v]]);
+            let got = peak(&sc);
+            assert!((got - v * v / 21.75).abs() < 0.25 * v * v / 21.75, "{v} m/s: {got:.2} m/s²");
+        }
+        let mut lateral = BvLateral { limit_mps2: 2.5, ..BvLateral::default() };
+        for p in [1.7, 2.9, 2.4, 3.1] {
+            lateral.add(p);
+        }
+        assert_eq!((lateral.over_limit_runs, lateral.peak_mps2), (2, 3.1));
+    }
 }
