@@ -1076,8 +1076,8 @@ impl Regulator {
             return;
         };
         // The limits every metre ahead, as far as the BV can get within the horizon and then brake
-        // from its top speed; the braking envelope of each point (the fastest the BV may be there
-        // and still slow down to every limit after it at `brake`) from the far end back.
+        // from its top speed, and their braking envelope (the fastest the BV may be at each metre
+        // and still slow down to every limit after it at `brake`).
         let horizon_t = self.params.horizon as f64 * dt;
         let stop_m = self.params.bv.max_speed_mps.powi(2) / (2.0 * brake);
         let far = (v0 * horizon_t + 0.5 * a_max * horizon_t * horizon_t + stop_m).min(CAP_SCAN_MAX_M);
@@ -1087,12 +1087,8 @@ impl Regulator {
             let v = limit(s0 + i as f64);
             *e = if v >= 0.0 { v } else { f64::INFINITY };
         }
-        let mut behind = f64::INFINITY;
-        for i in (0..n).rev() {
-            if let Some(e) = envelope.get_mut(i) {
-                *e = e.min((behind * behind + 2.0 * brake).sqrt());
-                behind = *e;
-            }
+        if let Some(ahead) = envelope.get_mut(..n) {
+            v2t_model::driving::braking_envelope(ahead, 1.0, brake);
         }
         // At step k the BV is at most `reach` ahead: no faster than the envelope anywhere up to
         // there (every limit it may have reached, and a curve beyond still to be braked for).

@@ -25,6 +25,6 @@ mod curve;
 mod idm;
 mod pursuit;
 
-pub use curve::{CURVE_HALF_WINDOW_M, CurvePreview, curve_speed, curve_speed_ahead};
+pub use curve::{CURVE_HALF_WINDOW_M, CurvePreview, braking_envelope, curve_speed, curve_speed_ahead};
 pub use idm::{COOLNESS, Idm, MIN_DESIRED_SPEED_MPS, MIN_GAP_M, Obstacle, travel_time};
 pub use pursuit::{MIN_PURSUIT_DISTANCE_M, pure_pursuit};

@@ -71,10 +71,10 @@ pub fn grid() -> Vec<Profile> {
 /// follows any speed on any curve (a kinematic bicycle does not skid): without this cap the grid
 /// counted PETs that only a BV turning at half again its lateral limit reached (the BV-turning
 /// left turn's rush at τ 1.5 s against SUMO's IDM, at 6.6 m/s² where 4.5 are allowed). With
-/// `keep`, it gives way as [`YieldRule`] asks whatever its profile says: it never drives faster than it can stop at
-/// (at [`CAP_DECEL_SHARE`] of its largest deceleration) before its hold station until the VUT is
-/// in its zone, nor before the clearance station until the VUT has left it; then its profile
-/// goes on.
+/// `keep`, it gives way as [`YieldRule`] asks whatever its profile says: it never drives faster
+/// than it can stop at (at [`CAP_DECEL_SHARE`] of its largest deceleration) before its hold
+/// station until the VUT is in its zone, nor before the clearance station until the VUT has left
+/// it; then its profile goes on.
 #[derive(Debug, Clone, Copy)]
 pub struct OpenLoop {
     /// The profile.

@@ -146,8 +146,7 @@ pub fn peak_lateral_mps2(run: &v2t_sim::runner::RunOutcome, agent: usize) -> f64
             let (a, b) = (w.first()?, w.get(1)?);
             let (pa, pb) = (a.agents.get(agent)?.state, b.agents.get(agent)?.state);
             let dt = b.t_s - a.t_s;
-            let turn = (pb.theta_rad - pa.theta_rad + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
-                - std::f64::consts::PI;
+            let turn = v2t_model::geometry::wrap_angle(pb.theta_rad - pa.theta_rad);
             (dt > 0.0).then(|| (pb.speed_mps * turn / dt).abs())
         })
         .filter(|x| x.is_finite())

@@ -14,7 +14,8 @@
 //! trajectory, a map's polyline) has its pointwise curvature concentrated at its vertices, where it
 //! spikes with the spacing and the noise of the points, while the heading change over a window
 //! about a wheelbase long is what a vehicle following the path actually turns through. Looking
-//! ahead is the preview's business ([`curve_speed_ahead`], or the regulator's own scan), not the
+//! ahead is the preview's business ([`curve_speed_ahead`] from one point, [`braking_envelope`] for
+//! every point of a sampled stretch at once, which the regulator's plans are capped by), not the
 //! curvature's. The share of the lateral-acceleration limit a caller allows itself (the regulator
 //! keeps 20 % for its tracker) is the caller's `lat_accel_mps2`.
 
@@ -67,6 +68,20 @@ impl CurvePreview {
     /// read at most 80 m ahead, less than a fast driver with a gentle `b` needs to brake for a
     /// curve comfortably; the VUTs read every 5 m.
     pub const DRIVER: Self = Self { half_window_m: CURVE_HALF_WINDOW_M, step_m: 2.0, margin_m: 10.0, max_m: 200.0 };
+}
+
+/// The braking envelope of speed limits sampled every `step_m` along a path, in place: each
+/// `limits[i]` becomes `min over j ≥ i of √(limits[j]² + 2 b (j − i) step)`, the highest speed at
+/// point `i` from which braking at `decel_mps2` meets every limit after it — the formula of
+/// [`curve_speed_ahead`] for every point at once, from the far end back (one pass). An infinite
+/// limit is no limit; the envelope of the last point is its own limit.
+pub fn braking_envelope(limits: &mut [f64], step_m: f64, decel_mps2: f64) {
+    let gain = 2.0 * decel_mps2 * step_m;
+    let mut behind = f64::INFINITY;
+    for e in limits.iter_mut().rev() {
+        *e = e.min((behind * behind + gain).sqrt());
+        behind = *e;
+    }
 }
 
 /// The highest speed at arc length `s_m` of `path` from which braking at `decel_mps2` meets the
@@ -147,6 +162,29 @@ mod tests {
     }
 
     proptest! {
+        /// The envelope is the formula, point by point: never above a limit, and braking at the
+        /// deceleration from it meets every later limit, one of them exactly.
+        #[test]
+        fn the_braking_envelope_is_the_lowest_speed_that_brakes_for_every_limit_ahead(
+            limits in proptest::collection::vec(prop_oneof![1.0f64..30.0, Just(f64::INFINITY)], 1..60),
+            step in 0.5f64..3.0, decel in 0.5f64..6.0,
+        ) {
+            let mut env = limits.clone();
+            braking_envelope(&mut env, step, decel);
+            for (i, e) in env.iter().enumerate() {
+                let direct = limits[i..]
+                    .iter()
+                    .enumerate()
+                    .map(|(d, l)| (l * l + 2.0 * decel * d as f64 * step).sqrt())
+                    .fold(f64::INFINITY, f64::min);
+                prop_assert!(*e <= limits[i]);
+                prop_assert!(
+                    (e - direct).abs() <= 1e-9 * direct.max(1.0) || (e.is_infinite() && direct.is_infinite()),
+                    "point {i}: {e} against {direct}"
+                );
+            }
+        }
+
         #[test]
         fn the_curve_speed_falls_as_the_curvature_rises(
             r in 20.0f64..500.0, tighter in 0.5f64..1.0, angle in 0.8f64..2.0, a_lat in 0.5f64..4.0,
