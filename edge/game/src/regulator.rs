@@ -146,6 +146,13 @@ pub struct RegulatorParams {
     /// the plan's jerk counts, as before this setting existed.
     #[serde(default)]
     pub shape_share: f64,
+    /// Time from an acceleration request until the BV's speed has followed it (transport delay
+    /// and the actuator's lag; the tracker's `accel_latency_s`), s. A BV that speeds up keeps
+    /// gaining speed for about this long after its plan stops asking, so its speed caps for a
+    /// curve ahead are lowered by the speed its last request still adds:
+    /// this times that request, when it accelerates (0.45 when the file does not say).
+    #[serde(default = "default_accel_latency_s")]
+    pub accel_latency_s: f64,
     /// BV limits (from the BV's vehicle file).
     #[serde(skip, default = "default_bv_limits")]
     pub bv: Limits,
@@ -160,6 +167,10 @@ fn default_w_jerk() -> f64 {
 
 fn default_reacting_follower() -> bool {
     true
+}
+
+fn default_accel_latency_s() -> f64 {
+    0.45
 }
 
 fn default_bv_limits() -> Limits {
@@ -194,6 +205,7 @@ impl Default for RegulatorParams {
             w_jerk: default_w_jerk(),
             reacting_follower: default_reacting_follower(),
             shape_share: 0.0,
+            accel_latency_s: default_accel_latency_s(),
             bv: default_bv_limits(),
             vut: default_vut_limits(),
         }
@@ -224,6 +236,7 @@ impl Validate for RegulatorParams {
         in_range("vut_headway_s", self.vut_headway_s, 0.0, 5.0)?;
         in_range("w_jerk", self.w_jerk, 0.01, 1000.0)?;
         in_range("shape_share", self.shape_share, 0.0, 1.0)?;
+        in_range("accel_latency_s", self.accel_latency_s, 0.0, 2.0)?;
         self.bv.validate().map_err(|e| e.within("bv"))?;
         self.vut.validate().map_err(|e| e.within("vut"))
     }
@@ -304,8 +317,11 @@ pub fn junction_entry_of_stop_line(stop_line_s_m: f64, length_m: f64) -> f64 {
 /// Share of the BV's lateral-acceleration limit its plans may use in curves (the rest is the
 /// tracker's margin): the regulator's curve speed is [`v2t_model::driving::curve_speed`] over
 /// ±[`v2t_model::driving::CURVE_HALF_WINDOW_M`] with this share of the limit
-/// ([`crate::regulation::Regulation`] passes it to [`Regulator::decide_on_path`]).
-pub const CURVE_LAT_SHARE: f64 = 0.8;
+/// ([`crate::regulation::Regulation`] passes it to [`Regulator::decide_on_path`]). Chosen on
+/// seeds 1–5 once the caps counted the speed the actuator still adds
+/// ([`RegulatorParams::accel_latency_s`]): 0.8 gave up the PET a BV in a hurry had reached, 0.9
+/// kept the limit with 0.02 m/s² to spare, 0.85 with a quarter of a m/s² (`docs/BENCHMARKS.md`).
+pub const CURVE_LAT_SHARE: f64 = 0.85;
 
 /// Farthest a speed cap is looked for ahead, m.
 const CAP_SCAN_MAX_M: f64 = 400.0;
@@ -1091,7 +1107,10 @@ impl Regulator {
             v2t_model::driving::braking_envelope(ahead, 1.0, brake);
         }
         // At step k the BV is at most `reach` ahead: no faster than the envelope anywhere up to
-        // there (every limit it may have reached, and a curve beyond still to be braked for).
+        // there (every limit it may have reached, and a curve beyond still to be braked for),
+        // less the speed its last request still adds when it is speeding up (the actuator
+        // follows `accel_latency_s` late: a plan that stops accelerating at the cap overshoots it).
+        let gaining = self.params.accel_latency_s * inp.bv_accel_mps2.max(0.0);
         let (mut cap, mut scanned) = (f64::INFINITY, 0usize);
         for (k, (c, u)) in caps.enumerate() {
             let t = (k + 1) as f64 * dt;
@@ -1101,8 +1120,8 @@ impl Regulator {
                 cap = cap.min(envelope.get(scanned).copied().unwrap_or(f64::INFINITY));
                 scanned += 1;
             }
-            *c = cap;
-            *u = cap;
+            *c = (cap - gaining).max(0.0);
+            *u = *c;
         }
     }
 

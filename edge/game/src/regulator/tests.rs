@@ -400,6 +400,8 @@ fn settings_beyond_their_bounds_are_refused_naming_the_field() {
             "[0.5, 12]",
         ),
         (RegulatorParams { w_adv: f64::NAN, ..RegulatorParams::default() }, "w_adv", "NaN"),
+        (RegulatorParams { accel_latency_s: 5.0, ..RegulatorParams::default() }, "accel_latency_s", "[0, 2]"),
+        (RegulatorParams { accel_latency_s: -0.1, ..RegulatorParams::default() }, "accel_latency_s", "[0, 2]"),
     ] {
         let e = params.validate().unwrap_err();
         assert_eq!(e.field, field);
@@ -757,4 +759,42 @@ fn a_plan_slows_for_a_curve_ahead_along_its_braking_envelope() {
         assert!(v <= envelope(s) + 0.05, "step {k}: {v:.2} m/s at {s:.1} m, envelope {:.2} m/s", envelope(s));
     }
     assert!(s > curve_at, "the plan reaches the curve within the horizon ({s:.1} m)");
+}
+
+#[test]
+fn a_bv_still_speeding_up_plans_its_curve_slower_by_the_speed_its_actuator_still_adds() {
+    let (curve_at, curve_mps) = (30.0, 8.85);
+    let limit = |s: f64| if s >= curve_at { curve_mps } else { f64::INFINITY };
+    // The fastest the plan is anywhere in the curve, with the BV's last request `accel`.
+    let in_curve = |accel: f64| {
+        let mut r = regulator();
+        let mut inp = input(Style::Rush, 5.0);
+        inp.bv.v_mps = 14.0;
+        inp.vut.s_m = -40.0;
+        inp.bv_accel_mps2 = accel;
+        let d = r.decide_on_path(&inp, &limit);
+        let dt = r.params().dt_s;
+        let (mut s, mut v, mut fastest) = (inp.bv.s_m, inp.bv.v_mps, 0.0f64);
+        for a in r.planned_accels(&d).unwrap() {
+            let v1 = (v + a * dt).max(0.0);
+            s += 0.5 * (v + v1) * dt;
+            v = v1;
+            if s >= curve_at {
+                fastest = fastest.max(v);
+            }
+        }
+        assert!(s > curve_at, "the plan reaches the curve within the horizon ({s:.1} m)");
+        fastest
+    };
+    // A file written before the setting reads as the tracker's latency.
+    let latency = written_before_the_later_settings().accel_latency_s;
+    assert_eq!(latency, RegulatorParams::default().accel_latency_s);
+    let (holding, braking, speeding_up) = (in_curve(0.0), in_curve(-2.0), in_curve(3.0));
+    assert!(latency > 0.0);
+    // Holding or braking: up to the curve's speed; a request that brakes adds no margin.
+    assert!((holding - curve_mps).abs() < 0.1, "holding speed: {holding:.2} m/s in the curve");
+    assert!((braking - holding).abs() < 0.02, "braking: {braking:.3}, holding: {holding:.3} m/s");
+    // Speeding up at 3 m/s²: the actuator still adds `latency` × 3 m/s, which the plan leaves free.
+    let expected = curve_mps - 3.0 * latency;
+    assert!((speeding_up - expected).abs() < 0.1, "speeding up: {speeding_up:.2} m/s, expected {expected:.2}");
 }
