@@ -73,6 +73,11 @@ pub struct CampaignRun {
     /// Where the VUT went first at a crossing with a stop line: whether the first BV gave way as
     /// the regulator's BV must ([`crate::reach::YieldRule`]); `None` elsewhere.
     pub yield_kept: Option<bool>,
+    /// The first BV's largest lateral acceleration in the run ([`crate::stats::peak_lateral_mps2`]),
+    /// m/s² (`None`: the world could not run it).
+    pub bv_lateral_mps2: Option<f64>,
+    /// That BV's limit (its vehicle file's `max_lat_accel_mps2`), m/s².
+    pub bv_lateral_limit_mps2: f64,
 }
 
 /// What run index `k` gave over the campaigns of one case.
@@ -156,6 +161,9 @@ pub struct VutSummary {
     pub runs: (usize, usize, usize, usize),
     /// Runs whose BV did not give way as the rule asks ([`CampaignRun::yield_kept`]).
     pub yields_not_kept: usize,
+    /// The first BV's lateral acceleration over every run: the runs over its limit and the
+    /// largest (the limit: the lowest of the cases').
+    pub bv_lateral: crate::steer::BvLateral,
 }
 
 /// The whole experiment.
@@ -393,6 +401,7 @@ pub fn run_once(
     let mut sc = scenario.clone();
     sc.target = target;
     let seed = run_seed(campaign, k);
+    let bv_lateral_limit_mps2 = sc.bvs.first().map_or(f64::INFINITY, |b| b.agent.vehicle.limits.max_lat_accel_mps2);
     let Ok(run) = regulated_run(settings, &sc, vut, seed, Some(memory)) else {
         return CampaignRun {
             campaign,
@@ -406,6 +415,8 @@ pub fn run_once(
             below_reach: None,
             failed: true,
             yield_kept: None,
+            bv_lateral_mps2: None,
+            bv_lateral_limit_mps2,
         };
     };
     record_run(memory, &sc, &run);
@@ -423,6 +434,8 @@ pub fn run_once(
         below_reach,
         failed: false,
         yield_kept: crate::reach::YieldRule::kept_in(&sc, 0, &run.outcome),
+        bv_lateral_mps2: Some(crate::stats::peak_lateral_mps2(&run.outcome, 1)),
+        bv_lateral_limit_mps2,
     }
 }
 
@@ -631,9 +644,23 @@ fn summarize(cases: &[CampaignCase], runs: usize) -> Vec<VutSummary> {
                     all_runs.iter().filter(|r| r.pet_s.is_none()).count(),
                 ),
                 yields_not_kept: all_runs.iter().filter(|r| r.yield_kept == Some(false)).count(),
+                bv_lateral: lateral_of(&all_runs),
             }
         })
         .collect()
+}
+
+/// The first BV's lateral acceleration over `runs`, each run against its own BV's limit.
+fn lateral_of(runs: &[&CampaignRun]) -> crate::steer::BvLateral {
+    let limit_mps2 = runs.iter().map(|r| r.bv_lateral_limit_mps2).fold(f64::INFINITY, f64::min);
+    let mut lateral = crate::steer::BvLateral { limit_mps2, ..Default::default() };
+    for r in runs {
+        if let Some(peak) = r.bv_lateral_mps2 {
+            lateral.peak_mps2 = lateral.peak_mps2.max(peak);
+            lateral.over_limit_runs += usize::from(peak > r.bv_lateral_limit_mps2);
+        }
+    }
+    lateral
 }
 
 /// The calibrated runs of `cases` scored one by one, each against its case's τ, pooled.
@@ -666,10 +693,10 @@ pub fn markdown(r: &CampaignReport) -> String {
         r.runs_per_campaign
     );
     out.push_str("Errors \"of the mean\" are those of the mean PET over the campaigns at one run index (overshoot and undershoot of single runs cancel in them); \"single runs\" scores every calibrated run on its own.\n\n");
-    out.push_str("| VUT | reachable cases | run 1 mean / max (of the mean) | calibrated mean / max (of the mean) | calibrated single runs: mean error / within 10 % | reachable within 10 % at every calibrated run | below reach: cases / reported | reachable reported below reach | below reach: calibrated error vs bound | runs | collisions | out of order | no PET | yields not kept |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    out.push_str("| VUT | reachable cases | run 1 mean / max (of the mean) | calibrated mean / max (of the mean) | calibrated single runs: mean error / within 10 % | reachable within 10 % at every calibrated run | below reach: cases / reported | reachable reported below reach | below reach: calibrated error vs bound | runs | collisions | out of order | no PET | yields not kept | BV over its lateral limit: runs (largest, m/s²) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for v in &r.per_vut {
         out.push_str(&format!(
-            "| {} | {} | {} / {} | {} / {} | {} / {:.0} % | {} / {} | {} / {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {} / {} | {} / {} | {} / {:.0} % | {} / {} | {} / {} | {} | {} | {} | {} | {} | {} | {} | {} ({:.2}; its limit {:.1}) |\n",
             v.vut,
             v.reachable_cases,
             pct(v.run1.0),
@@ -688,7 +715,10 @@ pub fn markdown(r: &CampaignReport) -> String {
             v.runs.1,
             v.runs.2,
             v.runs.3,
-            v.yields_not_kept
+            v.yields_not_kept,
+            v.bv_lateral.over_limit_runs,
+            v.bv_lateral.peak_mps2,
+            v.bv_lateral.limit_mps2
         ));
     }
     out.push_str("\n| VUT | scenario | style | τ (s) | τ reachable | run 1 PET (error) | run 2 PET (error) | calibrated mean PET | calibrated mean / max error | mean aim, last run (s) | reported below reach (calibrated runs) |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
@@ -797,6 +827,8 @@ mod tests {
             below_reach: below.then_some(BelowReach { cause: BelowReachCause::Campaign, pet_bound_s: Some(2.5) }),
             failed: false,
             yield_kept: None,
+            bv_lateral_mps2: Some(3.0),
+            bv_lateral_limit_mps2: 4.5,
         }
     }
 
@@ -836,5 +868,20 @@ mod tests {
         };
         assert_eq!(nearest_reached(&reach, Target::new(1.5, Style::Rush).unwrap()), Some(2.05));
         assert_eq!(nearest_reached(&reach, Target::new(1.5, Style::Yield).unwrap()), None);
+    }
+
+    #[test]
+    fn the_bvs_lateral_acceleration_is_counted_over_every_run_against_its_own_limit() {
+        let at = |peak: Option<f64>, limit: f64| CampaignRun {
+            bv_lateral_mps2: peak,
+            bv_lateral_limit_mps2: limit,
+            ..run(3, Some(2.0), false)
+        };
+        let runs = [at(Some(3.0), 4.5), at(Some(4.6), 4.5), at(Some(4.0), 3.5), at(None, 3.0)];
+        let l = lateral_of(&runs.iter().collect::<Vec<_>>());
+        assert_eq!(l.over_limit_runs, 2, "4.6 over 4.5 and 4.0 over 3.5; a run that failed counts nothing");
+        assert_eq!(l.peak_mps2, 4.6);
+        assert_eq!(l.limit_mps2, 3.0, "the lowest limit of the runs");
+        assert_eq!(lateral_of(&[]).over_limit_runs, 0);
     }
 }

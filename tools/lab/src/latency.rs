@@ -83,6 +83,8 @@ pub struct LatencyCase {
     pub fallback_cycle_frac: f64,
     /// Every collision.
     pub collisions: Vec<Collision>,
+    /// The BV's lateral acceleration over the runs: runs over its limit, and the largest.
+    pub bv_lateral: crate::steer::BvLateral,
 }
 
 /// The runs of one case.
@@ -97,6 +99,8 @@ fn run_case(
     let mut tally = Tally::default();
     let (mut min_distance_m, mut fallback_runs, mut cycles, mut fallback_cycles) = (f64::INFINITY, 0, 0, 0);
     let mut collisions = Vec::new();
+    let limit_mps2 = sc.bvs.first().map_or(f64::INFINITY, |b| b.agent.vehicle.limits.max_lat_accel_mps2);
+    let mut bv_lateral = crate::steer::BvLateral { limit_mps2, ..Default::default() };
     for seed in seeds.clone() {
         let (controller, report): (Box<dyn BvController>, _) = match network {
             None => match RegulatedBv::new(params, sc, 0) {
@@ -122,6 +126,7 @@ fn run_case(
             Ok(out) => {
                 tally.add(&out.result);
                 min_distance_m = min_distance_m.min(out.result.min_distance_m);
+                bv_lateral.add(crate::stats::peak_lateral_mps2(&out, 1));
                 let link = report.map(|r| r.get()).unwrap_or_default();
                 cycles += link.cycles;
                 fallback_cycles += link.fallback_cycles;
@@ -145,6 +150,7 @@ fn run_case(
         fallback_runs,
         fallback_cycle_frac: if cycles == 0 { 0.0 } else { fallback_cycles as f64 / cycles as f64 },
         collisions,
+        bv_lateral,
     }
 }
 
@@ -209,6 +215,10 @@ pub struct LatencyRow {
     pub fallback_run_frac: f64,
     /// Share of control cycles on the fallback.
     pub fallback_cycle_frac: f64,
+    /// Runs in which the BV went over its lateral-acceleration limit.
+    pub bv_over_lateral_limit: usize,
+    /// The BV's largest lateral acceleration of any run, m/s².
+    pub bv_lateral_peak_mps2: f64,
 }
 
 /// Per VUT model and network: the onboard row and the cloud's.
@@ -238,6 +248,8 @@ pub fn summarize(cases: &[LatencyCase], networks: &[NetworkSettings]) -> Vec<Lat
                 min_distance_m: group.iter().map(|c| c.min_distance_m).fold(f64::INFINITY, f64::min),
                 fallback_run_frac: group.iter().map(|c| c.fallback_runs).sum::<usize>() as f64 / runs.max(1) as f64,
                 fallback_cycle_frac: cycles_weight / group.len().max(1) as f64,
+                bv_over_lateral_limit: group.iter().map(|c| c.bv_lateral.over_limit_runs).sum(),
+                bv_lateral_peak_mps2: group.iter().map(|c| c.bv_lateral.peak_mps2).fold(0.0, f64::max),
             }
         };
         out.push(row(Deployment::Onboard, "every setting"));
@@ -257,12 +269,12 @@ pub fn markdown(rows: &[LatencyRow], cases: &[LatencyCase], networks: &[NetworkS
         if vut != Some(r.vut.as_str()) {
             vut = Some(&r.vut);
             out.push_str(&format!(
-                "\nVUT model {} (simulated proving ground):\n\n| regulator | network (one way) | cases | mean steering error | max | collisions | order as asked | min distance | runs with a fallback | cycles on the fallback |\n|---|---|---|---|---|---|---|---|---|---|\n",
+                "\nVUT model {} (simulated proving ground):\n\n| regulator | network (one way) | cases | mean steering error | max | collisions | order as asked | min distance | runs with a fallback | cycles on the fallback | BV over its lateral limit: runs (largest) |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
                 r.vut
             ));
         }
         out.push_str(&format!(
-            "| {} | {} | {} | {:.1} % | {:.1} % | {} | {:.0} % | {:.2} m | {:.0} % | {:.1} % |\n",
+            "| {} | {} | {} | {:.1} % | {:.1} % | {} | {:.0} % | {:.2} m | {:.0} % | {:.1} % | {} ({:.2} m/s²) |\n",
             match r.deployment {
                 Deployment::Onboard => "onboard",
                 Deployment::Cloud => "cloud",
@@ -275,7 +287,9 @@ pub fn markdown(rows: &[LatencyRow], cases: &[LatencyCase], networks: &[NetworkS
             100.0 * r.order_ok_frac,
             r.min_distance_m,
             100.0 * r.fallback_run_frac,
-            100.0 * r.fallback_cycle_frac
+            100.0 * r.fallback_cycle_frac,
+            r.bv_over_lateral_limit,
+            r.bv_lateral_peak_mps2
         ));
     }
     out.push_str("\nNetworks:\n\n");
@@ -444,6 +458,11 @@ mod tests {
             fallback_runs: 1,
             fallback_cycle_frac: 0.1,
             collisions: vec![],
+            bv_lateral: crate::steer::BvLateral {
+                limit_mps2: 4.5,
+                peak_mps2: tau_s,
+                over_limit_runs: usize::from(tau_s > 4.5),
+            },
         }
     }
 
@@ -468,6 +487,9 @@ mod tests {
         let md = markdown(&rows, &cases, &nets);
         assert!(md.contains("VUT model a") && md.contains("| cloud | 100 ms, loss 5 % | 1 | 100.0 %"), "{md}");
         assert!(md.contains("Collisions: 0"));
+        // The BV's lateral acceleration per row: the runs over its limit, the largest.
+        assert_eq!((rows[0].bv_over_lateral_limit, rows[0].bv_lateral_peak_mps2), (0, 2.0));
+        assert!(md.contains("| 0 (4.00 m/s²) |"), "{md}");
         let svg = svg(&rows, &nets, &(6..=10));
         assert_eq!(svg.matches("class=\"series\"").count(), 6, "{svg}");
         assert!(svg.contains("seeds 6–10") && svg.contains(">b</text>") && svg.contains(">one-way delay (ms)<"));

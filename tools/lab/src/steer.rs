@@ -79,7 +79,7 @@ pub struct BvLateral {
 
 impl BvLateral {
     /// One run's largest lateral acceleration.
-    fn add(&mut self, peak_mps2: f64) {
+    pub(crate) fn add(&mut self, peak_mps2: f64) {
         self.peak_mps2 = self.peak_mps2.max(peak_mps2);
         self.over_limit_runs += usize::from(peak_mps2 > self.limit_mps2);
     }
