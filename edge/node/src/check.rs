@@ -187,12 +187,15 @@ pub fn run(path: &Path, overrides: Overrides<'_>, machine: &Machine) -> Report {
     };
     let bv = file::<VehicleConfig>(&mut r, path, "vehicle", &edge.vehicle, describe_vehicle);
     file::<VehicleConfig>(&mut r, path, "vut_vehicle", &edge.vut_vehicle, describe_vehicle);
-    file::<v2t_game::regulator::RegulatorParams>(&mut r, path, "regulator", &edge.regulator, |p| {
+    let regulator = file::<v2t_game::regulator::RegulatorParams>(&mut r, path, "regulator", &edge.regulator, |p| {
         format!("horizon {} steps of {} s", p.horizon, p.dt_s)
     });
     let tracker = file::<v2t_track::TrackerConfig>(&mut r, path, "tracker", &edge.tracker, |t| {
         format!("farthest off the path {} m, longest cycle {} s", t.max_cross_track_m, t.max_dt_s)
     });
+    if let (Some(regulator), Some(tracker)) = (&regulator, &tracker) {
+        latencies_agree(&mut r, regulator, tracker);
+    }
     let gate = file::<v2t_can::gate::GateConfig>(&mut r, path, "gate", &edge.gate, |g| {
         format!("command timeout {} s, feedback timeout {} s", g.command_timeout_s, g.feedback_timeout_s)
     });
@@ -310,6 +313,30 @@ fn iceoryx2_settings(r: &mut Report, config: &Path, written: &str) {
 }
 
 /// The gate may only narrow the vehicle's limits (the gateway's envelope is built from both).
+/// Farthest apart the regulator's and the tracker's acceleration latencies may be, s.
+const LATENCY_MISMATCH_S: f64 = 0.05;
+
+/// The regulator's plan counts the speed a BV speeding up still gains (`accel_latency_s`); the
+/// tracker predicts the speed over its own `accel_latency_s`. Both describe one actuator.
+fn latencies_agree(
+    r: &mut Report,
+    regulator: &v2t_game::regulator::RegulatorParams,
+    tracker: &v2t_track::TrackerConfig,
+) {
+    let (plan, track) = (regulator.accel_latency_s, tracker.accel_latency_s);
+    if (plan - track).abs() <= LATENCY_MISMATCH_S {
+        r.ok("regulator/tracker", format!("both count the BV's acceleration latency as {track} s"));
+    } else {
+        r.warn(
+            "regulator/tracker",
+            format!(
+                "the regulator's accel_latency_s is {plan} s, the tracker's {track} s: the plan's curve caps assume \
+                 one actuator and the tracker another; set both to the BV's measured latency"
+            ),
+        );
+    }
+}
+
 fn gate_fits_vehicle(
     r: &mut Report,
     config: &Path,
@@ -694,6 +721,21 @@ mod tests {
         can(&mut r, Path::new("bv1.toml"), &link, true, net);
         assert_eq!(r.findings.len(), 1, "{r}");
         r.findings.remove(0)
+    }
+
+    #[test]
+    fn the_regulator_and_the_tracker_count_one_acceleration_latency() {
+        let (regulator, tracker) =
+            (v2t_game::regulator::RegulatorParams::default(), v2t_track::TrackerConfig::default());
+        let mut r = Report::default();
+        latencies_agree(&mut r, &regulator, &tracker);
+        assert_eq!(r.findings.first().map(|f| f.status), Some(Status::Ok), "{r}");
+        let slow = v2t_track::TrackerConfig { accel_latency_s: 0.8, ..tracker };
+        let mut r = Report::default();
+        latencies_agree(&mut r, &regulator, &slow);
+        let f = r.findings.first().unwrap();
+        assert_eq!(f.status, Status::Warn, "{r}");
+        assert!(f.detail.contains("0.45 s") && f.detail.contains("0.8 s"), "{r}");
     }
 
     #[test]

@@ -116,6 +116,7 @@ fn check_passes_the_shipped_configuration() {
         "ok   iceoryx2:",
         "ok   gate/vehicle:",
         "ok   regulator/vehicles:",
+        "ok   regulator/tracker:",
     ] {
         line(&report, prefix);
     }
