@@ -220,26 +220,32 @@ fn the_experiments_read_whether_the_regulated_bv_kept_the_yield_rule() {
 
 /// A free drive: the VUT drives the test alone, every BV parked where it starts, and what it shows
 /// (how the VUT drives its route up to the BV's zone) is what the regulator of the runs it prepares
-/// knows. This project's IDM keeps its speed through the turn; the runs still land.
+/// knows. What it shows is what the parked BV's regulator measured, as on the track: the traced
+/// route within the noise and age of the VUT's states. This project's IDM keeps its speed through
+/// the turn; the runs still land.
 #[test]
 fn a_free_drive_shows_how_the_vut_drives_its_route_alone() {
     use v2t_lab::campaign::{FreeDrives, free_drive_run, vut_route_speed};
     let sc = load_scenario(&repo_root().join("config/scenarios/left_turn_vut.toml")).unwrap();
     let settings: RegulatorParams = load_toml(&repo_root().join("config/regulator/default.toml")).unwrap();
     let vut = v2t_lab::vut::Vut::Builtin(VutModel::IdmNormal);
-    let out = free_drive_run(&sc, &vut, 7).unwrap();
+    let drive = free_drive_run(&settings, &sc, &vut, 7).unwrap();
+    let out = &drive.outcome;
     let bv_s: Vec<f64> = out.trace.iter().map(|t| t.agents[1].s_m).collect();
     let moved = bv_s.iter().fold(0.0_f64, |m, s| m.max((s - bv_s[0]).abs()));
     assert!(moved < 0.05, "the parked BV moved {moved:.3} m");
     let c = &out.result.conflicts[0];
     assert!(c.vut_passage.is_some() && c.bv_passage.is_none(), "the VUT passed the zone alone: {c:?}");
-    let route = vut_route_speed(&out, 0).expect("a route up to the zone");
+    let route = drive.routes[0].as_ref().expect("a route up to the zone, as the parked BV measured it");
+    let traced = vut_route_speed(out, 0).expect("a traced route");
     let exit = out.layout.zones[0].zone.vut.exit_s_m;
     assert!(route.end_m() + v2t_game::route_speed::ROUTE_STEP_M >= exit, "{} m of {exit:.1} m", route.end_m());
+    let worst = route.speeds_mps.iter().zip(&traced.speeds_mps).map(|(m, t)| (m - t).abs()).fold(0.0, f64::max);
+    assert!(worst < 0.5, "measured and traced speeds differ by up to {worst:.2} m/s");
     let (_, slowest) = route.slowest().unwrap();
     assert!(slowest > 7.5, "idm-normal slowed to {slowest:.2} m/s on its own");
     let four = v2t_model::Target::new(4.0, Style::Rush).unwrap();
-    let drives = FreeDrives::drive(&sc, &vut, 1..=2);
+    let drives = FreeDrives::drive(&settings, &sc, &vut, 1..=2);
     let case = steer_case(&settings, &sc, four, &vut, 1..=2, Some(&drives));
     assert!(case.landed_safely(), "{case:?}");
 }

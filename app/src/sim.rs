@@ -11,6 +11,7 @@ use crate::write_json;
 
 /// `sim`'s arguments.
 #[derive(Debug, clap::Args)]
+#[command(group(clap::ArgGroup::new("regulators").args(["regulated", "free_drive"])))]
 pub struct SimArgs {
     /// Scenario card (TOML), e.g. config/scenarios/left_turn_basic.toml.
     card: PathBuf,
@@ -36,8 +37,8 @@ pub struct SimArgs {
     /// references.
     #[arg(long)]
     regulated: bool,
-    /// With --regulated: the regulator's settings (TOML).
-    #[arg(long, default_value = v2t_files::shipped::REGULATOR, requires = "regulated")]
+    /// With --regulated or --free-drive: the regulator's settings (TOML; in a free drive the parked BVs' regulators measure the VUT's route with them).
+    #[arg(long, default_value = v2t_files::shipped::REGULATOR, requires = "regulators")]
     regulator: PathBuf,
     /// With --regulated: one run of a test campaign. The memory of this VUT (JSON; made when
     /// missing) gives each BV its aim and what earlier runs showed about reach; the run's outcome
@@ -171,7 +172,8 @@ pub fn run(a: SimArgs) -> anyhow::Result<()> {
 }
 
 /// A free drive of the test ([`v2t_lab::campaign::free_drive_run`]): prints how the VUT drove its
-/// route up to each BV's zone and, with `--campaign`, records it in the memory for this test.
+/// route up to each BV's zone, as each parked BV's regulator (`--regulator`) measured it, and, with
+/// `--campaign`, records it in the memory for this test.
 fn free_drive(
     a: &SimArgs,
     scenario: &v2t_sim::scenario::Scenario,
@@ -183,19 +185,20 @@ fn free_drive(
         .as_deref()
         .map(|path| crate::campaign::load_for(path, &vut.name(), vut.world().as_str()))
         .transpose()?;
-    let outcome = campaign::free_drive_run(scenario, vut, a.seed)?;
-    outln!("free drive: every BV parked where it starts, the VUT alone")?;
-    for i in 0..scenario.bvs.len() {
-        match campaign::vut_route_speed(&outcome, i) {
+    let settings: v2t_game::regulator::RegulatorParams = v2t_files::load_toml(&a.regulator)?;
+    let drive = campaign::free_drive_run(&settings, scenario, vut, a.seed)?;
+    outln!("free drive: every BV parked where it starts, the VUT alone; each BV's regulator measures its route")?;
+    for (i, route) in drive.routes.iter().enumerate() {
+        match route {
             Some(route) => {
                 let slowest =
                     route.slowest().map_or_else(String::new, |(at, v)| format!(", slowest {v:.1} m/s at {at:.0} m"));
                 outln!("  BV {i}: the VUT's route learned to {:.0} m{slowest}", route.end_m())?;
                 if let Some(m) = memory.as_mut() {
-                    m.case_mut(&scenario.name, i, scenario.target).learn_free_drive(scenario.target, &route);
+                    m.case_mut(&scenario.name, i, scenario.target).learn_free_drive(scenario.target, route);
                 }
             }
-            None => outln!("  BV {i}: the VUT never passed this BV's zone: nothing learned")?,
+            None => outln!("  BV {i}: the VUT never passed this BV's zone (as the BV measured it): nothing learned")?,
         }
     }
     if let (Some(m), Some(path)) = (memory.as_ref(), &a.campaign) {
@@ -208,7 +211,7 @@ fn free_drive(
             scenario.target.tau_s()
         )?;
     }
-    Ok(outcome)
+    Ok(drive.outcome)
 }
 
 /// One run with regulated BVs, as one run of a campaign when asked.

@@ -319,9 +319,11 @@ pub fn record_run(memory: &mut CampaignMemory, scenario: &Scenario, run: &Regula
     }
 }
 
-/// How the VUT drove its route in `outcome`, up to the exit of its zone with BV `bv_index` (the
-/// follower looks no farther): its speed on the route's grid where it first passed each point,
-/// up to where it first stood ([`RouteSpeed::from_samples`]). `None` without that zone or trace.
+/// How the VUT drove its route in `outcome` as the simulator traced it (the truth, not what a BV
+/// measured: the free drive and the campaigns learn what the BV's regulator measured; this is
+/// for checking that against), up to the exit of its zone with BV `bv_index` (the follower looks
+/// no farther): its speed on the route's grid where it first passed each point, up to where it
+/// first stood ([`RouteSpeed::from_samples`]). `None` without that zone or trace.
 pub fn vut_route_speed(outcome: &RunOutcome, bv_index: usize) -> Option<RouteSpeed> {
     let zone = outcome.layout.zones.iter().find(|z| z.bv_index == bv_index)?;
     let samples = outcome.trace.iter().filter_map(|t| t.agents.first()).map(|a| (a.s_m, a.state.speed_mps));
@@ -348,18 +350,61 @@ impl BvController for Parked {
     }
 }
 
+/// A BV parked as [`Parked`] whose regulator still runs on every observation, as on the track in a
+/// free drive: uploaded the test's prior and never started, the regulator decides (and measures
+/// the VUT) while the gateway does not actuate. What it measured of the VUT's route is its
+/// [`RegulatedBv::lesson_report`].
+struct ParkedRegulated(RegulatedBv);
+
+impl BvController for ParkedRegulated {
+    fn name(&self) -> &str {
+        "parked"
+    }
+
+    fn control(&mut self, obs: &v2t_sim::observation::BvObservation<'_>) -> v2t_sim::plant::ActuationRequest {
+        let _ = self.0.control(obs);
+        Parked.control(obs)
+    }
+}
+
+/// A free drive's run and what each BV measured in it.
+#[derive(Debug)]
+pub struct FreeDrive {
+    /// The run.
+    pub outcome: RunOutcome,
+    /// Per BV, how the VUT drove its route up to that BV's zone as the BV's regulator measured it
+    /// (its run's [`v2t_game::regulation::Lesson`] route: what the onboard node reports after a
+    /// free drive on the track). `None`: the VUT never left that zone, or too little was seen.
+    pub routes: Vec<Option<RouteSpeed>>,
+}
+
 /// A *free drive*: `scenario` run once with every BV parked where it starts (braking at its limit
 /// from a standstill), the VUT driving its route on its own, as a test engineer drives the ADS
-/// through the test alone before the test. What it shows per BV is [`vut_route_speed`] of its run: what the
-/// campaign memory would have learned from a first run, without a first regulated run.
-pub fn free_drive_run(scenario: &Scenario, vut: &Vut<'_>, seed: u64) -> Result<RunOutcome, RunError> {
+/// through the test alone before the test. Each BV's regulator (with `settings`) runs as on the
+/// track, deciding without actuating, and what it measured of the VUT's route is what the free
+/// drive shows ([`FreeDrive::routes`]): what the campaign memory would have learned from a first
+/// run, without a first regulated run.
+pub fn free_drive_run(
+    settings: &RegulatorParams,
+    scenario: &Scenario,
+    vut: &Vut<'_>,
+    seed: u64,
+) -> Result<FreeDrive, RegulatedRunError> {
     let mut sc = scenario.clone();
     for bv in &mut sc.bvs {
         bv.agent.initial_speed_mps = 0.0;
     }
-    let mut bvs: Vec<Box<dyn BvController>> =
-        sc.bvs.iter().map(|_| Box::new(Parked) as Box<dyn BvController>).collect();
-    vut.run(&sc, &mut bvs, seed)
+    let mut lessons = Vec::with_capacity(sc.bvs.len());
+    let mut bvs: Vec<Box<dyn BvController>> = Vec::with_capacity(sc.bvs.len());
+    for i in 0..sc.bvs.len() {
+        let r = RegulatedBv::new(RegulatedBv::params_for(settings, &sc, i), &sc, i)?;
+        lessons.push(r.lesson_report());
+        bvs.push(Box::new(ParkedRegulated(r)));
+    }
+    let outcome = vut.run(&sc, &mut bvs, seed)?;
+    drop(bvs);
+    let routes = lessons.iter().map(|l| l.take().and_then(|lesson| lesson.route)).collect();
+    Ok(FreeDrive { outcome, routes })
 }
 
 /// The free drives ([`free_drive_run`]) of one scenario against one VUT, one per seed of the runs
@@ -372,11 +417,18 @@ pub struct FreeDrives {
 }
 
 impl FreeDrives {
-    /// Drives `scenario` freely once for every seed of `seeds`.
-    pub fn drive(scenario: &Scenario, vut: &Vut<'_>, seeds: std::ops::RangeInclusive<u64>) -> Self {
-        let routes = |out: RunOutcome| (0..scenario.bvs.len()).map(|i| vut_route_speed(&out, i)).collect();
+    /// Drives `scenario` freely once for every seed of `seeds`, the BVs' regulators with `settings`.
+    pub fn drive(
+        settings: &RegulatorParams,
+        scenario: &Scenario,
+        vut: &Vut<'_>,
+        seeds: std::ops::RangeInclusive<u64>,
+    ) -> Self {
         let drives = seeds
-            .map(|seed| (seed, free_drive_run(scenario, vut, seed + FREE_DRIVE_SEED_OFFSET).ok().map(routes)))
+            .map(|seed| {
+                let drive = free_drive_run(settings, scenario, vut, seed + FREE_DRIVE_SEED_OFFSET);
+                (seed, drive.ok().map(|d| d.routes))
+            })
             .collect();
         Self { drives }
     }

@@ -289,7 +289,7 @@ pub fn steerability(
         None => Vec::new(),
     };
     let drives: Vec<FreeDrives> = if free_drive {
-        crate::parallel_map(&pairs, |(sc, v)| FreeDrives::drive(sc, v, seeds.clone()))
+        crate::parallel_map(&pairs, |(sc, v)| FreeDrives::drive(settings, sc, v, seeds.clone()))
     } else {
         Vec::new()
     };

@@ -344,13 +344,15 @@ fn a_free_drive_shows_the_first_run_how_sumos_vut_drives_its_turn() {
     let Some(world) = world() else { return };
     let (settings, sc, target, d) = idm_turning_rush();
     let vut = Vut::Sumo { world: &world, driver: &d };
-    let drives = FreeDrives::drive(&sc, &vut, 1..=1);
+    let drives = FreeDrives::drive(&settings, &sc, &vut, 1..=1);
     let route = drives.routes(1).unwrap()[0].as_ref().expect("the free drive passed the BV's zone");
     let slowest = idm_turn_slowdown(route);
     // The BV parked where it starts is no BV to SUMO's VUT: it turns as on a free road, the BV
-    // parked 200 m away (the known answer above; the record is on a 2 m grid, so within 0.2 m/s).
+    // parked 200 m away (the known answer above, from the simulator's trace). The free drive shows
+    // what the parked BV's regulator measured, on a 2 m grid, from states that are a little old
+    // (a VUT that slows is measured a little fast): within 0.5 m/s, as a campaign's record.
     let (free_road, _, _) = turn_against(&world, &d, 0.0, 200.0);
-    assert!((slowest - free_road).abs() < 0.2, "free drive {slowest:.2} m/s, free road {free_road:.2} m/s");
+    assert!((slowest - free_road).abs() < 0.5, "free drive {slowest:.2} m/s, free road {free_road:.2} m/s");
     let pet = |c: &v2t_lab::steer::SteerCase| {
         assert!(c.stats.collisions == 0 && c.stats.zone_overlaps == 0 && c.stats.order_ok_frac == 1.0, "{c:?}");
         c.stats.pets_s[0]
