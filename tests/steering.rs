@@ -241,7 +241,7 @@ fn a_free_drive_shows_how_the_vut_drives_its_route_alone() {
     let exit = out.layout.zones[0].zone.vut.exit_s_m;
     assert!(route.end_m() + v2t_game::route_speed::ROUTE_STEP_M >= exit, "{} m of {exit:.1} m", route.end_m());
     let worst = route.speeds_mps.iter().zip(&traced.speeds_mps).map(|(m, t)| (m - t).abs()).fold(0.0, f64::max);
-    assert!(worst < 0.5, "measured and traced speeds differ by up to {worst:.2} m/s");
+    assert!(worst < 0.25, "measured and traced speeds differ by up to {worst:.2} m/s");
     let (_, slowest) = route.slowest().unwrap();
     assert!(slowest > 7.5, "idm-normal slowed to {slowest:.2} m/s on its own");
     let four = v2t_model::Target::new(4.0, Style::Rush).unwrap();
@@ -272,7 +272,9 @@ fn a_campaign_learns_what_the_bvs_regulator_measured_of_the_vut() {
         measured.speeds_mps.len(),
         traced.speeds_mps.len()
     );
-    assert!(worst < 0.5, "measured and traced speeds differ by up to {worst:.2} m/s");
+    // Each speed is recorded with the arc length of its own instant (0.15 m/s here); brought to
+    // the decision's time, a VUT that slows was recorded ahead of where it had that speed (0.27).
+    assert!(worst < 0.25, "measured and traced speeds differ by up to {worst:.2} m/s");
     assert!(lesson.reaction.is_some(), "the shipped follower identifies the reaction");
     assert_eq!(run.reactions[0].is_some(), lesson.reaction.is_some());
 }

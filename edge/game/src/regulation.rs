@@ -179,7 +179,7 @@ pub const RUN_SAMPLES: usize = 6000;
 #[derive(Debug, Clone, PartialEq)]
 pub struct Lesson {
     /// How the VUT drove its route up to its zone's exit, as the regulator measured it (every
-    /// decision's VUT arc length and speed, brought to the decision's time;
+    /// decision's VUT arc length and speed, both at the instant they were measured;
     /// [`RouteSpeed::from_samples`]). `None`: too little of it seen.
     pub route: Option<RouteSpeed>,
     /// With the reacting follower: how it identified the VUT's reaction by then.
@@ -195,7 +195,8 @@ pub struct Regulation {
     vut: Tracked,
     last_accel: f64,
     lat_accel_mps2: f64,
-    /// The VUT's arc length and speed at every decision of the run (capacity [`RUN_SAMPLES`]).
+    /// The VUT's arc length and speed as measured at every decision of the run (capacity
+    /// [`RUN_SAMPLES`]).
     vut_samples: Vec<(f64, f64)>,
     /// Whether the run's [`Lesson`] was given.
     lesson_given: bool,
@@ -357,7 +358,9 @@ impl Regulation {
         let decision = self.regulator.decide_on_path(&input, &|s| curve_speed(path, s, CURVE_HALF_WINDOW_M, lat));
         self.last_accel = decision.accel_mps2;
         if self.vut_samples.len() < RUN_SAMPLES {
-            self.vut_samples.push((input.vut.s_m, input.vut.v_mps));
+            // Where the VUT was and how fast, at the one instant it was measured: brought to the
+            // decision's time, a VUT that slows would be recorded ahead of where it had that speed.
+            self.vut_samples.push((vut_s, vut.speed_mps.max(0.0)));
         }
         Some(Step { bv_s_m: Some(bv_s), input: Some(input), decision })
     }

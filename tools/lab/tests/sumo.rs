@@ -349,10 +349,10 @@ fn a_free_drive_shows_the_first_run_how_sumos_vut_drives_its_turn() {
     let slowest = idm_turn_slowdown(route);
     // The BV parked where it starts is no BV to SUMO's VUT: it turns as on a free road, the BV
     // parked 200 m away (the known answer above, from the simulator's trace). The free drive shows
-    // what the parked BV's regulator measured, on a 2 m grid, from states that are a little old
-    // (a VUT that slows is measured a little fast): within 0.5 m/s, as a campaign's record.
+    // what the parked BV's regulator measured, on a 2 m grid, with the VUT's localisation noise
+    // (3.93 m/s against 3.82 here): within 0.25 m/s.
     let (free_road, _, _) = turn_against(&world, &d, 0.0, 200.0);
-    assert!((slowest - free_road).abs() < 0.5, "free drive {slowest:.2} m/s, free road {free_road:.2} m/s");
+    assert!((slowest - free_road).abs() < 0.25, "free drive {slowest:.2} m/s, free road {free_road:.2} m/s");
     let pet = |c: &v2t_lab::steer::SteerCase| {
         assert!(c.stats.collisions == 0 && c.stats.zone_overlaps == 0 && c.stats.order_ok_frac == 1.0, "{c:?}");
         c.stats.pets_s[0]
