@@ -312,7 +312,6 @@ fn iceoryx2_settings(r: &mut Report, config: &Path, written: &str) {
     }
 }
 
-/// The gate may only narrow the vehicle's limits (the gateway's envelope is built from both).
 /// Farthest apart the regulator's and the tracker's acceleration latencies may be, s.
 const LATENCY_MISMATCH_S: f64 = 0.05;
 
@@ -337,6 +336,7 @@ fn latencies_agree(
     }
 }
 
+/// The gate may only narrow the vehicle's limits (the gateway's envelope is built from both).
 fn gate_fits_vehicle(
     r: &mut Report,
     config: &Path,
