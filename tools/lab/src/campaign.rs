@@ -708,8 +708,7 @@ fn lateral_of(runs: &[&CampaignRun]) -> crate::steer::BvLateral {
     let mut lateral = crate::steer::BvLateral { limit_mps2, ..Default::default() };
     for r in runs {
         if let Some(peak) = r.bv_lateral_mps2 {
-            lateral.peak_mps2 = lateral.peak_mps2.max(peak);
-            lateral.over_limit_runs += usize::from(peak > r.bv_lateral_limit_mps2);
+            lateral.add_against(peak, r.bv_lateral_limit_mps2);
         }
     }
     lateral

@@ -80,8 +80,13 @@ pub struct BvLateral {
 impl BvLateral {
     /// One run's largest lateral acceleration.
     pub(crate) fn add(&mut self, peak_mps2: f64) {
+        self.add_against(peak_mps2, self.limit_mps2);
+    }
+
+    /// One run's largest lateral acceleration, against that run's BV's own limit.
+    pub(crate) fn add_against(&mut self, peak_mps2: f64, limit_mps2: f64) {
         self.peak_mps2 = self.peak_mps2.max(peak_mps2);
-        self.over_limit_runs += usize::from(peak_mps2 > self.limit_mps2);
+        self.over_limit_runs += usize::from(peak_mps2 > limit_mps2);
     }
 }
 
